@@ -81,6 +81,17 @@ def _hermite_cells(f_left, s_left, f_right, s_right, h):
     return np.stack([c0, c1, c2, c3], axis=-1)
 
 
+def _one_sided(f, slope, grid):
+    """Value and slope at both ends of every cell, taken from inside the cell (a hair in from
+    each node, then extrapolated back to first order): exact across value or slope jumps at
+    nodes (poly2-split at Mach 1, table and spline ends)."""
+    nodes = grid.nodes
+    eps = 1e-9 * grid.dm
+    left, right = nodes[:-1] + eps, nodes[1:] - eps
+    sl, sr = slope(left), slope(right)
+    return f(left) - sl * eps, sl, f(right) + sr * eps, sr
+
+
 class DragModel:
     """Interface of a drag model linear in its parameters.
 
@@ -140,14 +151,7 @@ class DragModel:
 
     def kernel_basis(self, grid: MachGrid):
         """Per-parameter cubic cell tables, shape (K, 4, P); ``table = kernel_basis @ theta``."""
-        nodes = grid.nodes
-        eps = 1e-9 * grid.dm
-        left = nodes[:-1]
-        right = nodes[1:] - eps  # one-sided from inside the cell: exact across jumps at nodes
-        fl, sl = self.basis(left), self.basis_slope(left)
-        fr, sr = self.basis(right), self.basis_slope(right)
-        # undo the eps shift in the right-hand values to first order
-        fr = fr + sr * eps
+        fl, sl, fr, sr = _one_sided(self.basis, self.basis_slope, grid)
         coef = _hermite_cells(fl.T, sl.T, fr.T, sr.T, grid.dm)  # (P, K, 4)
         return np.ascontiguousarray(np.transpose(coef, (1, 2, 0)))
 
@@ -448,11 +452,8 @@ class ReferenceTable(DragModel):
         return v
 
     def kernel_table(self, params=(), grid: MachGrid = None):
-        nodes = grid.nodes
-        eps = 1e-9 * grid.dm
-        left, right = nodes[:-1], nodes[1:] - eps
-        sr = self.slope(right)
-        tab = _hermite_cells(self.value(left), self.slope(left), self.value(right) + sr * eps, sr, grid.dm)
+        fl, sl, fr, sr = _one_sided(self.value, self.slope, grid)
+        tab = _hermite_cells(fl, sl, fr, sr, grid.dm)
         params = np.asarray(params, dtype=float)
         if params.ndim == 2:
             return np.broadcast_to(tab, (params.shape[0],) + tab.shape).copy()

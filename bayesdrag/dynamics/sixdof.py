@@ -93,11 +93,14 @@ Aerodynamic data
   shell, a close relative of the M101 (same ogive-cylinder-boattail family; the M101 and M107
   differ mainly in the rotating band), after the M107 aerodynamic data compiled in McCoy,
   *Modern Exterior Ballistics* (1999), chs. 2 and 10, which come from BRL spark-range and
-  wind-tunnel tests. They are rounded, smoothed values entered from the published curves for
-  use as a *representative* synthetic-truth shell, not a certified transcription; the
-  trajectory (range, drift) depends on them only weakly, while stability checks in the tests
-  are made against linear theory with the same numbers. Replace the table with measured data
-  for a specific projectile where that matters. (The paper's own Table 1 shell is "a direct
+  wind-tunnel tests. CAUTION: the numbers were entered as rounded, smoothed values of the
+  size and Mach trend of those data *without the book at hand* (no machine-readable copy was
+  available when this module was written); they are a *representative* synthetic-truth shell,
+  not a transcription, and individual values may differ from McCoy's by tens of percent. The
+  range depends on them only weakly (0.1-0.3 % vs the point mass), the drift roughly as
+  C_L_alpha / C_M_alpha, and the stability checks in the tests are made against linear theory
+  with the same numbers. Replace the table with measured data for a specific projectile
+  where that matters. (The paper's own Table 1 shell is "a direct
   fire artillery shell", 0.8 m long, 42.6 kg, whose coefficients the paper does not give.)
 
 Numerics
@@ -114,14 +117,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from scipy.integrate import solve_ivp
 
 from ..atmosphere import G0, MAX_ALTITUDE, MIN_ALTITUDE, Atmosphere
-from ..drag import MachGrid, ReferenceTable
+from ..drag import MachGrid, ReferenceTable, load_m101
 
 __all__ = [
     "ShellAero", "Shell", "SixDofResult", "m107_aero", "table1_shell", "simulate_6dof",
@@ -165,7 +168,7 @@ class ShellAero:
         Overturning-moment coefficient slope ``C_M_alpha`` [1/rad] (> 0 for a shell).
     cmq_cmad : tuple of float
         Pitch-damping moment coefficient sum ``C_M_q + C_M_alpha_dot`` (< 0 damps).
-    cnp_alpha : tuple of float
+    cnpa_force : tuple of float
         Magnus-force coefficient ``C_N_p_alpha``.
     cnpa_moment : tuple of float
         Magnus-moment coefficient ``C_n_p_alpha``.
@@ -180,12 +183,12 @@ class ShellAero:
     cl_alpha: tuple
     cm_alpha: tuple
     cmq_cmad: tuple
-    cnp_alpha: tuple
+    cnpa_force: tuple
     cnpa_moment: tuple
     clp: tuple
     source: str = ""
 
-    _FIELDS = ("cd_delta2", "cl_alpha", "cm_alpha", "cmq_cmad", "cnp_alpha", "cnpa_moment", "clp")
+    _FIELDS = ("cd_delta2", "cl_alpha", "cm_alpha", "cmq_cmad", "cnpa_force", "cnpa_moment", "clp")
 
     def __post_init__(self):
         m = np.asarray(self.mach, dtype=float)
@@ -219,8 +222,9 @@ def m107_aero():
 
     Source: rounded, smoothed values after the 155 mm HE M107 data in R. L. McCoy, *Modern
     Exterior Ballistics* (Schiffer, 1999), chs. 2 and 10 (BRL spark-range and wind-tunnel
-    measurements), used here as *representative* values of a 155 mm shell, not as a certified
-    transcription. With the paper's Table 1 shell and a 1-in-20-calibre twist they give
+    measurements), entered without the book at hand: *representative* values of a 155 mm
+    shell, not a transcription (see the module docstring; verify against the book before
+    quoting individual numbers). With the paper's Table 1 shell and a 1-in-20-calibre twist they give
     gyroscopic stability Sg ~ 2-3 at the muzzle and both epicyclic modes damped over
     Mach 0.5-2.5 (see :func:`linear_theory`). The zero-yaw drag is *not* in this table: it comes
     from the M101 curve (BRL MR-1167), see :func:`table1_shell`.
@@ -233,13 +237,13 @@ def m107_aero():
         cm_alpha=(3.70, 3.80, 4.00, 4.20, 4.35, 4.40, 4.30, 4.20, 4.00, 3.60, 3.20, 2.95, 2.80),
         cmq_cmad=(-8.0, -8.0, -8.5, -9.0, -9.5, -10.0, -11.0, -11.5, -11.5, -11.0, -10.0, -9.5,
                   -9.0),
-        cnp_alpha=(-0.30, -0.30, -0.30, -0.28, -0.26, -0.24, -0.22, -0.20, -0.20, -0.18, -0.15,
+        cnpa_force=(-0.30, -0.30, -0.30, -0.28, -0.26, -0.24, -0.22, -0.20, -0.20, -0.18, -0.15,
                    -0.12, -0.10),
         cnpa_moment=(0.30, 0.30, 0.28, 0.26, 0.25, 0.24, 0.22, 0.20, 0.18, 0.15, 0.12, 0.10, 0.08),
         clp=(-0.016, -0.016, -0.015, -0.015, -0.014, -0.014, -0.013, -0.013, -0.013, -0.012,
              -0.011, -0.010, -0.010),
         source="155 mm HE M107, representative values after McCoy, Modern Exterior Ballistics "
-               "(1999), chs. 2 and 10",
+               "(1999), chs. 2 and 10 (not a transcription)",
     )
 
 
@@ -288,23 +292,6 @@ class Shell:
         return math.pi * self.diameter ** 2 / 4.0
 
 
-def _load_m101():
-    """``load_m101()``; falls back to reading the CSV directly if the package's CSV reader
-    (``bayesdrag.track``) is not importable."""
-    from .. import drag
-
-    try:
-        return drag.load_m101()
-    except ImportError:  # pragma: no cover - only while bayesdrag.track is missing
-        from importlib.resources import files
-
-        data = np.loadtxt(files("bayesdrag") / "data" / "cd_m101.csv", delimiter=",",
-                          comments="#", skiprows=0, dtype=str)
-        rows = np.array([r for r in data if r[0].strip() != "mach"], dtype=float)
-        return ReferenceTable(tuple(rows[:, 0]), tuple(rows[:, 1]),
-                              source="M101, BRL MR-1167 (Odom 1958)")
-
-
 def table1_shell():
     """The paper's Table 1 example shell with M101 zero-yaw drag and M107 aerodynamics.
 
@@ -312,7 +299,7 @@ def table1_shell():
     :func:`bayesdrag.drag.load_m101` (BRL MR-1167); other coefficients :func:`m107_aero`.
     """
     return Shell(mass=42.6, diameter=0.155, Ix=0.146, Iy=1.709, aero=m107_aero(),
-                 cd0=_load_m101(), name="paper Table 1 shell (M101 drag, M107 aerodynamics)")
+                 cd0=load_m101(), name="paper Table 1 shell (M101 drag, M107 aerodynamics)")
 
 
 def default_spin_rate(velocity, diameter, twist_calibres=20.0):
@@ -624,7 +611,8 @@ _to_design = _to_internal  # the map is its own inverse
 
 def _launch_state(shell, velocity, elevation_deg, azimuth_deg, spin_rate, initial_yaw_deg,
                   initial_yaw_rate):
-    """Initial state in the internal frame."""
+    """Initial state in the internal frame; ``azimuth_deg`` here is the bore's angle from the x
+    axis toward +y (0 for all public calls)."""
     el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
     # internal frame: azimuth positive toward design +y = internal -y
     e_v = np.array([math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), math.sin(el)])
@@ -694,12 +682,14 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
         Initial angle of the axis above the velocity (in the vertical plane of fire).
     initial_yaw_rate : float, rad/s
         Initial transverse angular velocity, turning the nose to the right (a muzzle
-        disturbance). The resulting yaw amplitude is about ``initial_yaw_rate / omega_fast``
-        (omega_fast ~ Ix p / Iy ~ 140 rad/s for the Table 1 shell at 818 m/s).
+        disturbance). The first yaw maximum is about ``2 initial_yaw_rate / (omega_F -
+        omega_S)`` rad, with the epicyclic frequencies of :func:`linear_theory` (Table 1 shell,
+        818 m/s, sea level: omega_F - omega_S ~ 108 rad/s, so 3 rad/s gives ~3 deg).
     azimuth_deg : float, deg
-        Horizontal angle of the bore from the x axis, positive toward +y (right). Normally 0:
-        x is *defined* along the firing azimuth. (The Earth here is flat and non-rotating, so
-        the absolute azimuth from north has no effect.)
+        Firing azimuth, clockwise from true north (DESIGN.md). It does not change the output:
+        x is *defined* along the firing azimuth, the wind is given in that frame, and the Earth
+        here is flat and non-rotating (no Coriolis). Accepted so that callers can pass the
+        round's launch data unchanged.
     stop_at_impact : bool
         Stop at z = 0 on descent. If False, integrate to ``max(t_out)`` (or ``max_time``).
     rtol, atol : float
@@ -753,7 +743,10 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
     args = (par, np.ascontiguousarray(atm), float(z0), 1.0 / dz, cd_tab, grid.m0, grid.dm,
             aero_tab)
 
-    y0 = _launch_state(shell, float(velocity), elevation_deg, azimuth_deg, float(spin_rate),
+    if not np.isfinite(azimuth_deg):
+        raise ValueError(f"azimuth_deg must be a finite number of degrees, got {azimuth_deg!r}")
+    # the bore points along +x by definition of the frame, whatever the azimuth from north
+    y0 = _launch_state(shell, float(velocity), elevation_deg, 0.0, float(spin_rate),
                        initial_yaw_deg, initial_yaw_rate)
 
     def fun(t, y):
@@ -830,7 +823,8 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
     if sg0 <= 1.0:
         notes.append(f"gyroscopically unstable at launch (Sg = {sg0:.2f} <= 1)")
     if success and not notes:
-        message = ("reached impact" if stop_at_impact else "reached the last output time") \
+        message = ("reached impact" if np.isfinite(impact_time) else
+                   "reached the last output time") \
             + f" after {sol.nfev} evaluations in {runtime:.2f} s"
     else:
         message = "; ".join(notes) if notes else sol.message
