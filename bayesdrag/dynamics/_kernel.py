@@ -79,7 +79,7 @@ def _yaw_factor(p, t):
 CHUNK = 4
 
 
-@njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
 def integrate_batch(y0, t_start, step_h, step_out, out_first, par, cd_tabs, cd_idx, m0, dm,
                     atm_tabs, atm_idx, z0, dz, out, mach_out):
     """Integrate B trajectories with classic RK4 on a shared step schedule.

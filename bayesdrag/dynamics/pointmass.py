@@ -398,7 +398,8 @@ class PointMassModel:
         mach = np.empty((state0.shape[0], t_out.size))
         K.integrate_batch(state0, float(t_start), step_h, step_out, out_first, par, cd_tabs, cd_idx,
                           grid.m0, grid.dm, atm_tabs, atm_idx, z0, dz, out, mach)
-        ok = bool(np.all(np.isfinite(out)))
+        # a NaN or inf propagates to the last sample, so checking that row is enough
+        ok = bool(np.all(np.isfinite(out[:, -1])))
         return Trajectory(t_out, out, mach, ok, "" if ok else "non-finite state: integration failed")
 
 
