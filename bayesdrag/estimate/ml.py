@@ -1,0 +1,387 @@
+"""Maximum-likelihood output-error fit (paper Eq. 19) with Cramér-Rao bounds.
+
+The estimator follows the output-error method of flight-test system identification (NASA
+SIDPAC ``oe.m``; Jategaonkar, *Flight Vehicle System Identification*, ch. 4):
+
+* parameters ``theta`` = drag-model coefficients + initial state ``X0, Y0, Z0, Ux0, Uy0, Uz0``
+  at the first sample time (each free or fixed);
+* outputs = the channels the track has (any subset of x, y, z, v);
+* cost (Eq. 19) ``J = sum_i (z_i - y_i(theta))^T R^-1 (z_i - y_i(theta))`` with ``R`` diagonal
+  (one noise variance per channel), either fixed (the round's ``[radar] sigma``) or estimated
+  by *relaxation*: alternate a Gauss-Newton step in ``theta`` at fixed R with
+  ``R = diag(mean residual^2)`` at fixed theta;
+* optional Gaussian priors enter as pseudo-measurements (extra weighted residuals);
+* Gauss-Newton with Levenberg-Marquardt damping, parameters kept inside their bounds;
+  sensitivities by central differences, all perturbed trajectories in one batched kernel call.
+
+Convergence rules (all must hold, checked after each accepted step):
+``|dJ|/J < 1e-8`` or every ``|d theta_j| < 1e-3 sd_j`` (its Cramér-Rao sd), and, when R is
+estimated, every noise sd changed by < 0.1 % in the last relaxation. Failure modes are reported
+in the result (``success=False`` with a message) and never passed off as an answer: more than
+``max_iter`` iterations, a damping factor beyond 1e10 (no descent direction), a singular or
+non-finite information matrix, an integration that produced non-finite states.
+
+Cramér-Rao bounds: ``cov = M^-1`` with ``M = S^T R^-1 S`` (``S`` = output sensitivities).
+Colored-residual correction (Morelli & Klein, J. Aircraft 34(6), 1997):
+``cov_c = M^-1 [sum_ij S_i^T R^-1 Rvv(i-j) R^-1 S_j] M^-1`` with ``Rvv`` the residual
+autocorrelation per channel, summed to the lag where it first drops below its noise level.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import FitError, InputError
+from ..track import CHANNELS
+
+IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
+_CH_INDEX = {"x": 0, "y": 1, "z": 2}
+
+#: finite-difference steps for the initial state (m, m/s): small against radar noise, large
+#: against the kernel's rounding
+IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
+
+
+@dataclass(frozen=True)
+class Prior:
+    """Gaussian prior on a function of the parameters, ``f(theta) ~ N(mean, sd^2)``.
+
+    ``fn`` maps the full parameter vector (P + 6,) to a float; ``name`` labels it.
+    """
+
+    name: str
+    fn: object
+    mean: float
+    sd: float
+
+
+@dataclass(frozen=True, eq=False)
+class MLResult:
+    """Outcome of an output-error fit.
+
+    Attributes
+    ----------
+    names : tuple of str
+        All parameter names (drag coefficients then initial state).
+    theta : (n,) ndarray
+        Estimates of all parameters (fixed ones at their given values).
+    free : (n,) bool ndarray
+    crb : (n,) ndarray
+        Cramér-Rao sd (0 for fixed parameters).
+    crb_colored : (n,) ndarray
+        Colored-residual-corrected sd (Morelli & Klein).
+    cov, cov_colored : (n, n) ndarray
+        Covariances (zero rows/columns for fixed parameters).
+    sigma : dict channel -> float
+        Noise sd used at the end (estimated or fixed).
+    cost : float
+        Eq. 19 at the estimate (with the final R), plus prior terms.
+    converged : bool
+    success : bool
+    message : str
+    iterations : int
+    warnings : tuple of str
+    residuals : dict channel -> (N,) ndarray
+        Measured minus model.
+    fitted : dict channel -> (N,) ndarray
+    mach : (N,) ndarray
+        Mach number along the fitted trajectory.
+    history : tuple of float
+        Cost after each iteration.
+    """
+
+    names: tuple
+    theta: np.ndarray
+    free: np.ndarray
+    crb: np.ndarray
+    crb_colored: np.ndarray
+    cov: np.ndarray
+    cov_colored: np.ndarray
+    sigma: dict
+    cost: float
+    converged: bool
+    success: bool
+    message: str
+    iterations: int
+    warnings: tuple = ()
+    residuals: dict = field(default_factory=dict)
+    fitted: dict = field(default_factory=dict)
+    mach: np.ndarray = None
+    history: tuple = ()
+    n_drag: int = 0
+
+    @property
+    def params(self):
+        return dict(zip(self.names, map(float, self.theta)))
+
+    @property
+    def drag_params(self):
+        return self.theta[:self.n_drag]
+
+    @property
+    def state0(self):
+        return self.theta[self.n_drag:self.n_drag + 6]
+
+    def correlation(self):
+        sd = np.sqrt(np.clip(np.diag(self.cov), 0, None))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = self.cov / np.outer(sd, sd)
+        return np.where(np.outer(sd, sd) > 0, c, 0.0)
+
+
+def _outputs(traj_state, channels):
+    """Model outputs (B, N, C) for channels from states (B, N, 6)."""
+    cols = []
+    for c in channels:
+        if c == "v":
+            cols.append(np.linalg.norm(traj_state[..., 3:], axis=-1))
+        else:
+            cols.append(traj_state[..., _CH_INDEX[c]])
+    return np.stack(cols, axis=-1)
+
+
+class OutputErrorProblem:
+    """An output-error fit of one track with one point-mass model.
+
+    Parameters
+    ----------
+    model : PointMassModel
+        Its ``drag`` is the model whose coefficients are estimated.
+    track : RadarTrack
+    theta0 : (P + 6,) array
+        Starting values: drag coefficients, then the state at ``track.t[0]``.
+    free : (P + 6,) bool array, optional
+        Which parameters are estimated (default all).
+    sigma : dict channel -> sd, optional
+        Fixed noise sd; channels missing here have their sd estimated by relaxation.
+    priors : sequence of Prior, optional
+    channels : sequence of str, optional
+        Channels to fit (default: all the track has).
+    """
+
+    def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None):
+        self.model = model
+        self.track = track
+        self.channels = tuple(channels) if channels is not None else track.names
+        for c in self.channels:
+            if c not in CHANNELS or track.channels.get(c) is None:
+                raise InputError(f"{track.source}: channel {c!r} is not in the track (has {', '.join(track.names)})")
+        self.P = model.drag.n_params
+        self.names = tuple(model.drag.param_names) + IC_NAMES
+        self.theta0 = np.asarray(theta0, dtype=float).copy()
+        if self.theta0.shape != (self.P + 6,):
+            raise ValueError(f"theta0 must have {self.P + 6} entries, got {self.theta0.shape}")
+        self.free = np.ones(self.P + 6, bool) if free is None else np.asarray(free, bool).copy()
+        self.sigma_fixed = {c: float(s) for c, s in (sigma or {}).items() if c in self.channels}
+        self.priors = tuple(priors)
+        self.z = np.stack([track.channels[c] for c in self.channels], axis=-1)  # (N, C)
+        n_free = int(self.free.sum())
+        if self.z.shape[0] * len(self.channels) <= n_free:
+            raise InputError(f"{track.source}: {self.z.shape[0]} samples x {len(self.channels)} channels "
+                             f"are too few for {n_free} free parameters")
+        for j, c in enumerate(self.channels):
+            if np.ptp(self.z[:, j]) == 0.0 and c != "y":
+                raise InputError(f"{track.source}: channel {c} is constant ({self.z[0, j]}); "
+                                 f"it carries no information — drop the column or fix the track")
+        lb, ub = model.drag.bounds
+        big = np.full(6, np.inf)
+        self.lower = np.concatenate([lb, -big])
+        self.upper = np.concatenate([ub, big])
+        self.steps = np.concatenate([np.maximum(1e-6, 1e-5 * np.abs(self.theta0[:self.P]) + 1e-7),
+                                     IC_STEPS])
+
+    # ----------------------------------------------------------------------------------------
+    def predict(self, thetas):
+        """Model outputs (B, N, C) and Mach (B, N) for parameter sets (B, P + 6)."""
+        thetas = np.atleast_2d(thetas)
+        tr = self.model.simulate_batch(thetas[:, :self.P], thetas[:, self.P:], self.track.t,
+                                       t_start=float(self.track.t[0]))
+        return _outputs(tr.state, self.channels), tr.mach
+
+    def sensitivities(self, theta):
+        """Outputs at theta (N, C) and d outputs / d theta_free (N, C, n_free) by central
+        differences, all trajectories in one batch."""
+        idx = np.flatnonzero(self.free)
+        h = self.steps[idx]
+        batch = np.repeat(theta[None], 1 + 2 * idx.size, axis=0)
+        for k, j in enumerate(idx):
+            batch[1 + 2 * k, j] += h[k]
+            batch[2 + 2 * k, j] -= h[k]
+        y, mach = self.predict(batch)
+        S = (y[1::2] - y[2::2]) / (2 * h[:, None, None])  # (n_free, N, C)
+        return y[0], mach[0], np.moveaxis(S, 0, -1)
+
+    def _prior_terms(self, theta):
+        """Weighted prior residuals (K,) and their Jacobian (K, n_free)."""
+        if not self.priors:
+            return np.zeros(0), np.zeros((0, int(self.free.sum())))
+        idx = np.flatnonzero(self.free)
+        r = np.array([(p.mean - p.fn(theta)) / p.sd for p in self.priors])
+        J = np.zeros((len(self.priors), idx.size))
+        for k, j in enumerate(idx):
+            tp, tm = theta.copy(), theta.copy()
+            tp[j] += self.steps[j]
+            tm[j] -= self.steps[j]
+            J[:, k] = [(p.fn(tp) - p.fn(tm)) / (2 * self.steps[j] * p.sd) for p in self.priors]
+        return r, J
+
+    # ----------------------------------------------------------------------------------------
+    def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3):
+        """Run Gauss-Newton / Levenberg-Marquardt with R relaxation. Returns :class:`MLResult`."""
+        theta = np.clip(self.theta0, self.lower, self.upper)
+        idx = np.flatnonzero(self.free)
+        C = len(self.channels)
+        y, mach, S = self.sensitivities(theta)
+        if not np.all(np.isfinite(y)):
+            raise FitError("the model trajectory at the starting values is not finite: check the "
+                           "drag starting values and the launch conditions")
+        resid = self.z - y
+        sigma = self._update_sigma(resid, None)
+        lam = 1e-3
+        history = []
+        converged = False
+        message = ""
+        it = 0
+        cost = self._cost(resid, sigma, theta)
+        for it in range(1, max_iter + 1):
+            W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2  # (C,)
+            Sw = S * np.sqrt(W)[None, :, None]
+            A = Sw.reshape(-1, idx.size)
+            rw = (resid * np.sqrt(W)).reshape(-1)
+            pr, pJ = self._prior_terms(theta)
+            A = np.vstack([A, pJ]) if pr.size else A
+            rw = np.concatenate([rw, pr]) if pr.size else rw
+            M = A.T @ A
+            g = A.T @ rw
+            if not np.all(np.isfinite(M)):
+                raise FitError("the information matrix is not finite (sensitivities blew up); "
+                               "the trajectory may leave the drag model's Mach span")
+            D = np.diag(np.diag(M)).copy()
+            D[D == 0] = 1.0
+            accepted = False
+            while lam < 1e10:
+                try:
+                    step = np.linalg.solve(M + lam * D, g)
+                except np.linalg.LinAlgError:
+                    lam *= 10
+                    continue
+                trial = theta.copy()
+                trial[idx] = np.clip(theta[idx] + step, self.lower[idx], self.upper[idx])
+                yt, _ = self.predict(trial)
+                if not np.all(np.isfinite(yt)):
+                    lam *= 10
+                    continue
+                rt = self.z - yt[0]
+                ct = self._cost(rt, sigma, trial)
+                if ct <= cost:
+                    accepted = True
+                    break
+                lam *= 10
+            if not accepted:
+                message = "no step reduces the cost (damping above 1e10): the fit is stuck"
+                break
+            lam = max(lam / 10, 1e-9)
+            dtheta = trial[idx] - theta[idx]
+            theta = trial
+            y, mach, S = self.sensitivities(theta)
+            resid = self.z - y
+            new_sigma = self._update_sigma(resid, sigma)
+            dsig = max(abs(new_sigma[c] / sigma[c] - 1) for c in self.channels)
+            sigma = new_sigma
+            new_cost = self._cost(resid, sigma, theta)
+            history.append(new_cost)
+            try:
+                sd = np.sqrt(np.diag(np.linalg.inv(M)))
+            except np.linalg.LinAlgError:
+                sd = np.full(idx.size, np.inf)
+            small_step = np.all(np.abs(dtheta) < tol_step * sd)
+            small_cost = abs(cost - ct) <= tol_cost * max(cost, 1e-300)
+            cost = new_cost
+            if (small_step or small_cost) and dsig < tol_sigma:
+                converged = True
+                message = ("converged: " + ("parameter steps < 1e-3 CRB sd" if small_step else
+                                            "relative cost change < 1e-8") +
+                           (", noise sd change < 0.1 %" if len(self.sigma_fixed) < C else ""))
+                break
+        else:
+            message = f"not converged after {max_iter} iterations"
+        return self._finish(theta, y, mach, S, resid, sigma, cost, converged, message, it, history)
+
+    def _update_sigma(self, resid, old):
+        sig = {}
+        for j, c in enumerate(self.channels):
+            if c in self.sigma_fixed:
+                sig[c] = self.sigma_fixed[c]
+            else:
+                sig[c] = max(float(np.sqrt(np.mean(resid[:, j] ** 2))), 1e-9)
+        return sig
+
+    def _cost(self, resid, sigma, theta):
+        W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2
+        J = float(np.sum(resid**2 * W[None, :]))
+        if self.priors:
+            J += float(sum(((p.mean - p.fn(theta)) / p.sd) ** 2 for p in self.priors))
+        return J
+
+    def _finish(self, theta, y, mach, S, resid, sigma, cost, converged, message, it, history):
+        idx = np.flatnonzero(self.free)
+        n = theta.size
+        W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2
+        A = (S * np.sqrt(W)[None, :, None]).reshape(-1, idx.size)
+        pr, pJ = self._prior_terms(theta)
+        M = A.T @ A + (pJ.T @ pJ if pr.size else 0.0)
+        warnings = []
+        cond = np.linalg.cond(M * np.outer(1 / np.sqrt(np.diag(M)), 1 / np.sqrt(np.diag(M))))
+        if not np.isfinite(cond) or cond > 1e12:
+            warnings.append(f"information matrix is ill-conditioned (condition number of the scaled "
+                            f"matrix {cond:.2g}): some parameters are not identifiable from this track")
+        try:
+            Minv = np.linalg.inv(M)
+        except np.linalg.LinAlgError:
+            Minv = np.full_like(M, np.nan)
+            warnings.append("information matrix is singular: no Cramér-Rao bounds")
+        # colored-residual correction (Morelli & Klein 1997)
+        D = np.zeros_like(M)
+        Sw = S * W[None, :, None]  # R^-1 S, (N, C, nf)
+        N = resid.shape[0]
+        for j in range(len(self.channels)):
+            e = resid[:, j] - resid[:, j].mean()
+            r = np.correlate(e, e, mode="full")[N - 1:] / N
+            limit = 2.0 / np.sqrt(N) * r[0]
+            below = np.flatnonzero(r < limit)
+            kmax = int(below[0]) if below.size else N // 4
+            kmax = min(kmax, N // 4)
+            s = Sw[:, j, :]
+            D += r[0] * s.T @ s
+            for k in range(1, kmax + 1):
+                X = s[:-k].T @ s[k:]
+                D += r[k] * (X + X.T)
+        cov_c = Minv @ (D + (pJ.T @ pJ if pr.size else 0.0)) @ Minv
+        cov = np.zeros((n, n))
+        covc = np.zeros((n, n))
+        cov[np.ix_(idx, idx)] = Minv
+        covc[np.ix_(idx, idx)] = cov_c
+        crb = np.sqrt(np.clip(np.diag(cov), 0, None))
+        crbc = np.sqrt(np.clip(np.diag(covc), 0, None))
+        # identifiability warnings
+        for j in idx:
+            name = self.names[j]
+            span = self.upper[j] - self.lower[j]
+            if np.isfinite(span) and (theta[j] - self.lower[j] < 1e-6 * span or self.upper[j] - theta[j] < 1e-6 * span):
+                warnings.append(f"parameter {name} = {theta[j]:.6g} is at its bound "
+                                f"[{self.lower[j]:.4g}, {self.upper[j]:.4g}]")
+            if j < self.P and crb[j] > abs(theta[j]) and theta[j] != 0:
+                warnings.append(f"parameter {name}: Cramér-Rao sd {crb[j]:.3g} exceeds its value {theta[j]:.3g}")
+        corr = cov / np.where(np.outer(crb, crb) > 0, np.outer(crb, crb), 1.0)
+        iu = np.triu_indices(n, 1)
+        strong = [(self.names[a], self.names[b], corr[a, b]) for a, b in zip(*iu)
+                  if abs(corr[a, b]) > 0.98]
+        for a, b, c in strong[:5]:
+            warnings.append(f"parameters {a} and {b} are strongly correlated (rho = {c:+.3f})")
+        success = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(crb)) and converged)
+        fitted = {c: y[:, j] for j, c in enumerate(self.channels)}
+        resids = {c: resid[:, j] for j, c in enumerate(self.channels)}
+        return MLResult(self.names, theta, self.free.copy(), crb, crbc, cov, covc, sigma, cost,
+                        converged, success, message, it, tuple(warnings), resids, fitted, mach,
+                        tuple(history), self.P)
