@@ -1,5 +1,5 @@
-"""Command line: ``bayesdrag simulate | demo`` (``fit`` and ``diagnose`` arrive with the
-estimation and diagnosis layers).
+"""Command line: ``bayesdrag simulate | fit | demo`` (``fit`` is maximum likelihood, Scheme 1,
+for now; the Bayesian layer, Scheme 2 and ``diagnose`` arrive with their issues).
 
 Exit status (DESIGN.md): 0 success; 2 bad input, with one line on stderr naming the file, row
 or key, what was found and what is allowed (no traceback); 1 internal failure. Outputs are
@@ -76,6 +76,18 @@ def build_parser():
     s.add_argument("--clock-offset", type=float, default=0.0,
                    help="radar clock late by this many seconds (recorded = true - offset)")
 
+    f = sub.add_parser("fit", help="estimate Cd(M) from a track (maximum likelihood, Scheme 1)")
+    f.add_argument("track", help="radar track (CSV)")
+    f.add_argument("round", help="round file (TOML)")
+    f.add_argument("-o", "--output", required=True, help="output folder")
+    f.add_argument("--scheme", type=int, choices=(1,), default=1,
+                   help="1 = Cd model over the whole flight (Scheme 2 is being built)")
+    f.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline",
+                   help="drag model (default spline: the only one that follows a transonic rise)")
+    f.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")
+    f.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (the Bayesian layer is being built)")
+    f.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at the launch values")
+
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
     return p
@@ -116,7 +128,105 @@ def cmd_demo(args):
     return 0
 
 
-COMMANDS = {"simulate": cmd_simulate, "demo": cmd_demo}
+def _write_json(path, obj):
+    import json
+
+    _atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(obj, indent=2, allow_nan=False)))
+
+
+def cmd_fit(args):
+    import numpy as np
+
+    from .estimate.scheme1 import cd_table, determined_range, fit_scheme1
+    from .track import read_round, read_track
+
+    track = read_track(args.track)
+    rnd = read_round(args.round)
+    for note in getattr(track, "notes", ()):
+        print(f"bayesdrag: note: {note}", file=sys.stderr)
+    chans = None
+    if args.channels:
+        chans = tuple(c.strip() for c in args.channels.split(",") if c.strip())
+        bad = [c for c in chans if c not in track.names]
+        if bad or not chans:
+            raise InputError(f"command line: --channels {args.channels!r}: {', '.join(bad) or 'empty'} not in "
+                             f"the track {args.track} (it has {', '.join(track.names)})")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: output path exists and is not a folder")
+    res, prob = fit_scheme1(track, rnd, drag=args.drag, channels=chans, free_ic=not args.fix_ic)
+    if not res.success:
+        from .errors import FitError
+
+        raise FitError(f"{args.track}: {res.message}")
+    out.mkdir(parents=True, exist_ok=True)
+    dm = prob.model.drag
+    lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
+    grid = np.round(np.linspace(lo, hi, 81), 4)
+    rows = cd_table(res, dm, grid, rnd.reference_drag)
+    det = determined_range(rows)
+    free = [n for n, f in zip(res.names, res.free) if f]
+    result = {
+        "scheme": 1, "drag_model": dm.name,
+        "ml": {"params": res.params, "crb": {n: float(s) for n, s, f in zip(res.names, res.crb, res.free) if f},
+               "crb_colored": {n: float(s) for n, s, f in zip(res.names, res.crb_colored, res.free) if f},
+               "fixed": [n for n in res.names if n not in free],
+               "converged": res.converged, "iterations": res.iterations, "cost": res.cost,
+               "message": res.message, "sigma": res.sigma,
+               "rms": {c: float(np.sqrt(np.mean(r**2))) for c, r in res.residuals.items()},
+               "warnings": list(res.warnings),
+               "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None},
+        "cd": rows,
+    }
+    if not args.no_mcmc:
+        print("bayesdrag: note: the Bayesian layer is not built yet; writing the ML result only "
+              "(use --no-mcmc to silence this)", file=sys.stderr)
+    _write_json(out / "result.json", result)
+    _fit_figures(out, res, dm, rows, rnd, track)
+    for w in res.warnings:
+        print(f"bayesdrag: warning: {w}", file=sys.stderr)
+    print(f"fit: {res.message} in {res.iterations} iterations; Cd determined over Mach "
+          f"{det[0]:.2f}-{det[1]:.2f}" if det else f"fit: {res.message}; Cd nowhere determined to 1 %")
+    print(f"  wrote {out / 'result.json'}, cd.png, residuals.png")
+    return 0
+
+
+def _fit_figures(out, res, dm, rows, rnd, track):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    m = np.array([r["mach"] for r in rows])
+    cd = np.array([r["ml"] for r in rows])
+    sd = np.array([r["crb_sd"] for r in rows])
+    fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
+    ax.fill_between(m, cd - 1.645 * sd, cd + 1.645 * sd, alpha=0.3, label="90 % CRB band")
+    ax.plot(m, cd, label=f"ML ({dm.name})")
+    if rnd.reference_drag is not None:
+        ax.plot(m, rnd.reference_drag.value(m), "k--", label="reference (firing table)")
+    ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient, Scheme 1")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    _atomic_write(out / "cd.png", lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+    chans = list(res.residuals)
+    fig, axes = plt.subplots(len(chans), 1, figsize=(8, 2.2 * len(chans)), sharex=True, layout="constrained",
+                             squeeze=False)
+    for ax, c in zip(axes[:, 0], chans):
+        s = res.sigma[c]
+        ax.plot(track.t, res.residuals[c], ".", ms=2)
+        ax.axhspan(-s, s, color="0.85", label="±σ")
+        ax.set_ylabel(f"{c} [{'m/s' if c == 'v' else 'm'}]")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[0, 0].set_title("residuals: measured minus fitted")
+    _atomic_write(out / "residuals.png", lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+
+
+COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo}
 
 
 def main(argv=None):
