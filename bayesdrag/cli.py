@@ -196,32 +196,13 @@ def _fit_figures(out, res, dm, rows, rnd, track):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
-    m = np.array([r["mach"] for r in rows])
-    cd = np.array([r["ml"] for r in rows])
-    sd = np.array([r["crb_sd"] for r in rows])
-    fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
-    ax.fill_between(m, cd - 1.645 * sd, cd + 1.645 * sd, alpha=0.3, label="90 % CRB band")
-    ax.plot(m, cd, label=f"ML ({dm.name})")
-    if rnd.reference_drag is not None:
-        ax.plot(m, rnd.reference_drag.value(m), "k--", label="reference (firing table)")
-    ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient, Scheme 1")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    _atomic_write(out / "cd.png", lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-    chans = list(res.residuals)
-    fig, axes = plt.subplots(len(chans), 1, figsize=(8, 2.2 * len(chans)), sharex=True, layout="constrained",
-                             squeeze=False)
-    for ax, c in zip(axes[:, 0], chans):
-        s = res.sigma[c]
-        ax.plot(track.t, res.residuals[c], ".", ms=2)
-        ax.axhspan(-s, s, color="0.85", label="±σ")
-        ax.set_ylabel(f"{c} [{'m/s' if c == 'v' else 'm'}]")
-        ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("time [s]")
-    axes[0, 0].set_title("residuals: measured minus fitted")
+    from .plots import plot_cd_ml, plot_residuals
+
+    ax = plot_cd_ml(rows, label=f"ML ({dm.name})")
+    _atomic_write(out / "cd.png", lambda tmp: ax.figure.savefig(tmp, dpi=110, format="png"))
+    plt.close(ax.figure)
+    fig = plot_residuals(track.t, res.residuals, res.sigma)
     _atomic_write(out / "residuals.png", lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     plt.close(fig)
 

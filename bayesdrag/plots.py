@@ -108,3 +108,69 @@ def plot_differences(t, diffs, ax=None, title="6-DOF minus point mass"):
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
     return ax
+
+
+def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
+    """Cd(M) from an ML fit with its Cramér-Rao band and the reference curve.
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``result.json`` ``cd`` rows (keys mach, ml, crb_sd, reference).
+    ax : matplotlib Axes, optional
+    band : float
+        Central probability of the Gaussian CRB band.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from scipy.stats import norm
+
+    plt = _plt()
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
+    m = np.array([r["mach"] for r in rows])
+    cd = np.array([r["ml"] for r in rows])
+    sd = np.array([r["crb_sd"] for r in rows])
+    k = norm.ppf(0.5 + band / 2)
+    ax.fill_between(m, cd - k * sd, cd + k * sd, alpha=0.3, label=f"{band:.0%} CRB band")
+    ax.plot(m, cd, label=label)
+    ref = [r.get("reference") for r in rows]
+    if all(v is not None for v in ref):
+        ax.plot(m, ref, "k--", label="reference (firing table)")
+    ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_residuals(t, residuals, sigma, fig=None):
+    """Residuals (measured minus fitted) per channel with ±σ bands.
+
+    Parameters
+    ----------
+    t : (N,) s
+    residuals : dict channel -> (N,)
+    sigma : dict channel -> float
+    fig : matplotlib Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _plt()
+    chans = list(residuals)
+    if fig is None:
+        fig, axes = plt.subplots(len(chans), 1, figsize=(8, 2.2 * len(chans)), sharex=True,
+                                 layout="constrained", squeeze=False)
+    axes = np.array(fig.axes).reshape(-1)
+    for ax, c in zip(axes, chans):
+        s = sigma[c]
+        ax.axhspan(-s, s, color="0.85", label="±σ")
+        ax.plot(t, residuals[c], ".", ms=2)
+        ax.set_ylabel(f"{c} [{'m/s' if c == 'v' else 'm'}]")
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time [s]")
+    axes[0].set_title("residuals: measured minus fitted")
+    return fig

@@ -138,11 +138,13 @@ def test_cli_subprocess_exit_code_and_no_traceback(tmp_path):
 
 def test_demo_runs(tmp_path, capsys):
     assert main(["demo", "-o", str(tmp_path / "demo")]) == 0
-    for f in ("track_vs_pointmass.png", "differences.png", "reference_cd.png"):
+    for f in ("track_vs_pointmass.png", "differences.png", "reference_cd.png", "cd_ml.png", "residuals_ml.png"):
         assert (tmp_path / "demo" / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     import json
     summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
     # the 6-DOF shell drifts right (yaw of repose): tens of metres rms in y, < 5 m in x
     assert summary["rms_track_minus_pointmass"]["y"] > 20
     assert summary["rms_track_minus_pointmass"]["x"] < 5
+    # the ML fit of the 6-DOF track stays within 2 % of the firing table where Cd is determined
+    assert summary["ml_fit"]["max_rel_diff_to_reference_in_determined_range"] < 0.02
     assert str((tmp_path / "demo").resolve()) in capsys.readouterr().out
