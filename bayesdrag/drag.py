@@ -28,6 +28,7 @@ Models
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,13 @@ def _hermite_cells(f_left, s_left, f_right, s_right, h):
     c2 = (3.0 * d - 2.0 * s_left - s_right) / h
     c3 = (s_left + s_right - 2.0 * d) / h**2
     return np.stack([c0, c1, c2, c3], axis=-1)
+
+
+@lru_cache(maxsize=64)
+def _cached_kernel_basis(model, grid):
+    kb = model._kernel_basis_uncached(grid)
+    kb.setflags(write=False)
+    return kb
 
 
 def _one_sided(f, slope, grid):
@@ -150,7 +158,12 @@ class DragModel:
         return self.basis(np.atleast_1d(np.asarray(mach, dtype=float)))
 
     def kernel_basis(self, grid: MachGrid):
-        """Per-parameter cubic cell tables, shape (K, 4, P); ``table = kernel_basis @ theta``."""
+        """Per-parameter cubic cell tables, shape (K, 4, P); ``table = kernel_basis @ theta``.
+
+        Memoised per (model, grid): the estimators call it for every batch."""
+        return _cached_kernel_basis(self, grid)
+
+    def _kernel_basis_uncached(self, grid):
         fl, sl, fr, sr = _one_sided(self.basis, self.basis_slope, grid)
         coef = _hermite_cells(fl.T, sl.T, fr.T, sr.T, grid.dm)  # (P, K, 4)
         return np.ascontiguousarray(np.transpose(coef, (1, 2, 0)))
@@ -452,12 +465,11 @@ class ReferenceTable(DragModel):
         return v
 
     def kernel_table(self, params=(), grid: MachGrid = None):
-        fl, sl, fr, sr = _one_sided(self.value, self.slope, grid)
-        tab = _hermite_cells(fl, sl, fr, sr, grid.dm)
+        tab = _cached_reference_cells(self, grid)
         params = np.asarray(params, dtype=float)
         if params.ndim == 2:
             return np.broadcast_to(tab, (params.shape[0],) + tab.shape).copy()
-        return np.ascontiguousarray(tab)
+        return tab.copy()  # callers may modify; the cached cells stay read-only
 
     @property
     def fit_range(self):
@@ -483,8 +495,8 @@ class ReferenceScale(DragModel):
     def basis_slope(self, mach):
         return self.reference.slope(mach)[..., None]
 
-    def kernel_basis(self, grid):
-        return self.reference.kernel_table((), grid)[..., None]
+    def _kernel_basis_uncached(self, grid):
+        return np.ascontiguousarray(self.reference.kernel_table((), grid)[..., None])
 
     def curve(self, params):
         f, base = float(np.ravel(params)[0]), self.reference.curve()
@@ -500,6 +512,14 @@ class ReferenceScale(DragModel):
     @property
     def fit_range(self):
         return self.reference.mach_range
+
+
+@lru_cache(maxsize=64)
+def _cached_reference_cells(table, grid):
+    fl, sl, fr, sr = _one_sided(table.value, table.slope, grid)
+    tab = _hermite_cells(fl, sl, fr, sr, grid.dm)
+    tab.setflags(write=False)
+    return tab
 
 
 def read_drag_table(path, source=None):
