@@ -18,6 +18,17 @@ def _plt():
     return plt
 
 
+def _axes(ax, figsize):
+    """The given Axes, or one on a new constrained-layout figure of ``figsize``."""
+    if ax is None:
+        _, ax = _plt().subplots(figsize=figsize, layout="constrained")
+    return ax
+
+
+def _unit(channel):
+    return "m/s" if channel == "v" else "m"
+
+
 def plot_track(track, fig=None, label=None, style="-"):
     """Four panels of a radar track: height vs range, drift vs range, speed vs time, and
     height vs time.
@@ -73,9 +84,7 @@ def plot_drag_curve(mach, cd, ax=None, label=None, **kw):
     -------
     matplotlib.axes.Axes
     """
-    plt = _plt()
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 4), layout="constrained")
+    ax = _axes(ax, (6, 4))
     ax.plot(mach, cd, label=label, **kw)
     ax.set(xlabel="Mach number", ylabel="drag coefficient Cd")
     ax.grid(alpha=0.3)
@@ -97,12 +106,9 @@ def plot_differences(t, diffs, ax=None, title="6-DOF minus point mass"):
     -------
     matplotlib.axes.Axes
     """
-    plt = _plt()
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 4), layout="constrained")
+    ax = _axes(ax, (7, 4))
     for name, d in diffs.items():
-        unit = "m/s" if name == "v" else "m"
-        ax.plot(t, d, label=f"{name} [{unit}]")
+        ax.plot(t, d, label=f"{name} [{_unit(name)}]")
     ax.axhline(0, color="k", lw=0.5)
     ax.set(xlabel="time [s]", ylabel="difference", title=title)
     ax.grid(alpha=0.3)
@@ -127,9 +133,7 @@ def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
     """
     from scipy.stats import norm
 
-    plt = _plt()
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
+    ax = _axes(ax, (7, 4.5))
     m = np.array([r["mach"] for r in rows])
     cd = np.array([r["ml"] for r in rows])
     sd = np.array([r["crb_sd"] for r in rows])
@@ -169,7 +173,7 @@ def plot_residuals(t, residuals, sigma, fig=None):
         s = sigma[c]
         ax.axhspan(-s, s, color="0.85", label="±σ")
         ax.plot(t, residuals[c], ".", ms=2)
-        ax.set_ylabel(f"{c} [{'m/s' if c == 'v' else 'm'}]")
+        ax.set_ylabel(f"{c} [{_unit(c)}]")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time [s]")
     axes[0].set_title("residuals: measured minus fitted")
