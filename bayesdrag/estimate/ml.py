@@ -21,6 +21,17 @@ in the result (``success=False`` with a message) and never passed off as an answ
 ``max_iter`` iterations, a damping factor beyond 1e10 (no descent direction), a singular or
 non-finite information matrix, an integration that produced non-finite states.
 
+Extra parameters (the diagnosis' unmodelled effects, :mod:`bayesdrag.effects`) may be appended
+after the initial state: ``theta = [drag (P), state (6), extras (E)]``. Each :class:`ExtraParam`
+has a name, start value, bounds and finite-difference step; an ``effect_fn`` maps the extra
+values of a batch (B, E) to :class:`SimInputs` (kernel override columns, per-trajectory
+atmospheres, a radar clock offset ``dt``: the model is evaluated at ``t + dt``). Without extras
+the layout and behaviour are unchanged.
+
+Optional per-sample weights (N, C) in [0, 1] multiply ``R^-1`` sample by sample: 0 removes a
+sample (a flagged gross outlier) from the cost, the sensitivities, the bounds and the residual
+autocorrelation.
+
 Cramér-Rao bounds: ``cov = M^-1`` with ``M = S^T R^-1 S`` (``S`` = output sensitivities).
 Colored-residual correction (Morelli & Klein, J. Aircraft 34(6), 1997):
 ``cov_c = M^-1 [sum_ij S_i^T R^-1 Rvv(i-j) R^-1 S_j] M^-1`` with ``Rvv`` the residual
@@ -41,6 +52,46 @@ _CH_INDEX = {"x": 0, "y": 1, "z": 2}
 #: finite-difference steps for the initial state (m, m/s): small against radar noise, large
 #: against the kernel's rounding
 IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
+
+
+@dataclass(frozen=True)
+class ExtraParam:
+    """An extra (effect) parameter appended after the initial state.
+
+    Attributes
+    ----------
+    name : str
+    start : float
+        Starting value (usually the "no effect" value).
+    lower, upper : float
+        Bounds the fit keeps the parameter inside.
+    step : float
+        Central finite-difference step for the sensitivities (in the parameter's unit).
+    """
+
+    name: str
+    start: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    step: float = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class SimInputs:
+    """What a batch of extra-parameter values does to the simulation.
+
+    Attributes
+    ----------
+    overrides : dict kernel column -> (B,) array
+        Per-trajectory kernel parameters (``dynamics._kernel.P_*``).
+    atmospheres : list of Atmosphere (length B) or None
+    time_shift : (B,) array or None, s
+        Radar clock offset: the model is evaluated at ``track.t + time_shift``.
+    """
+
+    overrides: dict = field(default_factory=dict)
+    atmospheres: list | None = None
+    time_shift: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -110,6 +161,8 @@ class MLResult:
     mach: np.ndarray = None
     history: tuple = ()
     n_drag: int = 0
+    n_extra: int = 0
+    weights: np.ndarray = None
 
     @property
     def params(self):
@@ -122,6 +175,12 @@ class MLResult:
     @property
     def state0(self):
         return self.theta[self.n_drag:self.n_drag + 6]
+
+    @property
+    def extras(self):
+        """Extra (effect) parameters as a dict name -> value (empty without extras)."""
+        k = self.n_drag + 6
+        return dict(zip(self.names[k:], map(float, self.theta[k:])))
 
     def correlation(self):
         sd = np.sqrt(np.clip(np.diag(self.cov), 0, None))
@@ -158,9 +217,19 @@ class OutputErrorProblem:
     priors : sequence of Prior, optional
     channels : sequence of str, optional
         Channels to fit (default: all the track has).
+    extras : sequence of ExtraParam, optional
+        Effect parameters appended after the initial state (``theta0`` then has P + 6 + E
+        entries; their start values are taken from ``theta0``).
+    effect_fn : callable, optional
+        ``effect_fn(E)`` with ``E`` (B, n_extras) returns :class:`SimInputs`; required with extras.
+    t_ic : float, optional, s
+        Time of the initial state (default ``track.t[0]``; the diagnosis uses 0 = launch).
+    weights : (N, C) array, optional
+        Per-sample weights in [0, 1] on ``R^-1`` (0 drops a sample).
     """
 
-    def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None):
+    def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
+                 extras=(), effect_fn=None, t_ic=None, weights=None):
         self.model = model
         self.track = track
         self.channels = tuple(channels) if channels is not None else track.names
@@ -168,14 +237,27 @@ class OutputErrorProblem:
             if c not in CHANNELS or track.channels.get(c) is None:
                 raise InputError(f"{track.source}: channel {c!r} is not in the track (has {', '.join(track.names)})")
         self.P = model.drag.n_params
-        self.names = tuple(model.drag.param_names) + IC_NAMES
+        self.extras = tuple(extras)
+        self.E = len(self.extras)
+        if self.E and effect_fn is None:
+            raise ValueError("extra parameters need an effect_fn mapping them to the simulation")
+        self.effect_fn = effect_fn
+        self.t_ic = float(track.t[0]) if t_ic is None else float(t_ic)
+        self.names = tuple(model.drag.param_names) + IC_NAMES + tuple(e.name for e in self.extras)
+        n = self.P + 6 + self.E
         self.theta0 = np.asarray(theta0, dtype=float).copy()
-        if self.theta0.shape != (self.P + 6,):
-            raise ValueError(f"theta0 must have {self.P + 6} entries, got {self.theta0.shape}")
-        self.free = np.ones(self.P + 6, bool) if free is None else np.asarray(free, bool).copy()
+        if self.theta0.shape != (n,):
+            raise ValueError(f"theta0 must have {n} entries, got {self.theta0.shape}")
+        self.free = np.ones(n, bool) if free is None else np.asarray(free, bool).copy()
         self.sigma_fixed = {c: float(s) for c, s in (sigma or {}).items() if c in self.channels}
         self.priors = tuple(priors)
         self.z = np.stack([track.channels[c] for c in self.channels], axis=-1)  # (N, C)
+        if weights is None:
+            self.weights = np.ones_like(self.z)
+        else:
+            self.weights = np.asarray(weights, dtype=float)
+            if self.weights.shape != self.z.shape or np.any(self.weights < 0) or np.any(self.weights > 1):
+                raise ValueError(f"weights must be (N, C) = {self.z.shape} in [0, 1]")
         n_free = int(self.free.sum())
         if self.z.shape[0] * len(self.channels) <= n_free:
             raise InputError(f"{track.source}: {self.z.shape[0]} samples x {len(self.channels)} channels "
@@ -186,18 +268,38 @@ class OutputErrorProblem:
                                  f"it carries no information — drop the column or fix the track")
         lb, ub = model.drag.bounds
         big = np.full(6, np.inf)
-        self.lower = np.concatenate([lb, -big])
-        self.upper = np.concatenate([ub, big])
+        self.lower = np.concatenate([lb, -big, [e.lower for e in self.extras]])
+        self.upper = np.concatenate([ub, big, [e.upper for e in self.extras]])
         self.steps = np.concatenate([np.maximum(1e-6, 1e-5 * np.abs(self.theta0[:self.P]) + 1e-7),
-                                     IC_STEPS])
+                                     IC_STEPS, [e.step for e in self.extras]])
 
     # ----------------------------------------------------------------------------------------
     def predict(self, thetas):
         """Model outputs (B, N, C) and Mach (B, N) for parameter sets (B, P + 6)."""
         thetas = np.atleast_2d(thetas)
-        tr = self.model.simulate_batch(thetas[:, :self.P], thetas[:, self.P:], self.track.t,
-                                       t_start=float(self.track.t[0]))
-        return _outputs(tr.state, self.channels), tr.mach
+        P = self.P
+        if not self.E:
+            tr = self.model.simulate_batch(thetas[:, :P], thetas[:, P:P + 6], self.track.t,
+                                           t_start=self.t_ic)
+            return _outputs(tr.state, self.channels), tr.mach
+        B = thetas.shape[0]
+        inp = self.effect_fn(thetas[:, P + 6:])
+        shift = np.zeros(B) if inp.time_shift is None else np.asarray(inp.time_shift, float)
+        y = np.full((B, self.track.n, len(self.channels)), np.nan)
+        mach = np.full((B, self.track.n), np.nan)
+        # one kernel call per distinct clock offset (a finite-difference batch has at most 3)
+        for s in np.unique(shift):
+            g = np.flatnonzero(shift == s)
+            t_out = self.track.t + s
+            if t_out[0] < self.t_ic - 1e-12:
+                continue  # samples before the initial state: left NaN, the fit rejects the step
+            ov = {k: np.asarray(v, float)[g] for k, v in inp.overrides.items()}
+            atm = None if inp.atmospheres is None else [inp.atmospheres[i] for i in g]
+            tr = self.model.simulate_batch(thetas[g, :P], thetas[g, P:P + 6], t_out,
+                                           t_start=self.t_ic, overrides=ov, atmospheres=atm)
+            y[g] = _outputs(tr.state, self.channels)
+            mach[g] = tr.mach
+        return y, mach
 
     def sensitivities(self, theta):
         """Outputs at theta (N, C) and d outputs / d theta_free (N, C, n_free) by central
@@ -246,9 +348,10 @@ class OutputErrorProblem:
         cost = self._cost(resid, sigma, theta)
         for it in range(1, max_iter + 1):
             W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2  # (C,)
-            Sw = S * np.sqrt(W)[None, :, None]
+            sw = np.sqrt(W[None, :] * self.weights)  # (N, C)
+            Sw = S * sw[:, :, None]
             A = Sw.reshape(-1, idx.size)
-            rw = (resid * np.sqrt(W)).reshape(-1)
+            rw = (resid * sw).reshape(-1)
             pr, pJ = self._prior_terms(theta)
             A = np.vstack([A, pJ]) if pr.size else A
             rw = np.concatenate([rw, pr]) if pr.size else rw
@@ -314,12 +417,13 @@ class OutputErrorProblem:
             if c in self.sigma_fixed:
                 sig[c] = self.sigma_fixed[c]
             else:
-                sig[c] = max(float(np.sqrt(np.mean(resid[:, j] ** 2))), 1e-9)
+                w = self.weights[:, j]
+                sig[c] = max(float(np.sqrt(np.sum(w * resid[:, j] ** 2) / max(np.sum(w), 1.0))), 1e-9)
         return sig
 
     def _cost(self, resid, sigma, theta):
         W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2
-        J = float(np.sum(resid**2 * W[None, :]))
+        J = float(np.sum(resid**2 * W[None, :] * self.weights))
         if self.priors:
             J += float(sum(((p.mean - p.fn(theta)) / p.sd) ** 2 for p in self.priors))
         return J
@@ -328,7 +432,7 @@ class OutputErrorProblem:
         idx = np.flatnonzero(self.free)
         n = theta.size
         W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2
-        A = (S * np.sqrt(W)[None, :, None]).reshape(-1, idx.size)
+        A = (S * np.sqrt(W[None, :] * self.weights)[:, :, None]).reshape(-1, idx.size)
         pr, pJ = self._prior_terms(theta)
         M = A.T @ A + (pJ.T @ pJ if pr.size else 0.0)
         warnings = []
@@ -343,10 +447,11 @@ class OutputErrorProblem:
             warnings.append("information matrix is singular: no Cramér-Rao bounds")
         # colored-residual correction (Morelli & Klein 1997)
         D = np.zeros_like(M)
-        Sw = S * W[None, :, None]  # R^-1 S, (N, C, nf)
+        Sw = S * (W[None, :] * self.weights)[:, :, None]  # R^-1 S, (N, C, nf)
         N = resid.shape[0]
         for j in range(len(self.channels)):
-            e = resid[:, j] - resid[:, j].mean()
+            wj = self.weights[:, j] > 0
+            e = np.where(wj, resid[:, j] - resid[wj, j].mean(), 0.0)
             r = np.correlate(e, e, mode="full")[N - 1:] / N
             limit = 2.0 / np.sqrt(N) * r[0]
             below = np.flatnonzero(r < limit)
@@ -384,4 +489,4 @@ class OutputErrorProblem:
         resids = {c: resid[:, j] for j, c in enumerate(self.channels)}
         return MLResult(self.names, theta, self.free.copy(), crb, crbc, cov, covc, sigma, cost,
                         converged, success, message, it, tuple(warnings), resids, fitted, mach,
-                        tuple(history), self.P)
+                        tuple(history), self.P, self.E, self.weights)
