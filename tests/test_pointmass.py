@@ -5,12 +5,14 @@ import pytest
 
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.drag import make_drag_model
-from bayesdrag.dynamics.pointmass import (PointMassModel, coriolis_matrix, initial_state,
-                                          step_schedule)
+from bayesdrag.dynamics import _kernel as K
+from bayesdrag.dynamics.pointmass import (LIFT_REF_FRACTION, PointMassModel, coriolis_matrix,
+                                          initial_state, lift_parameter, step_schedule)
 
 KERNEL_VS_SCIPY_M = 1e-3      # m, issue 3: kernel vs solve_ivp over a full 155 mm trajectory
 PBC_M = 1.0                   # m, issue 3: vs py-ballisticcalc over the whole flight
 MASS, DIAM = 42.6, 0.155      # paper Table 1 shell
+LIFT_VS_6DOF_FACTOR = 2.0     # lift factor 1 vs the 6-DOF's drift: same order (generic L = 0.02 V0)
 
 
 @pytest.fixture(scope="module")
@@ -157,3 +159,67 @@ def test_against_py_ballisticcalc(m101, wind):
     for k, c in (("x", 0), ("y", 1), ("z", 2)):
         assert np.max(np.abs(ours.state[:, c] - ref[k])) < PBC_M, k
     assert np.max(np.abs(ours.speed - ref["v"])) < 0.1
+
+
+# --- lift on the yaw of repose (effect ``lift``) --------------------------------------------
+def test_lift_kernel_matches_scipy(m101):
+    """Lift on, together with wind (the lift follows the airspeed) and Coriolis."""
+    model = PointMassModel(MASS, DIAM, m101, wind=(3.0, -5.0, 0.0), coriolis=(45.0, 30.0),
+                           lift_factor=1.5)
+    tr = model.simulate((), initial_state(818.0, 30.0), backend="scipy", stop_at_impact=True, dt=0.027)
+    tk = model.simulate((), tr.state[0], tr.t)
+    assert np.max(np.abs(tk.state[:, :3] - tr.state[:, :3])) < KERNEL_VS_SCIPY_M
+    # and the lift really acted: without it y differs by far more than the tolerance
+    plain = model.with_(lift_factor=0.0).simulate((), tr.state[0], tr.t)
+    assert np.max(np.abs(plain.state[:, 1] - tk.state[:, 1])) > 10.0
+
+
+def test_lift_drifts_right_growing_and_mirrors(m101):
+    """factor > 0 (right-hand spin), no wind: y > 0 and growing with time of flight; factor < 0
+    mirrors it exactly (the lift is horizontal and does not change x or z)."""
+    s0 = initial_state(818.0, 15.0)
+    t = np.arange(0.0, 32.0, 0.027)
+    right = PointMassModel(MASS, DIAM, m101, lift_factor=1.0).simulate((), s0, t)
+    left = PointMassModel(MASS, DIAM, m101, lift_factor=-1.0).simulate((), s0, t)
+    none = PointMassModel(MASS, DIAM, m101).simulate((), s0, t)
+    y = right.state[:, 1]
+    assert np.all(y[1:] > 0.0)
+    assert np.all(np.diff(y) > 0.0)
+    assert y[-1] > 50.0
+    assert np.allclose(left.state[:, 1], -y, rtol=1e-9, atol=1e-9)
+    assert np.max(np.abs(none.state[:, 1])) == 0.0
+    # the lift keeps x, z to second order in the drift angle (1 - cos ~ (y / x)^2 / 2)
+    assert np.max(np.abs(right.state[:, 2] - none.state[:, 2])) < 0.5
+
+
+def test_lift_matches_6dof_drift_order():
+    """factor 1 with the Table 1 shell at 818 m/s, QE 15 deg: drift of the order of the full
+    6-DOF's (which has Ix, spin, C_La and C_Ma of its own)."""
+    from bayesdrag.dynamics.sixdof import simulate_6dof, table1_shell
+    shell = table1_shell()
+    six = simulate_6dof(shell, 818.0, 15.0)
+    model = PointMassModel(shell.mass, shell.diameter, shell.cd0, lift_factor=1.0)
+    pm = model.simulate((), initial_state(818.0, 15.0), backend="scipy", stop_at_impact=True, dt=0.05)
+    ratio = pm.state[-1, 1] / six.impact_drift
+    assert 1.0 / LIFT_VS_6DOF_FACTOR < ratio < LIFT_VS_6DOF_FACTOR, (
+        f"point-mass lift drift {pm.state[-1, 1]:.1f} m vs 6-DOF {six.impact_drift:.1f} m: ratio {ratio:.3f}")
+
+
+def test_lift_parameter_and_overrides(m101):
+    """L = factor * 0.02 * V0; per-trajectory overrides of P_LIFT equal models with lift_v0."""
+    assert lift_parameter(1.0, 818.0) == pytest.approx(LIFT_REF_FRACTION * 818.0)
+    assert np.allclose(lift_parameter([0.5, -1.0], [800.0, 700.0]), [8.0, -14.0])
+    s0 = np.stack([initial_state(818.0, 15.0)] * 3)
+    t = np.arange(0.0, 10.0, 0.1)
+    factors = np.array([0.0, 0.7, 1.3])
+    base = PointMassModel(MASS, DIAM, m101)
+    batch = base.simulate_batch(np.zeros((3, 0)), s0, t,
+                                overrides={K.P_LIFT: lift_parameter(factors, 818.0)})
+    for i, f in enumerate(factors):
+        single = base.with_(lift_factor=f, lift_v0=818.0).simulate((), s0[i], t)
+        assert np.array_equal(batch.state[i], single.state)
+    # default V0 is the initial state's speed
+    m = base.with_(lift_factor=1.0)
+    assert m.par_row(s0[0])[K.P_LIFT] == pytest.approx(0.02 * 818.0)
+    with pytest.raises(ValueError, match="needs the initial states"):
+        m.kernel_inputs(np.zeros((1, 0)))

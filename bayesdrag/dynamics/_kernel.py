@@ -8,10 +8,16 @@ in parallel threads (``prange``).
 State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in the DESIGN.md
 frame (x downrange, y right, z up). Acceleration (paper Eqs. 20-22 in 3-D, plus effects):
 
-    a = -k_ref * rho_scale * rho(z) * Cd_eff * |v - w| (v - w) + (0, 0, -g) + C_cor @ v
+    a = -k_ref * rho_scale * rho(z) * Cd_eff * |u| u + (0, 0, -g) + C_cor @ v
+        + L g / |u|^2 * (-u_y, u_x, 0)
 
-with ``k_ref = pi d^2 / (8 m)``, ``Cd_eff = cd_scale * Cd(M) * (1 + yaw_amp * exp(-2 decay t))``,
-``M = |v - w| / a(z)``, ``rho_scale`` a density multiplier (effect ``density``) and ``C_cor`` the Coriolis matrix (``-2 Omega x``, in the local frame).
+with ``u = v - w`` the airspeed vector, ``k_ref = pi d^2 / (8 m)``,
+``Cd_eff = cd_scale * Cd(M) * (1 + yaw_amp * exp(-2 decay t))``, ``M = |u| / a(z)``,
+``rho_scale`` a density multiplier (effect ``density``), ``C_cor`` the Coriolis matrix
+(``-2 Omega x``, in the local frame) and ``L`` [m/s] the lift-on-yaw-of-repose constant
+(effect ``lift``, see :func:`bayesdrag.dynamics.pointmass.lift_parameter`): a horizontal
+acceleration of size ``L g cos(theta) / |u|`` to the right of the airspeed (+y for a shell
+flying downrange), i.e. McCoy's modified-point-mass drift of a right-hand spinning shell.
 
 Per-trajectory parameters live in the rows of ``par`` with the column layout ``P_*`` below.
 """
@@ -30,7 +36,8 @@ P_YAW_DECAY = 16  # decay rate of the yaw amplitude [1/s]
 P_RHO_SCALE = 17  # density multiplier [-]
 P_HAS_COR = 18   # 1.0 when the Coriolis matrix is non-zero
 P_T0 = 19        # time since launch at the initial state [s] (yaw decay clock)
-N_PAR = 20
+P_LIFT = 20      # lift constant L = Ix p C_La / (m d C_Ma) [m/s] (> 0: right-hand spin, drift to +y)
+N_PAR = 21
 
 
 @njit(inline="always", fastmath=True)
@@ -45,7 +52,7 @@ def _lookup(z, V, atm, z0, inv_dz, zmax):
 
 
 @njit(inline="always", fastmath=True)
-def _accel(z, vx, vy, vz, fac, wx, wy, wz, kref, g, cor, has_cor, cdt, m0, inv_dm, dm, kmax,
+def _accel(z, vx, vy, vz, fac, wx, wy, wz, kref, g, cor, has_cor, lift, cdt, m0, inv_dm, dm, kmax,
            atm, z0, inv_dz, zmax):
     vax = vx - wx
     vay = vy - wy
@@ -60,6 +67,11 @@ def _accel(z, vx, vy, vz, fac, wx, wy, wz, kref, g, cor, has_cor, cdt, m0, inv_d
     ax = -kd * vax
     ay = -kd * vay
     az = -kd * vaz - g
+    if lift != 0.0:
+        # yaw-of-repose lift: L g / |u|^2 * (-u_y, u_x, 0) (derivation in pointmass.lift_parameter)
+        kl = lift * g / (V * V)
+        ax -= kl * vay
+        ay += kl * vax
     if has_cor:
         ax += cor[0] * vx + cor[1] * vy + cor[2] * vz
         ay += cor[3] * vx + cor[4] * vy + cor[5] * vz
@@ -148,6 +160,7 @@ def integrate_batch(y0, t_start, step_h, step_out, out_first, par, cd_tabs, cd_i
                 g = p[P_G]
                 cor = p[P_COR:P_COR + 9]
                 has_cor = p[P_HAS_COR] != 0.0
+                lift = p[P_LIFT]
                 f1 = _yaw_factor(p, t)
                 f2 = _yaw_factor(p, t + h2)
                 f4 = _yaw_factor(p, t + h)
@@ -157,22 +170,22 @@ def integrate_batch(y0, t_start, step_h, step_out, out_first, par, cd_tabs, cd_i
                 vx = st[i, 3]
                 vy = st[i, 4]
                 vz = st[i, 5]
-                a1x, a1y, a1z = _accel(z, vx, vy, vz, f1, wx, wy, wz, kref, g, cor, has_cor, cdt, m0,
+                a1x, a1y, a1z = _accel(z, vx, vy, vz, f1, wx, wy, wz, kref, g, cor, has_cor, lift, cdt, m0,
                                        inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
                 v2x = vx + h2 * a1x
                 v2y = vy + h2 * a1y
                 v2z = vz + h2 * a1z
-                a2x, a2y, a2z = _accel(z + h2 * vz, v2x, v2y, v2z, f2, wx, wy, wz, kref, g, cor, has_cor,
+                a2x, a2y, a2z = _accel(z + h2 * vz, v2x, v2y, v2z, f2, wx, wy, wz, kref, g, cor, has_cor, lift,
                                        cdt, m0, inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
                 v3x = vx + h2 * a2x
                 v3y = vy + h2 * a2y
                 v3z = vz + h2 * a2z
-                a3x, a3y, a3z = _accel(z + h2 * v2z, v3x, v3y, v3z, f2, wx, wy, wz, kref, g, cor, has_cor,
+                a3x, a3y, a3z = _accel(z + h2 * v2z, v3x, v3y, v3z, f2, wx, wy, wz, kref, g, cor, has_cor, lift,
                                        cdt, m0, inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
                 v4x = vx + h * a3x
                 v4y = vy + h * a3y
                 v4z = vz + h * a3z
-                a4x, a4y, a4z = _accel(z + h * v3z, v4x, v4y, v4z, f4, wx, wy, wz, kref, g, cor, has_cor,
+                a4x, a4y, a4z = _accel(z + h * v3z, v4x, v4y, v4z, f4, wx, wy, wz, kref, g, cor, has_cor, lift,
                                        cdt, m0, inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
                 st[i, 0] = x + h6 * (vx + 2.0 * v2x + 2.0 * v3x + v4x)
                 st[i, 1] = y + h6 * (vy + 2.0 * v2y + 2.0 * v3y + v4y)

@@ -2,8 +2,11 @@
 
 Equations of motion (DESIGN.md frame: x downrange, y right, z up; ground-relative velocity v)::
 
-    dv/dt = -(pi d^2 / 8m) rho(z) Cd(M) |v - w| (v - w)  +  (0, 0, -g)  +  C_cor v
-    M     = |v - w| / a(z)
+    dv/dt = -(pi d^2 / 8m) rho(z) Cd(M) |u| u  +  (0, 0, -g)  +  C_cor v  +  L g / |u|^2 (-u_y, u_x, 0)
+    u     = v - w,   M = |u| / a(z)
+
+The last term is the lift on the yaw of repose (effect ``lift``, modified point mass; see
+:func:`lift_parameter`), zero unless ``lift_factor`` is set.
 
 The paper writes ``V (dx/dt - Wx)`` with V the total velocity; physically (and in every
 point-mass model in use, e.g. STANAG 4355, McCoy ch. 5) the speed in the drag term and in the
@@ -39,6 +42,49 @@ from . import _kernel as K
 
 #: Earth's rotation rate [rad/s] (sidereal)
 OMEGA_EARTH = 7.292115e-5
+
+#: Lift constant L = Ix p C_La / (m d C_Ma) of a typical spin-stabilised shell as a fraction of
+#: its muzzle velocity [-] (effect ``lift`` with ``factor = 1``); see :func:`lift_parameter`.
+LIFT_REF_FRACTION = 0.02
+
+
+def lift_parameter(factor, v0):
+    """Kernel column ``P_LIFT`` (the constant L [m/s]) for the ``lift`` effect.
+
+    Physics (McCoy, *Modern Exterior Ballistics*, 1999, ch. 9 and 11, modified point mass): a
+    spinning shell flies with its yaw of repose
+    ``alpha_R = -(2 Ix p / (rho S d v^4 C_Ma)) (v x dv/dt)`` (right-handed axes), and the lift
+    on it is ``a_L = (rho S v^2 C_La / 2m) alpha_R = -(Ix p C_La / (m d C_Ma)) (v x dv/dt) / v^2``.
+    Drag is along v and drops out of the cross product; with dv/dt replaced by gravity
+    ``(0, 0, -g)`` and v by the airspeed vector u, this becomes, in the DESIGN.md frame
+    (x downrange, y right, z up -- left-handed, so the cross product is taken with y flipped
+    and flipped back)::
+
+        a_L = L g / |u|^2 * (-u_y, u_x, 0),      |a_L| = L g cos(theta) / |u|,
+
+    horizontal and to the right of the airspeed for L > 0 (right-hand spin drifts right).
+    ``L = Ix p C_La / (m d C_Ma)`` needs the axial inertia, spin, lift and overturning slopes,
+    none of which a round file gives, so it is parametrised as
+    ``L = factor * LIFT_REF_FRACTION * v0``: for a spin-stabilised shell Ix ~ 0.1-0.125 m d^2,
+    spin p = 2 pi v0 / (n d) with a twist of n ~ 20-35 calibres and C_La / C_Ma ~ 0.5 give
+    L ~ 0.02 v0 whatever the calibre; ``factor`` absorbs the shell's actual values. Neglected:
+    spin decay along the flight (it decays far slower than the speed, a few %/10 s for a
+    155 mm shell), the Mach dependence of C_La / C_Ma, and the Coriolis and lift parts of dv/dt.
+
+    Parameters
+    ----------
+    factor : float or array_like, shape (B,)
+        Effect parameter [-]; 1 is the typical shell, 0 no lift, < 0 a left-hand spin.
+    v0 : float or array_like, shape (B,)
+        Speed [m/s] that sets the spin: the muzzle velocity (:class:`PointMassModel` uses its
+        ``lift_v0`` or, by default, the speed of each trajectory's initial state).
+
+    Returns
+    -------
+    float or ndarray, shape (B,)
+        L [m/s], for ``simulate_batch(..., overrides={_kernel.P_LIFT: L})``.
+    """
+    return np.asarray(factor, dtype=float) * LIFT_REF_FRACTION * np.asarray(v0, dtype=float)
 
 
 def coriolis_matrix(latitude_deg, azimuth_deg, omega=OMEGA_EARTH):
@@ -178,6 +224,11 @@ class PointMassModel:
     yaw_amp, yaw_decay : float
         Yaw drag: Cd * (1 + yaw_amp * exp(-2 yaw_decay t)); yaw_amp = k delta0^2 [-],
         yaw_decay [1/s].
+    lift_factor : float
+        ``lift`` effect: lift on the yaw of repose, see :func:`lift_parameter` [-].
+    lift_v0 : float or None, m/s
+        Muzzle velocity that sets the spin for the lift; None: the speed of each trajectory's
+        initial state (right for a track that starts at the muzzle).
     mach_grid : MachGrid or None
         Kernel Mach grid; by default one covering Mach 0-6 at 0.01.
     max_step : float, s
@@ -194,6 +245,8 @@ class PointMassModel:
     cd_scale: float = 1.0
     yaw_amp: float = 0.0
     yaw_decay: float = 0.0
+    lift_factor: float = 0.0
+    lift_v0: float | None = None
     mach_grid: MachGrid | None = None
     max_step: float = 0.03
 
@@ -215,8 +268,20 @@ class PointMassModel:
         """Copy with some attributes changed (e.g. ``model.with_(wind=(3, 0, 0))``)."""
         return replace(self, **changes)
 
-    def par_row(self):
-        """Kernel parameter row (N_PAR,) for this model."""
+    def lift_constant(self, state0):
+        """Lift constant L [m/s] for initial states (..., 6) (``lift_parameter``)."""
+        if self.lift_factor == 0.0:
+            return np.zeros(np.shape(state0)[:-1])
+        state0 = np.asarray(state0, dtype=float)
+        v0 = self.lift_v0 if self.lift_v0 is not None else np.linalg.norm(state0[..., 3:], axis=-1)
+        return lift_parameter(self.lift_factor, np.broadcast_to(v0, state0.shape[:-1]))
+
+    def par_row(self, state0=None):
+        """Kernel parameter row (N_PAR,) for this model.
+
+        ``state0`` (6,) sets the lift constant when ``lift_factor`` is non-zero and ``lift_v0``
+        is None; without it the lift column uses ``lift_v0`` or is left 0.
+        """
         p = np.zeros(K.N_PAR)
         p[K.P_KREF] = self.k_ref
         p[K.P_WX:K.P_WZ + 1] = self.wind
@@ -228,10 +293,15 @@ class PointMassModel:
         p[K.P_YAW_AMP] = self.yaw_amp
         p[K.P_YAW_DECAY] = self.yaw_decay
         p[K.P_RHO_SCALE] = 1.0
+        if state0 is not None:
+            p[K.P_LIFT] = self.lift_constant(state0)
+        elif self.lift_v0 is not None:
+            p[K.P_LIFT] = lift_parameter(self.lift_factor, self.lift_v0)
         return p
 
-    def _rhs(self, drag_params, t0):
-        """Right-hand side for solve_ivp with the exact drag curve and atmosphere."""
+    def _rhs(self, drag_params, t0, lift=0.0):
+        """Right-hand side for solve_ivp with the exact drag curve and atmosphere; ``lift`` is
+        the constant L [m/s] of :func:`lift_parameter`."""
         curve = self.drag.curve(drag_params)
         atm = self.atmosphere.density_and_sound_speed
         kref = self.k_ref
@@ -250,6 +320,10 @@ class PointMassModel:
                 cd *= 1.0 + yaw_amp * math.exp(-2.0 * yaw_decay * (t + t0))
             kd = kref * rho * cd * V
             acc = [-kd * ax_, -kd * ay_, -kd * az_ - g]
+            if lift:
+                kl = lift * g / (V * V)
+                acc[0] -= kl * ay_
+                acc[1] += kl * ax_
             if C is not None:
                 acc = [acc[i] + C[i, 0] * vx + C[i, 1] * vy + C[i, 2] * vz for i in range(3)]
             return [vx, vy, vz, acc[0], acc[1], acc[2]]
@@ -296,7 +370,7 @@ class PointMassModel:
             return replace(tr, state=tr.state[0], mach=tr.mach[0])
         if backend != "scipy":
             raise ValueError(f"unknown backend {backend!r}; allowed: 'kernel', 'scipy'")
-        rhs = self._rhs(np.asarray(drag_params, dtype=float), t_start)
+        rhs = self._rhs(np.asarray(drag_params, dtype=float), t_start, float(self.lift_constant(state0)))
         t_end = t_start + max_time if t_out is None else float(np.max(t_out))
 
         def impact(t, s):
@@ -327,7 +401,7 @@ class PointMassModel:
         msg = "impact" if t_imp is not None else sol.message
         return Trajectory(t_out, state, self.mach_of(state), True, msg, t_imp)
 
-    def kernel_inputs(self, drag_params, overrides=None, atmospheres=None):
+    def kernel_inputs(self, drag_params, overrides=None, atmospheres=None, state0=None):
         """Arrays for :func:`_kernel.integrate_batch` for B parameter sets.
 
         Parameters
@@ -337,10 +411,17 @@ class PointMassModel:
             Per-trajectory values of kernel parameters (``_kernel.P_*``), e.g. wind.
         atmospheres : sequence of Atmosphere, length B, optional
             Per-trajectory atmospheres (identical ones share a table).
+        state0 : (B, 6) array, optional
+            Initial states; they set the lift constant (:meth:`lift_constant`) unless
+            ``overrides`` gives ``P_LIFT``.
         """
         drag_params = np.atleast_2d(np.asarray(drag_params, dtype=float))
         B = drag_params.shape[0]
         par = np.tile(self.par_row(), (B, 1))
+        if self.lift_factor != 0.0 and self.lift_v0 is None and K.P_LIFT not in (overrides or {}):
+            if state0 is None:
+                raise ValueError("lift_factor needs the initial states (state0) or lift_v0 to set the spin")
+            par[:, K.P_LIFT] = self.lift_constant(state0)
         for col, val in (overrides or {}).items():
             par[:, col] = val
         grid = self.mach_grid
@@ -393,7 +474,7 @@ class PointMassModel:
         t_out = np.asarray(t_out, dtype=float)
         step_h, step_out, out_first = step_schedule(t_out, t_start, max_step or self.max_step)
         par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz = self.kernel_inputs(
-            drag_params, overrides, atmospheres)
+            drag_params, overrides, atmospheres, state0)
         out = np.empty((state0.shape[0], t_out.size, 6))
         mach = np.empty((state0.shape[0], t_out.size))
         K.integrate_batch(state0, float(t_start), step_h, step_out, out_first, par, cd_tabs, cd_idx,
