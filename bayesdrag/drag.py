@@ -236,6 +236,30 @@ class Poly2(DragModel):
 
 
 @dataclass(frozen=True)
+class Constant(DragModel):
+    """A constant Cd (Scheme 2: one value per window of samples)."""
+
+    name: str = field(default="constant", init=False)
+    param_names: tuple = field(default=("cd",), init=False)
+
+    def basis(self, mach):
+        m = np.asarray(mach, dtype=float)
+        return np.ones(m.shape + (1,))
+
+    def basis_slope(self, mach):
+        m = np.asarray(mach, dtype=float)
+        return np.zeros(m.shape + (1,))
+
+    @property
+    def bounds(self):
+        return np.array([0.0]), np.array([3.0])
+
+    def curve(self, params):
+        c = float(np.asarray(params, dtype=float).ravel()[0])
+        return lambda m: c
+
+
+@dataclass(frozen=True)
 class Poly2Split(DragModel):
     """Eq. 18 separately below and above ``mach_split`` (the paper's practice).
 

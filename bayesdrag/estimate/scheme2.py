@@ -1,0 +1,277 @@
+"""Scheme 2: a constant Cd per window of samples (paper §4, second scheme).
+
+The track is cut into windows of ``window`` samples (default 50; the paper uses 50-100), with an
+optional ``overlap``. In each window Cd is a constant; the state at the window's first sample
+comes from differentiating the data smoothed by 5th-order local polynomials (Savitzky-Golay).
+Each window gives Cd with its Cramér-Rao sd at the window's mean Mach number, and the windows
+together give a stitched Cd(M) curve that assumes no functional form at all.
+
+Choices written down:
+
+* **Smoothing**: a Savitzky-Golay block of ``smooth`` samples (default: the window length
+  rounded up to odd, at least ``4 * polyorder + 1``) centred on the window's first sample where
+  the track allows, clipped at the track's ends. With uniform sampling the coefficients come from
+  :func:`scipy.signal.savgol_coeffs` (``pos`` = the sample's place in the block); with irregular
+  sampling (dropouts) the same local polynomial is fitted by least squares on the actual times.
+* **Initial conditions are refined, not frozen** (default ``free_ic=True``): the smoothed state
+  is the starting value of an ML fit of [Cd, X0, Y0, Z0, Ux0, Uy0, Uz0] to the window's own data.
+  Freezing it (the paper's practice, ``free_ic=False``) ignores the error of the smoothed
+  velocity, which then leaks into Cd while the Cramér-Rao bound does not know it: a bound that
+  is too small. Refined ICs cost a larger, honest bound. Using the smoothed state as a prior
+  would count the same samples twice, so it is only the start.
+* **Channels**: the window's state needs position channels (``x`` and ``z``; ``y`` when
+  present, else the cross-range state is zero): a speed-only (Doppler) track cannot start a window
+  and gives a clear error — use Scheme 1 there.
+* **The last, short window**: a remainder shorter than half a window is merged into the last
+  full window; a longer one becomes a window of its own.
+* **Noise**: the round's ``[radar] sigma`` per channel when given, else relaxation in each window.
+* **Mach of a window**: the mean Mach number of the fitted trajectory over the window's samples.
+  For a Cd varying linearly with Mach the constant fit estimates Cd there; curvature of Cd(M)
+  within a window (the transonic rise) biases it, which the stitched curve shows honestly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import savgol_coeffs
+
+from ..drag import Constant
+from ..dynamics.pointmass import PointMassModel
+from ..errors import InputError
+from .ml import OutputErrorProblem
+
+#: fewest samples a window may have (7 free parameters, >= 4 samples per parameter per channel)
+MIN_WINDOW = 15
+#: polynomial order of the Savitzky-Golay smoother (paper: 5th-order polynomials)
+POLYORDER = 5
+
+
+@dataclass(frozen=True)
+class Scheme2Result:
+    """Scheme 2 fit of one track.
+
+    Attributes
+    ----------
+    windows : list of dict
+        Per window (Mach-sorted as flown): ``t_start``, ``t_end`` [s], ``i_start``, ``i_end``
+        (sample indices, end exclusive), ``n``, ``mach`` (mean Mach), ``mach_min``,
+        ``mach_max``, ``ml`` (Cd), ``crb_sd``, ``crb_sd_colored``, ``reference`` (Cd of the
+        reference table at ``mach`` or None), ``converged``, ``message``, ``warnings``.
+    results : tuple of MLResult
+    problems : tuple of OutputErrorProblem
+        One per window; theta = [Cd, X0, Y0, Z0, Ux0, Uy0, Uz0] at the window's first sample.
+    smoothed : ndarray, shape (W, 6)
+        The smoothed (Savitzky-Golay) state at each window's first sample.
+    window, overlap : int
+    """
+
+    windows: list
+    results: tuple
+    problems: tuple
+    smoothed: np.ndarray
+    window: int
+    overlap: int
+    free_ic: bool = True
+    notes: tuple = field(default=())
+
+    @property
+    def success(self):
+        return all(r.success for r in self.results)
+
+    def stitched(self, mach):
+        """Stitched Cd(M): linear interpolation through the windows' (mach, Cd), held at the ends.
+
+        Parameters
+        ----------
+        mach : array_like, shape (N,)
+
+        Returns
+        -------
+        (cd, sd) : ndarrays, shape (N,) — Cd and its CRB sd interpolated the same way.
+        """
+        m = np.array([w["mach"] for w in self.windows])
+        order = np.argsort(m)
+        cd = np.array([w["ml"] for w in self.windows])[order]
+        sd = np.array([w["crb_sd"] for w in self.windows])[order]
+        return np.interp(mach, m[order], cd), np.interp(mach, m[order], sd)
+
+
+def window_slices(n, window=50, overlap=0):
+    """Sample ranges of the windows.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples in the track.
+    window : int
+        Samples per window.
+    overlap : int
+        Samples shared by consecutive windows (0 <= overlap < window).
+
+    Returns
+    -------
+    list of (start, stop) index pairs (stop exclusive).
+    """
+    if not isinstance(window, (int, np.integer)) or window < MIN_WINDOW:
+        raise InputError(f"Scheme 2: window = {window!r} samples; allowed: an integer >= {MIN_WINDOW} "
+                         f"(the paper uses 50-100)")
+    if not isinstance(overlap, (int, np.integer)) or not 0 <= overlap < window:
+        raise InputError(f"Scheme 2: overlap = {overlap!r} samples; allowed: 0 <= overlap < window ({window})")
+    if window > n:
+        raise InputError(f"Scheme 2: window of {window} samples is longer than the track ({n} samples); "
+                         f"use a shorter --window or Scheme 1")
+    stride = window - overlap
+    out = []
+    start = 0
+    while start + window <= n:
+        out.append([start, start + window])
+        start += stride
+    rest = n - out[-1][1]
+    if rest > 0:
+        if rest + overlap >= max(window // 2, MIN_WINDOW):
+            out.append([out[-1][1] - overlap, n])
+        else:
+            out[-1][1] = n
+    return [tuple(s) for s in out]
+
+
+def smoothed_state(t, positions, i, smooth, polyorder=POLYORDER):
+    """Position and velocity at sample ``i`` from local polynomial (Savitzky-Golay) smoothing.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times [s].
+    positions : sequence of 3 arrays (N,) or None
+        x, y, z [m]; None for a missing channel (its position and velocity are returned as 0).
+    i : int
+        Sample at which to evaluate.
+    smooth : int
+        Samples in the smoothing block (odd, > polyorder).
+    polyorder : int
+
+    Returns
+    -------
+    state : ndarray, shape (6,)
+        [x, y, z, vx, vy, vz] at ``t[i]`` (m, m/s).
+    gain : ndarray, shape (2,)
+        Noise gains: sd of the smoothed position and of the velocity per 1 m of white position
+        noise (multiply by the channel's sigma).
+    """
+    n = t.size
+    L = min(smooth, n if n % 2 else n - 1)
+    b0 = int(np.clip(i - L // 2, 0, n - L))
+    tt = t[b0:b0 + L]
+    pos = i - b0
+    dts = np.diff(tt)
+    dt = float(np.mean(dts))
+    state = np.zeros(6)
+    if np.ptp(dts) <= 1e-6 * dt:  # uniform block: scipy's Savitzky-Golay coefficients
+        c0 = savgol_coeffs(L, polyorder, deriv=0, pos=pos, use="dot")
+        c1 = savgol_coeffs(L, polyorder, deriv=1, delta=dt, pos=pos, use="dot")
+    else:  # irregular sampling: the same local polynomial by least squares on the real times
+        V = np.vander((tt - t[i]) / dt, polyorder + 1, increasing=True)
+        pinv = np.linalg.pinv(V)
+        c0, c1 = pinv[0], pinv[1] / dt
+    for k, p in enumerate(positions):
+        if p is None:
+            continue
+        blk = np.asarray(p[b0:b0 + L], dtype=float)
+        state[k] = c0 @ blk
+        state[3 + k] = c1 @ blk
+    return state, np.array([np.linalg.norm(c0), np.linalg.norm(c1)])
+
+
+def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, free_ic=True,
+                smooth=None, polyorder=POLYORDER, progress=None):
+    """Scheme 2 ML fit: a constant Cd in each window of samples.
+
+    Parameters
+    ----------
+    track : RadarTrack
+        Needs ``x`` and ``z`` (window initial states); ``y`` and ``v`` are used when present.
+    rnd : Round
+    window : int
+        Samples per window (default 50).
+    overlap : int
+        Samples shared by consecutive windows.
+    channels : sequence of str, optional
+        Channels fitted (default all the track has).
+    sigma : dict, optional
+        Fixed noise sd per channel (default: the round's ``[radar] sigma``).
+    free_ic : bool
+        Refine each window's initial state with Cd (default) or keep the smoothed one (paper).
+    smooth : int, optional
+        Samples of the Savitzky-Golay block (odd); default ``max(window | 1, 4 polyorder + 1)``.
+    polyorder : int
+        Order of the smoothing polynomials (default 5, as in the paper).
+    progress : callable, optional
+        Called as ``progress(k, n_windows)`` after each window.
+
+    Returns
+    -------
+    Scheme2Result
+    """
+    chans = tuple(channels) if channels is not None else track.names
+    if track.channels.get("x") is None or track.channels.get("z") is None:
+        raise InputError(f"{track.source}: Scheme 2 needs x and z in the track to start each window "
+                         f"(it has {', '.join(track.names)}); fit a speed-only track with Scheme 1")
+    slices = window_slices(track.n, window, overlap)
+    if smooth is None:
+        smooth = max(window | 1, 4 * polyorder + 1)
+    if smooth <= polyorder + 1:
+        raise InputError(f"Scheme 2: smoothing block of {smooth} samples is too short for order {polyorder}")
+    from .scheme1 import _coriolis
+
+    model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, Constant(), rnd.atmosphere,
+                           coriolis=_coriolis(rnd))
+    ref = rnd.reference_drag
+    sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
+    positions = [track.channels.get(c) for c in ("x", "y", "z")]
+    t = track.t
+    windows, results, problems, smoothed = [], [], [], []
+    for k, (i0, i1) in enumerate(slices):
+        s0, _ = smoothed_state(t, positions, i0, smooth, polyorder)
+        sub = track.subset(np.arange(i0, i1))
+        cd0 = _start_cd(model, s0, ref)
+        theta0 = np.concatenate([[cd0], s0])
+        free = np.ones(7, bool)
+        if not free_ic:
+            free[1:] = False
+        if "y" not in chans:
+            free[[2, 5]] = False
+        prob = OutputErrorProblem(model, sub, theta0, free=free, sigma=sig, channels=chans)
+        res = prob.fit()
+        mach = res.mach[np.isfinite(res.mach)] if res.mach is not None else np.array([np.nan])
+        mmean = float(np.mean(mach))
+        windows.append({
+            "t_start": float(t[i0]), "t_end": float(t[i1 - 1]), "i_start": int(i0), "i_end": int(i1),
+            "n": int(i1 - i0), "mach": mmean, "mach_min": float(np.min(mach)), "mach_max": float(np.max(mach)),
+            "ml": float(res.theta[0]), "crb_sd": float(res.crb[0]), "crb_sd_colored": float(res.crb_colored[0]),
+            "reference": float(ref.value(mmean)) if ref is not None else None,
+            "converged": bool(res.converged), "message": res.message, "warnings": list(res.warnings),
+        })
+        results.append(res)
+        problems.append(prob)
+        smoothed.append(s0)
+        if progress is not None:
+            progress(k + 1, len(slices))
+    return Scheme2Result(windows, tuple(results), tuple(problems), np.array(smoothed), int(window),
+                         int(overlap), bool(free_ic))
+
+
+def _start_cd(model, s0, reference):
+    """Starting Cd of a window: the reference at the window's starting Mach, else 0.3."""
+    if reference is None:
+        return 0.3
+    _, a = model.atmosphere.density_and_sound_speed(float(s0[2]))
+    m = float(np.linalg.norm(s0[3:])) / a
+    return float(reference.value(m))
+
+
+def windows_table(result):
+    """The ``windows`` part of result.json (DESIGN.md): one dict per window."""
+    keys = ("t_start", "t_end", "mach", "ml", "crb_sd", "crb_sd_colored", "reference", "n", "mach_min",
+            "mach_max", "converged")
+    return [{k: w[k] for k in keys} for w in result.windows]
