@@ -32,7 +32,7 @@ All functions here are pure and vectorised over altitude.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import math
@@ -276,3 +276,366 @@ class Atmosphere:
         z = z_min + dz * np.arange(n)
         s = self.at_height(z)
         return float(z_min), float(dz), np.column_stack([s.density, s.speed_of_sound])
+
+
+# ------------------------------------------------------------------------------------------
+# tabulated meteorological profiles
+# ------------------------------------------------------------------------------------------
+#: plausible air temperature range of a met profile [K]: the coldest tropopause ever recorded is
+#: ~175 K, the hottest surface air ~330 K. All values below :data:`CELSIUS_SUSPECT` K mean the
+#: column is almost surely in degrees Celsius.
+PROFILE_TEMPERATURE_RANGE = (150.0, 350.0)
+CELSIUS_SUSPECT = 150.0
+#: plausible pressure range [Pa]; a profile whose largest pressure is below
+#: :data:`HPA_SUSPECT` Pa is almost surely in hPa (mbar)
+PROFILE_PRESSURE_RANGE = (100.0, 120000.0)
+HPA_SUSPECT = 2000.0
+#: largest plausible wind component [m/s] (jet-stream cores reach ~100 m/s)
+PROFILE_WIND_MAX = 150.0
+#: hydrostatic consistency of each layer, as |ln(p_upper/p_lower) measured - hydrostatic| [-]
+#: (the relative pressure error the layer's temperatures cannot explain). Humidity (virtual
+#: temperature up to ~1.7 % above T on a hot humid day) explains up to ~0.2 % per km; above
+#: HYDROSTATIC_NOTE a note is recorded, above HYDROSTATIC_ERROR the profile is rejected
+#: (a wrong altitude, a pressure typed in the wrong row, mixed units).
+HYDROSTATIC_NOTE = 0.005
+HYDROSTATIC_ERROR = 0.03
+
+
+def _layer_integral(Ti, L, dH):
+    """Integral of dH'/T over [0, dH] for T = Ti + L H' [m/K], stable for L -> 0."""
+    x = L * dH / Ti
+    small = np.abs(x) < 1e-8
+    xs = np.where(small, 1.0, x)
+    ratio = np.where(small, 1.0 - 0.5 * x, np.log1p(xs) / xs)
+    return dH / Ti * ratio
+
+
+@dataclass(frozen=True)
+class MetProfile:
+    """A measured (tabulated) atmosphere: temperature and pressure by altitude, optional wind.
+
+    Same interface as :class:`Atmosphere` (``at_height``, ``density_and_sound_speed``,
+    ``table``, ``gun_altitude``, ``temperature_offset``, ``pressure_ratio``,
+    ``density_ratio``), so the point-mass kernel, the scipy reference, the 6-DOF simulator and
+    the diagnosis use it unchanged. Frozen and hashable (the kernel memoises its table by value).
+
+    Physics
+    -------
+    - Altitudes are geometric heights above mean sea level [m], like ``[launch] altitude``;
+      internally everything is in geopotential altitude H (as in the ICAO model).
+    - Between levels the temperature is linear in H. The pressure honours every measured level
+      exactly: within a layer ln p follows hydrostatic balance with the layer's linear
+      temperature, plus the layer's residual (measured minus hydrostatic ln-pressure drop)
+      spread linearly over the layer. For a hydrostatic profile the residual is zero and the
+      pressure is exact at any level spacing.
+    - Density rho = p / (R T) (dry air, R = 287.05287 J/(kg K)); speed of sound
+      a = sqrt(gamma R T). Humidity is not modelled: give virtual temperature if you have it.
+    - **Outside the profile** (below the lowest or above the highest level) the temperature
+      continues with the ICAO standard lapse rates, shifted to match the end level's
+      temperature, and the pressure follows hydrostatically from that level. A profile equal
+      to ICAO therefore reproduces :class:`Atmosphere` everywhere.
+    - ``temperature_offset`` dT shifts every temperature by dT at unchanged pressure at the gun
+      (hydrostatic elsewhere, keeping the layer residuals); ``pressure_ratio`` and
+      ``density_ratio`` multiply as in :class:`Atmosphere`. They let the diagnosis and the
+      fit perturb a measured profile exactly as they perturb the standard one.
+
+    Attributes
+    ----------
+    altitude : tuple of float, m
+        Geometric altitude above mean sea level of each level, strictly increasing, >= 2 levels.
+    temperature : tuple of float, K
+        In [150, 350] K.
+    pressure : tuple of float, Pa
+        In [100, 120000] Pa, strictly decreasing with altitude, hydrostatically consistent
+        within :data:`HYDROSTATIC_ERROR`.
+    wind_x, wind_y : tuple of float or None, m/s
+        Wind components in the DESIGN.md frame (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward
+        +y), or None. Data only: the kernel takes one constant wind; see :meth:`wind_at` and
+        :meth:`mean_wind`.
+    gun_altitude : float, m
+        Geometric altitude of the gun above sea level; heights ``z`` are relative to it.
+    temperature_offset, pressure_ratio, density_ratio : float
+        As in :class:`Atmosphere`.
+    source : str
+        File the profile was read from ("" if built in code); not part of equality.
+    notes : tuple of str
+        Remarks found in validation (e.g. a layer slightly off hydrostatic balance); not part
+        of equality.
+
+    Raises
+    ------
+    ValueError
+        On any invalid level (message names the level's altitude);
+        :func:`read_met_profile` turns these into :class:`~bayesdrag.errors.InputError` with
+        file and line.
+    """
+
+    altitude: tuple
+    temperature: tuple
+    pressure: tuple
+    wind_x: tuple | None = None
+    wind_y: tuple | None = None
+    gun_altitude: float = 0.0
+    temperature_offset: float = 0.0
+    pressure_ratio: float = 1.0
+    density_ratio: float = 1.0
+    source: str = field(default="", compare=False)
+    notes: tuple = field(default=(), compare=False)
+
+    def __post_init__(self):
+        z = _float_tuple("altitude", self.altitude)
+        T = _float_tuple("temperature", self.temperature)
+        p = _float_tuple("pressure", self.pressure)
+        n = len(z)
+        if len(T) != n or len(p) != n:
+            raise ValueError(f"altitude, temperature and pressure need one value per level; got "
+                             f"{n}, {len(T)}, {len(p)}")
+        if n < 2:
+            raise ValueError(f"a met profile needs at least 2 levels, got {n} (a single surface "
+                             f"observation is [atmosphere] temperature_offset / pressure_ratio)")
+        za = np.array(z)
+        d = np.diff(za)
+        if np.any(d <= 0):
+            i = int(np.argmax(d <= 0)) + 1
+            how = "repeats" if d[i - 1] == 0 else f"is below the previous level {z[i - 1]:g} m"
+            raise ValueError(f"altitude {z[i]:g} m {how}; levels must be sorted by strictly "
+                             f"increasing altitude")
+        if za[0] < MIN_ALTITUDE or za[-1] > MAX_ALTITUDE:
+            raise ValueError(f"altitudes must lie in [{MIN_ALTITUDE:.0f}, {MAX_ALTITUDE:.0f}] m above "
+                             f"sea level; got {za[0]:g} .. {za[-1]:g} m")
+        Ta = np.array(T)
+        lo, hi = PROFILE_TEMPERATURE_RANGE
+        if np.all(Ta < CELSIUS_SUSPECT) and np.all(Ta > -100.0):
+            raise ValueError(f"temperature {Ta.min():g} .. {Ta.max():g} looks like degrees Celsius; "
+                             f"temperature is in kelvin (add 273.15); allowed [{lo:g}, {hi:g}] K")
+        bad = np.flatnonzero((Ta < lo) | (Ta > hi))
+        if bad.size:
+            i = bad[0]
+            raise ValueError(f"temperature {T[i]:g} K at altitude {z[i]:g} m is outside the plausible "
+                             f"range [{lo:g}, {hi:g}] K")
+        pa = np.array(p)
+        plo, phi = PROFILE_PRESSURE_RANGE
+        if np.any(pa <= 0):
+            i = int(np.argmax(pa <= 0))
+            raise ValueError(f"pressure {p[i]:g} Pa at altitude {z[i]:g} m must be > 0")
+        if pa.max() < HPA_SUSPECT and za[0] < 20000.0:
+            raise ValueError(f"pressure {pa.min():g} .. {pa.max():g} looks like hPa (mbar); pressure "
+                             f"is in Pa (multiply by 100); allowed [{plo:g}, {phi:g}] Pa")
+        bad = np.flatnonzero((pa < plo) | (pa > phi))
+        if bad.size:
+            i = bad[0]
+            raise ValueError(f"pressure {p[i]:g} Pa at altitude {z[i]:g} m is outside the plausible "
+                             f"range [{plo:g}, {phi:g}] Pa")
+        dp = np.diff(pa)
+        if np.any(dp >= 0):
+            i = int(np.argmax(dp >= 0)) + 1
+            raise ValueError(f"pressure {p[i]:g} Pa at altitude {z[i]:g} m is not below the pressure "
+                             f"{p[i - 1]:g} Pa of the level beneath; pressure must fall with altitude")
+        winds = {}
+        for name in ("wind_x", "wind_y"):
+            w = getattr(self, name)
+            if w is None:
+                winds[name] = None
+                continue
+            w = _float_tuple(name, w)
+            if len(w) != n:
+                raise ValueError(f"{name} needs one value per level ({n}), got {len(w)}")
+            wa = np.abs(np.array(w))
+            if np.any(wa > PROFILE_WIND_MAX):
+                i = int(np.argmax(wa > PROFILE_WIND_MAX))
+                raise ValueError(f"{name} = {w[i]:g} m/s at altitude {z[i]:g} m exceeds the plausible "
+                                 f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
+            winds[name] = w
+        _check_params(self.temperature_offset, self.pressure_ratio, self.density_ratio)
+        _check_altitude(self.gun_altitude)
+        for k, v in dict(altitude=z, temperature=T, pressure=p, **winds,
+                         gun_altitude=float(self.gun_altitude),
+                         temperature_offset=float(self.temperature_offset),
+                         pressure_ratio=float(self.pressure_ratio),
+                         density_ratio=float(self.density_ratio), source=str(self.source)).items():
+            object.__setattr__(self, k, v)
+
+        # --- precomputation (geopotential levels, lapse rates, layer residuals) -------------
+        H = geopotential_altitude(za)
+        L = np.diff(Ta) / np.diff(H)
+        J = _layer_integral(Ta[:-1], L, np.diff(H))
+        resid = np.diff(np.log(pa)) + G0 / R_AIR * J  # measured minus hydrostatic ln-p drop
+        notes = list(self.notes)
+        worst = int(np.argmax(np.abs(resid)))
+        if abs(resid[worst]) > HYDROSTATIC_ERROR:
+            raise ValueError(
+                f"pressure {p[worst + 1]:g} Pa at altitude {z[worst + 1]:g} m is inconsistent with "
+                f"hydrostatic balance from {p[worst]:g} Pa at {z[worst]:g} m and the temperatures "
+                f"({100 * (math.exp(resid[worst]) - 1):+.1f} %; at most "
+                f"{100 * HYDROSTATIC_ERROR:g} % allowed): check altitudes, pressures and units")
+        if abs(resid[worst]) > HYDROSTATIC_NOTE:
+            notes.append(f"met profile {self.source or ''}: layer {z[worst]:g}-{z[worst + 1]:g} m is "
+                         f"{100 * (math.exp(resid[worst]) - 1):+.2f} % off hydrostatic balance "
+                         f"(humidity or measurement error); the measured pressures are honoured")
+        object.__setattr__(self, "notes", tuple(notes))
+        self._set("_H", H)
+        self._set("_L", L)
+        self._set("_resid", resid)
+        # ln-pressure at the levels, unshifted (= measured) and shifted by temperature_offset
+        Hg = float(geopotential_altitude(self.gun_altitude))
+        dT = self.temperature_offset
+        Js = _layer_integral(Ta[:-1] + dT, L, np.diff(H))
+        self._set("_lnp_levels", np.log(pa[0]) + np.concatenate([[0.0], np.cumsum(resid - G0 / R_AIR * Js)]))
+        self._set("_Tk", Ta + dT)
+        anchor = 0.0
+        if dT != 0.0:
+            unshifted = self._eval(np.array([Hg]), Ta, np.log(pa), 0.0)[1][0]
+            anchor = unshifted - self._eval(np.array([Hg]), self._Tk, self._lnp_levels, dT)[1][0]
+        self._set("_ln_anchor", anchor + math.log(self.pressure_ratio))
+
+    def _set(self, name, value):
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+        object.__setattr__(self, name, value)
+
+    def _eval(self, H, Tk, lnpk, dT):
+        """Temperature [K] and ln p (before the gun anchor) at geopotential altitudes H."""
+        Hk, L, r = self._H, self._L, self._resid
+        n = Hk.size
+        k = np.clip(np.searchsorted(Hk, H, side="right") - 1, 0, n - 2)
+        dH = H - Hk[k]
+        T = Tk[k] + L[k] * dH
+        lnp = lnpk[k] - G0 / R_AIR * _layer_integral(Tk[k], L[k], dH) + r[k] * dH / (Hk[k + 1] - Hk[k])
+        for end, mask in ((0, H < Hk[0]), (n - 1, H > Hk[-1])):
+            if np.any(mask):
+                He = Hk[end]
+                off = Tk[end] - float(_temperature_geo(np.array(He), 0.0))
+                Hm = H[mask]
+                T[mask] = _temperature_geo(Hm, off)
+                lnp[mask] = lnpk[end] - G0 / R_AIR * (_inv_temperature_integral(Hm, off)
+                                                      - _inv_temperature_integral(np.array(He), off))
+        return T, lnp
+
+    def at_height(self, z):
+        """Air at heights ``z`` [m] above the gun (any shape). Returns :class:`AtmosphereState`."""
+        h = _check_altitude(np.asarray(z, dtype=float) + self.gun_altitude)
+        shape = h.shape
+        H = geopotential_altitude(h).reshape(-1)
+        T, lnp = self._eval(H, self._Tk, self._lnp_levels, self.temperature_offset)
+        p = np.exp(lnp + self._ln_anchor)
+        rho = p / (R_AIR * T) * self.density_ratio
+        a = np.sqrt(GAMMA * R_AIR * T)
+        return AtmosphereState(T.reshape(shape), p.reshape(shape), rho.reshape(shape), a.reshape(shape))
+
+    def density_and_sound_speed(self, z):
+        """Density [kg/m^3] and speed of sound [m/s] at one height ``z`` [m] above the gun
+        (floats; same values as :meth:`at_height`)."""
+        s = self.at_height(np.array([float(z)]))
+        return float(s.density[0]), float(s.speed_of_sound[0])
+
+    table = Atmosphere.table
+
+    @property
+    def has_wind(self):
+        """True when the profile carries wind components."""
+        return self.wind_x is not None or self.wind_y is not None
+
+    def wind_at(self, z):
+        """Wind (wx, wy) [m/s] at heights ``z`` [m] above the gun, shape ``z.shape + (2,)``.
+
+        Linear in altitude between levels, constant beyond the ends (no lapse rule exists for
+        wind); a missing component is zero.
+        """
+        h = np.asarray(z, dtype=float) + self.gun_altitude
+        out = np.zeros(h.shape + (2,))
+        for j, w in enumerate((self.wind_x, self.wind_y)):
+            if w is not None:
+                out[..., j] = np.interp(h, self.altitude, w)
+        return out
+
+    def mean_wind(self, z_max, z_min=0.0, n=201):
+        """Height-averaged wind (wx, wy) [m/s] over [z_min, z_max] above the gun.
+
+        A simple summary for the constant-wind model (a ballistic-wind weighting would weight
+        the layers by the sensitivity of the trajectory instead).
+        """
+        z = np.linspace(z_min, max(z_max, z_min), n)
+        return tuple(float(v) for v in self.wind_at(z).mean(axis=0))
+
+
+def _float_tuple(name, values):
+    try:
+        a = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a sequence of numbers") from None
+    if not np.all(np.isfinite(a)):
+        i = int(np.argmax(~np.isfinite(a)))
+        raise ValueError(f"{name} value {a[i]} (level {i + 1}) is not a finite number")
+    return tuple(float(v) for v in a)
+
+
+#: columns of a met profile CSV: required, then optional
+PROFILE_COLUMNS = ("altitude", "temperature", "pressure")
+PROFILE_OPTIONAL_COLUMNS = ("wind_x", "wind_y")
+
+
+def read_met_profile(path, gun_altitude=0.0, **offsets):
+    """Read a met profile CSV into a :class:`MetProfile`.
+
+    Format (the track CSV rules: ``#`` comments, a header row, one row of numbers per level):
+    columns ``altitude`` [m above sea level, geometric], ``temperature`` [K], ``pressure`` [Pa],
+    optional ``wind_x``, ``wind_y`` [m/s, DESIGN.md frame]; rows in increasing altitude.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    gun_altitude : float, m
+    **offsets
+        ``temperature_offset``, ``pressure_ratio``, ``density_ratio`` as in :class:`MetProfile`.
+
+    Raises
+    ------
+    bayesdrag.errors.InputError
+        Everything the CSV reader rejects, unknown columns, and every :class:`MetProfile`
+        validation failure (the message names the file and, where it concerns one level, its
+        line).
+    """
+    from pathlib import Path
+
+    from .errors import InputError
+    from .track import _read_table
+
+    path, names, data, line_no = _read_table(
+        path, "met profile", required=PROFILE_COLUMNS,
+        allowed=PROFILE_COLUMNS + PROFILE_OPTIONAL_COLUMNS)
+    cols = {n: data[:, k] for k, n in enumerate(names)}
+    try:
+        return MetProfile(tuple(cols["altitude"]), tuple(cols["temperature"]), tuple(cols["pressure"]),
+                          None if "wind_x" not in cols else tuple(cols["wind_x"]),
+                          None if "wind_y" not in cols else tuple(cols["wind_y"]),
+                          gun_altitude=gun_altitude, source=str(Path(path)), **offsets)
+    except ValueError as exc:
+        msg = str(exc)
+        # name the file line of the level the message quotes, when it quotes one
+        import re
+
+        m = re.search(r"altitude (-?[0-9.e+]+) m", msg)
+        where = ""
+        if m:
+            try:
+                hit = np.flatnonzero(np.isclose(cols["altitude"], float(m.group(1)), rtol=1e-5, atol=0.5))
+            except ValueError:
+                hit = []
+            if len(hit):
+                where = f"line {line_no[hit[-1] if 'repeats' in msg or 'below the previous' in msg else hit[0]]}: "
+        raise InputError(f"{path}: {where}{msg}") from None
+
+
+def write_met_profile(path, profile, comment=None):
+    """Write a :class:`MetProfile`'s levels as CSV that :func:`read_met_profile` reads back."""
+    from pathlib import Path
+
+    cols = [("altitude", profile.altitude), ("temperature", profile.temperature),
+            ("pressure", profile.pressure)]
+    for k in ("wind_x", "wind_y"):
+        if getattr(profile, k) is not None:
+            cols.append((k, getattr(profile, k)))
+    head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
+    head += "# units: m above sea level, K, Pa, m/s\n" + ",".join(k for k, _ in cols) + "\n"
+    body = "".join(",".join(repr(float(c[i])) for _, c in cols) + "\n" for i in range(len(profile.altitude)))
+    Path(path).write_text(head + body, encoding="utf-8")

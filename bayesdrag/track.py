@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import tomli_w
 
-from .atmosphere import Atmosphere
+from .atmosphere import Atmosphere, MetProfile, write_met_profile
 from .errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -709,7 +709,7 @@ class Round:
     ----------
     projectile : Projectile
     launch : Launch
-    atmosphere : Atmosphere
+    atmosphere : Atmosphere or MetProfile
         ``gun_altitude`` equals ``launch.altitude`` (built so by :func:`read_round`, and by
         default when None is passed).
     radar : Radar
@@ -738,11 +738,11 @@ _SCHEMA = {
     "projectile": {"name": "text", "mass": "kg", "diameter": "m", "reference_drag": "CSV path"},
     "launch": {"elevation": "deg", "velocity": "m/s", "azimuth": "deg", "latitude": "deg",
                "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
-    "atmosphere": {"model": "text", "temperature_offset": "K", "pressure_ratio": "-",
-                   "density_ratio": "-"},
+    "atmosphere": {"model": "text", "profile": "CSV path", "temperature_offset": "K",
+                   "pressure_ratio": "-", "density_ratio": "-"},
     "radar": {"sigma": "table"},
 }
-ATMOSPHERE_MODELS = ("icao",)
+ATMOSPHERE_MODELS = ("icao", "profile")
 
 
 def _unknown(path, what, key, allowed):
@@ -762,8 +762,11 @@ def read_round(path):
     - ``[launch]`` elevation [deg], velocity [m/s], azimuth [deg, default 0], latitude [deg],
       altitude [m, default 0], velocity_sd [m/s, default 5], elevation_sd [deg, default 0.2],
       position_sd [m, default 1]
-    - ``[atmosphere]`` model (only ``"icao"``), temperature_offset [K], pressure_ratio,
-      density_ratio
+    - ``[atmosphere]`` model (``"icao"``, default, or ``"profile"``), profile (CSV met
+      profile ``altitude,temperature,pressure[,wind_x,wind_y]``, path relative to the TOML file,
+      read with :func:`bayesdrag.atmosphere.read_met_profile`; giving it implies
+      ``model = "profile"``, and ``model = "icao"`` with a profile is a contradiction),
+      temperature_offset [K], pressure_ratio, density_ratio (applied on top of a profile too)
     - ``[radar]`` sigma = {x, y, z [m], v [m/s]}
 
     A missing ``name`` defaults to the file's stem.
@@ -841,14 +844,34 @@ def read_round(path):
         lt.get("elevation_sd", DEFAULT_ELEVATION_SD_DEG), lt.get("position_sd", DEFAULT_POSITION_SD)))
 
     at = tables["atmosphere"]
-    model = at.get("model", "icao")
+    model = at.get("model", "profile" if "profile" in at else "icao")
     if not isinstance(model, str) or model.lower() not in ATMOSPHERE_MODELS:
         raise InputError(f"{path}: [atmosphere] model = {model!r} is not supported; allowed: "
                          f"{', '.join(repr(m) for m in ATMOSPHERE_MODELS)}")
+    model = model.lower()
+    if model == "profile" and "profile" not in at:
+        raise InputError(f"{path}: [atmosphere] model = 'profile' needs profile = \"met.csv\" "
+                         f"(CSV altitude,temperature,pressure[,wind_x,wind_y])")
+    if model == "icao" and "profile" in at:
+        raise InputError(f"{path}: [atmosphere] model = 'icao' contradicts profile = {at['profile']!r}; "
+                         f"use model = 'profile' (or leave model out) to fly through the profile, "
+                         f"or drop profile for the standard atmosphere")
 
     def make_atmosphere():
         vals = {k: _number(k, at.get(k, d), _SCHEMA["atmosphere"][k])
                 for k, d in (("temperature_offset", 0.0), ("pressure_ratio", 1.0), ("density_ratio", 1.0))}
+        if model == "profile":
+            rel = at["profile"]
+            if not isinstance(rel, str) or not rel.strip():
+                raise InputError(f"{path}: [atmosphere] profile must be a CSV file path (string), "
+                                 f"got {_type_name(rel)}")
+            from .atmosphere import read_met_profile
+
+            prof_path = Path(os.path.normpath(path.parent / rel))
+            try:
+                return read_met_profile(prof_path, gun_altitude=launch.altitude, **vals)
+            except InputError as exc:
+                raise InputError(f"{path}: [atmosphere] profile = {rel!r}: {exc}") from None
         return Atmosphere(**vals, gun_altitude=launch.altitude)
 
     atmosphere = build("atmosphere", make_atmosphere)
@@ -894,10 +917,20 @@ def write_round(path, rnd, comment=None):
         launch["latitude"] = la.latitude_deg
     launch.update(altitude=la.altitude, velocity_sd=la.velocity_sd, elevation_sd=la.elevation_sd_deg,
                   position_sd=la.position_sd)
-    doc = {"projectile": proj, "launch": launch,
-           "atmosphere": {"model": "icao", "temperature_offset": float(at.temperature_offset),
-                          "pressure_ratio": float(at.pressure_ratio),
-                          "density_ratio": float(at.density_ratio)}}
+    atm = {"model": "icao"}
+    if isinstance(at, MetProfile):
+        prof = Path(at.source) if at.source else None
+        if prof is None or not prof.is_file():
+            prof = path.with_name(f"{path.stem}_met.csv")
+            write_met_profile(prof, at, comment=f"met profile of {p.name}")
+        try:
+            rel = os.path.relpath(prof.resolve(), path.resolve().parent)
+        except ValueError:  # other drive (Windows)
+            rel = str(prof.resolve())
+        atm = {"model": "profile", "profile": Path(rel).as_posix()}
+    atm.update(temperature_offset=float(at.temperature_offset), pressure_ratio=float(at.pressure_ratio),
+               density_ratio=float(at.density_ratio))
+    doc = {"projectile": proj, "launch": launch, "atmosphere": atm}
     if rnd.radar.sigma:
         doc["radar"] = {"sigma": dict(rnd.radar.sigma)}
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
