@@ -562,6 +562,9 @@ class Projectile:
         Firing-table Cd(M), if known.
     reference_drag_path : str or None
         Where ``reference_drag`` was read from (as resolved from the round file).
+    reference_extrapolate : bool
+        The round allows the flight to go beyond the table's Mach range (Cd held at the end
+        values); see :func:`read_round`.
     """
 
     name: str = ""
@@ -569,6 +572,7 @@ class Projectile:
     diameter: float = None
     reference_drag: "ReferenceTable | None" = field(default=None, repr=False)
     reference_drag_path: str | None = None
+    reference_extrapolate: bool = False
 
     def __post_init__(self):
         if not isinstance(self.name, str):
@@ -735,7 +739,8 @@ class Round:
 
 
 _SCHEMA = {
-    "projectile": {"name": "text", "mass": "kg", "diameter": "m", "reference_drag": "CSV path"},
+    "projectile": {"name": "text", "mass": "kg", "diameter": "m", "reference_drag": "CSV path",
+                   "reference_extrapolate": "boolean"},
     "launch": {"elevation": "deg", "velocity": "m/s", "azimuth": "deg", "latitude": "deg",
                "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
     "atmosphere": {"model": "text", "profile": "CSV path", "temperature_offset": "K",
@@ -743,6 +748,10 @@ _SCHEMA = {
     "radar": {"sigma": "table"},
 }
 ATMOSPHERE_MODELS = ("icao", "profile")
+#: how far [Mach] the launch Mach may exceed the reference table's last row before the round is
+#: rejected (unless ``reference_extrapolate = true``): beyond its end the table is held constant,
+#: and a supersonic Cd changes ~2-4 % per 0.1 Mach, so a 0.05 overshoot costs at most ~2 %
+REFERENCE_MACH_SLACK = 0.05
 
 
 def _unknown(path, what, key, allowed):
@@ -759,6 +768,10 @@ def read_round(path):
 
     - ``[projectile]`` name, mass [kg], diameter [m], reference_drag (CSV ``mach,cd``, path
       relative to the TOML file, read with :func:`bayesdrag.drag.read_drag_table`)
+      and reference_extrapolate (boolean, default false: the table must reach the launch Mach,
+      ``velocity`` over the speed of sound at the gun, to within :data:`REFERENCE_MACH_SLACK`;
+      true holds Cd at the table's last value beyond it, e.g. for a published curve that
+      stops short of the muzzle Mach)
     - ``[launch]`` elevation [deg], velocity [m/s], azimuth [deg, default 0], latitude [deg],
       altitude [m, default 0], velocity_sd [m/s, default 5], elevation_sd [deg, default 0.2],
       position_sd [m, default 1]
@@ -835,7 +848,7 @@ def read_round(path):
             raise InputError(f"{path}: [projectile] reference_drag = {rel!r}: {exc}") from None
     projectile = build("projectile", lambda: Projectile(
         pt.get("name", path.stem), pt["mass"], pt["diameter"], ref,
-        None if ref_path is None else str(ref_path)))
+        None if ref_path is None else str(ref_path), pt.get("reference_extrapolate", False) is True))
 
     lt = tables["launch"]
     launch = build("launch", lambda: Launch(
@@ -875,6 +888,20 @@ def read_round(path):
         return Atmosphere(**vals, gun_altitude=launch.altitude)
 
     atmosphere = build("atmosphere", make_atmosphere)
+    extrapolate = pt.get("reference_extrapolate", False)
+    if not isinstance(extrapolate, bool):
+        raise InputError(f"{path}: [projectile] reference_extrapolate must be true or false, got "
+                         f"{_type_name(extrapolate)}")
+    if ref is not None and launch.velocity is not None and not extrapolate:
+        a_gun = float(atmosphere.at_height(0.0).speed_of_sound)
+        m_launch = launch.velocity / a_gun
+        if m_launch > ref.mach[-1] + REFERENCE_MACH_SLACK:
+            raise InputError(
+                f"{path}: [projectile] reference_drag = {pt['reference_drag']!r} covers Mach "
+                f"{ref.mach[0]:g}-{ref.mach[-1]:g} but the launch (velocity = {launch.velocity:g} m/s, "
+                f"speed of sound {a_gun:.1f} m/s) is Mach {m_launch:.2f}; the table must reach the "
+                f"launch Mach (to within {REFERENCE_MACH_SLACK:g}): extend it, or set "
+                f"reference_extrapolate = true to hold Cd at its last value beyond the table")
     radar = build("radar", lambda: Radar(tables["radar"].get("sigma", {})))
     return Round(projectile, launch, atmosphere, radar, str(path))
 
@@ -907,6 +934,8 @@ def write_round(path, rnd, comment=None):
         except ValueError:  # other drive (Windows)
             rel = str(Path(ref).resolve())
         proj["reference_drag"] = Path(rel).as_posix()
+        if p.reference_extrapolate:
+            proj["reference_extrapolate"] = True
     launch = {}
     if la.elevation_deg is not None:
         launch["elevation"] = la.elevation_deg

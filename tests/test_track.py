@@ -730,3 +730,17 @@ def test_dataclass_validation_direct():
         Radar({"q": 1.0})
     assert Launch(azimuth_deg=-30.0).azimuth_deg == 330.0
     assert Radar({"v": 1, "x": 2}).sigma == {"x": 2.0, "v": 1.0}
+
+
+def test_reference_extrapolate_allows_short_table_and_roundtrips(tmp_path):
+    (tmp_path / "cd.csv").write_text("mach,cd\n0.5,0.13\n1.0,0.3\n1.5,0.35\n")
+    body = ('[projectile]\nmass = 42.6\ndiameter = 0.155\nreference_drag = "cd.csv"\n{extra}'
+            '[launch]\nelevation = 15.0\nvelocity = 818.0\n')
+    (tmp_path / "r.toml").write_text(body.format(extra=""))
+    with pytest.raises(InputError, match=r"covers Mach 0.5-1.5 but the launch .* is Mach 2.40"):
+        read_round(tmp_path / "r.toml")
+    (tmp_path / "r.toml").write_text(body.format(extra="reference_extrapolate = true\n"))
+    rnd = read_round(tmp_path / "r.toml")
+    assert rnd.projectile.reference_extrapolate is True
+    write_round(tmp_path / "r2.toml", rnd)
+    assert read_round(tmp_path / "r2.toml").projectile.reference_extrapolate is True

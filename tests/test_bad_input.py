@@ -1,0 +1,288 @@
+"""Catalogue of bad input (issue 7): every kind must end with exit status 2, exactly one line on
+stderr that names the file/row/key, what was found and what is allowed, no traceback, and leave
+the files already in the output folder byte-identical (DESIGN.md, command line).
+
+Each entry is ``(id, command, setup, match)``: ``setup(d)`` writes the bad file(s) into the
+case folder ``d`` (starting from a good round ``round.toml``, its reference table ``cd.csv``
+and a good track ``track.csv``) and returns the argument list; ``match`` is a regular
+expression the stderr line must contain.
+"""
+import os
+import re
+import shutil
+from importlib.resources import files
+
+import numpy as np
+import pytest
+
+from bayesdrag.cli import main
+from bayesdrag.simulate import simulate_round
+from bayesdrag.track import read_round, write_track
+
+GOOD_ROUND = """\
+[projectile]
+name = "155 mm"
+mass = 42.6
+diameter = 0.155
+reference_drag = "cd.csv"
+
+[launch]
+elevation = 15.0
+velocity = 818.0
+
+[radar]
+sigma = {x = 1.0, y = 1.0, z = 1.0, v = 0.3}
+"""
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    d = tmp_path_factory.mktemp("good")
+    shutil.copy(files("bayesdrag") / "data" / "cd_m101.csv", d / "cd.csv")
+    (d / "round.toml").write_text(GOOD_ROUND)
+    track = simulate_round(read_round(d / "round.toml"), dt=0.5)
+    write_track(d / "track.csv", track)
+    return d
+
+
+def _lines(d, name="track.csv"):
+    return (d / name).read_text().splitlines()
+
+
+def _edit_track(d, fn):
+    """Rewrite track.csv: fn(header, rows as lists of str) -> (header, rows)."""
+    lines = _lines(d)
+    header, rows = lines[0], [ln.split(",") for ln in lines[1:]]
+    header, rows = fn(header, rows)
+    (d / "track.csv").write_text(header + "\n" + "".join(",".join(r) + "\n" for r in rows))
+
+
+def _scale_track(d, cols, factor):
+    def fn(header, rows):
+        names = header.split(",")
+        for r in rows:
+            for c in cols:
+                k = names.index(c)
+                r[k] = repr(float(r[k]) * factor)
+        return header, rows
+    _edit_track(d, fn)
+
+
+def _set_field(row, col, value):
+    def fn(header, rows):
+        rows[row][header.split(",").index(col)] = value
+        return header, rows
+    return fn
+
+
+def _round(d, text):
+    (d / "round.toml").write_text(text)
+
+
+def _sub(old, new):
+    def fn(d):
+        assert old in GOOD_ROUND
+        _round(d, GOOD_ROUND.replace(old, new))
+    return fn
+
+
+FIT = ["fit", "track.csv", "round.toml", "-o", "out", "--no-mcmc"]
+SIM = ["simulate", "round.toml", "-o", "out/track_sim.csv"]
+
+
+def _fit(setup=None, extra=()):
+    def run(d):
+        if setup:
+            setup(d)
+        return FIT + list(extra)
+    return run
+
+
+def _sim(setup=None, extra=()):
+    def run(d):
+        if setup:
+            setup(d)
+        return SIM + list(extra)
+    return run
+
+
+def _track(fn):
+    return _fit(lambda d: fn(d))
+
+
+def _write(name, data):
+    def fn(d):
+        (d / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+    return fn
+
+
+# --- the catalogue --------------------------------------------------------------------------
+TRACK_CASES = [
+    ("track-missing-file", _fit(lambda d: (d / "track.csv").unlink()), r"track\.csv: track not found"),
+    ("track-empty-file", _track(_write("track.csv", "")), r"track\.csv: track is empty"),
+    ("track-binary-garbage", _track(_write("track.csv", bytes(range(256)) * 4)),
+     r"track\.csv: track (is not UTF-8|contains NUL).*expected a CSV text file"),
+    ("track-utf16", _track(_write("track.csv", "t,x\n0,0\n1,1\n".encode("utf-16"))), r"UTF-16"),
+    ("track-only-comments", _track(_write("track.csv", "# nothing\n# here\n")), r"has only comments"),
+    ("track-no-header", _track(lambda d: _edit_track(d, lambda h, r: (",".join(r[0]), r[1:]))),
+     r"track\.csv: line 1: track has no header row"),
+    ("track-missing-t", _track(lambda d: _edit_track(d, lambda h, r: (h.replace("t,", "time,"), r))),
+     r"line 1: track needs a time column 't'.*header has time"),
+    ("track-no-channel", _track(_write("track.csv", "t,snr\n0,1\n1,2\n")), r"track has 't' but none of the channels"),
+    ("track-duplicate-column", _track(lambda d: _edit_track(d, lambda h, r: (h.replace("y", "x"), r))),
+     r"duplicate column name 'x'"),
+    ("track-header-only", _track(_write("track.csv", "t,x,z\n")), r"has a header \(line 1\) but no data rows"),
+    ("track-single-row", _track(_write("track.csv", "t,x,z\n0,0,0\n")), r"track has 1 data row; at least 2"),
+    ("track-nan", _track(lambda d: _edit_track(d, _set_field(5, "x", "nan"))),
+     r"line 7, column 'x': 'nan' is not a finite number"),
+    ("track-inf", _track(lambda d: _edit_track(d, _set_field(3, "v", "inf"))),
+     r"line 5, column 'v': 'inf' is not a finite number"),
+    ("track-text-in-number", _track(lambda d: _edit_track(d, _set_field(4, "z", "12.3abc"))),
+     r"line 6, column 'z': '12.3abc' is not a number"),
+    ("track-empty-field", _track(lambda d: _edit_track(d, _set_field(4, "z", ""))),
+     r"line 6, column 'z': empty field"),
+    ("track-ragged-row", _track(lambda d: _edit_track(d, lambda h, r: (h, r[:6] + [r[6][:-1]] + r[7:]))),
+     r"line 8: 4 fields, but the header has 5"),
+    ("track-time-goes-back", _track(lambda d: _edit_track(d, _set_field(8, "t", "1.0"))),
+     r"line 10: t = 1 s goes back .* time must increase strictly"),
+    ("track-time-repeats", _track(lambda d: _edit_track(d, _set_field(8, "t", "3.500000"))),
+     r"line 10: t = 3.5 s repeats the previous row's time"),
+    ("track-semicolons", _track(_write("track.csv", "t;x;z\n0;0;0\n1;2;3\n")), r"separated by ';'"),
+    ("track-negative-v", _track(lambda d: _edit_track(d, _set_field(2, "v", "-800"))),
+     r"line 4: v = -800 m/s is negative"),
+    ("track-positions-in-km", _track(lambda d: _scale_track(d, "xyz", 1e-3)),
+     r"units look wrong.*kilometres"),
+    ("track-positions-in-mm", _track(lambda d: _scale_track(d, "xyz", 1e3)),
+     r"units look wrong.*millimetres"),
+    ("track-v-in-ft-per-s", _track(lambda d: _scale_track(d, "v", 1 / 0.3048)), r"units look wrong.*ft/s"),
+    ("track-t-in-ms", _track(lambda d: _scale_track(d, "t", 1e3)), r"units look wrong.*milliseconds"),
+    ("track-is-directory", _fit(lambda d: ((d / "track.csv").unlink(), (d / "track.csv").mkdir())),
+     r"track\.csv: track expected, found a directory"),
+]
+
+ROUND_CASES = [
+    ("round-missing-file", lambda d: (d / "round.toml").unlink(), r"round\.toml: round file not found"),
+    ("round-empty", _write("round.toml", ""), r"round\.toml: missing section \[projectile\]"),
+    ("round-broken-toml", _sub("mass = 42.6", "mass = 42.6 kg"), r"round\.toml: not valid TOML.*line 3"),
+    ("round-binary-garbage", _write("round.toml", b"\x89PNG\r\n\x1a\n\x00\x00" + bytes(range(200))),
+     r"round\.toml: round file (is not UTF-8|contains NUL)"),
+    ("round-unknown-section", lambda d: _round(d, GOOD_ROUND + "\n[weather]\nwind = 3\n"),
+     r"unknown section 'weather'.*allowed: projectile, launch, atmosphere, radar"),
+    ("round-unknown-key", _sub("mass = 42.6", "mas = 42.6\nmass = 42.6"),
+     r"unknown key in \[projectile\] 'mas' \(did you mean 'mass'\?\)"),
+    ("round-missing-mass", _sub("mass = 42.6\n", ""), r"\[projectile\] missing key mass \(kg\)"),
+    ("round-mass-text", _sub("mass = 42.6", 'mass = "heavy"'), r"\[projectile\] mass must be a number \(kg\), got string 'heavy'"),
+    ("round-mass-boolean", _sub("mass = 42.6", "mass = true"), r"mass must be a number \(kg\), got boolean true"),
+    ("round-mass-negative", _sub("mass = 42.6", "mass = -42.6"), r"\[projectile\] mass = -42.6"),
+    ("round-mass-implausible", _sub("mass = 42.6", "mass = 4.26e6"), r"\[projectile\] mass = 4.26e\+06"),
+    ("round-diameter-in-mm", _sub("diameter = 0.155", "diameter = 155.0"), r"diameter = 155 looks like millimetres"),
+    ("round-diameter-in-km", _sub("diameter = 0.155", "diameter = 0.000155"), r"diameter = 0.000155 m is outside"),
+    ("round-elevation-implausible", _sub("elevation = 15.0", "elevation = 95.0"), r"\[launch\] elevation = 95 deg"),
+    ("round-velocity-implausible", _sub("velocity = 818.0", "velocity = 8180.0"), r"\[launch\] velocity = 8180 m/s"),
+    ("round-sigma-unknown-channel", _sub("v = 0.3}", "v = 0.3, w = 1.0}"), r"\[radar\] sigma has unknown channel\(s\) w"),
+    ("round-sigma-negative", _sub("v = 0.3}", "v = -0.3}"), r"\[radar\] sigma.v = -0.3 must be > 0"),
+    ("round-atmosphere-model", lambda d: _round(d, GOOD_ROUND + '\n[atmosphere]\nmodel = "us62"\n'),
+     r"\[atmosphere\] model = 'us62' is not supported"),
+    ("round-reference-missing", _sub('"cd.csv"', '"nope.csv"'), r"reference_drag = 'nope.csv': .*nope.csv: drag table not found"),
+    ("round-reference-negative-cd", lambda d: (d / "cd.csv").write_text("mach,cd\n0.5,0.3\n1.0,-0.2\n3.0,0.3\n"),
+     r"reference_drag = 'cd.csv': .*0 < cd <= 5"),
+    ("round-reference-does-not-cover-launch-mach",
+     lambda d: (d / "cd.csv").write_text("mach,cd\n0.5,0.13\n1.0,0.3\n1.5,0.35\n"),
+     r"reference_drag = 'cd.csv' covers Mach 0.5-1.5 but the launch .* is Mach 2.40.*reference_extrapolate"),
+    ("round-reference-extrapolate-not-boolean", _sub('reference_drag = "cd.csv"', 'reference_drag = "cd.csv"\nreference_extrapolate = "yes"'),
+     r"reference_extrapolate must be true or false, got string 'yes'"),
+    ("round-profile-in-celsius", lambda d: (
+        (d / "met.csv").write_text("altitude,temperature,pressure\n0,15,101325\n1000,8.5,89876\n"),
+        _round(d, GOOD_ROUND + '\n[atmosphere]\nprofile = "met.csv"\n')),
+     r"\[atmosphere\] profile = 'met.csv': .*looks like degrees Celsius"),
+    ("round-contradicting-atmosphere", lambda d: (
+        (d / "met.csv").write_text("altitude,temperature,pressure\n0,288.15,101325\n1000,281.65,89876\n"),
+        _round(d, GOOD_ROUND + '\n[atmosphere]\nmodel = "icao"\nprofile = "met.csv"\n')),
+     r"model = 'icao' contradicts profile"),
+]
+
+OPTION_CASES = [
+    ("fit-unknown-drag", _fit(extra=["--drag", "cubic"]), r"command line: .*--drag.*invalid choice: 'cubic'"),
+    ("fit-unknown-scheme", _fit(extra=["--scheme", "3"]), r"command line: .*--scheme.*invalid choice: 3"),
+    ("fit-channel-not-in-track", _fit(extra=["--channels", "x,w"]), r"--channels 'x,w': w not in the track"),
+    ("fit-unknown-option", _fit(extra=["--fast"]), r"command line: unrecognized arguments: --fast"),
+    ("fit-output-is-a-file", lambda d: ["fit", "track.csv", "round.toml", "-o", "out/result.json", "--no-mcmc"],
+     r"out/result\.json: output path exists and is not a folder"),
+    ("fit-reference-scale-without-reference", _fit(_sub('reference_drag = "cd.csv"\n', ""), ["--drag", "reference-scale"]),
+     r"reference-scale.*needs a reference drag"),
+    ("sim-seed-without-noise", _sim(extra=["--seed", "3"]), r"--seed only makes sense with --noise"),
+    ("sim-noise-without-sigma", _sim(_sub("[radar]\nsigma = {x = 1.0, y = 1.0, z = 1.0, v = 0.3}\n", ""), ["--noise"]),
+     r"round\.toml: --noise needs \[radar\] sigma"),
+    ("sim-negative-dt", _sim(extra=["--dt", "-0.1"]), r"--dt.*positive"),
+    ("sim-bad-seed", _sim(extra=["--noise", "--seed", "abc"]), r"--seed must be a non-negative integer, got 'abc'"),
+    ("sim-unknown-model", _sim(extra=["--model", "3dof"]), r"invalid choice: '3dof'"),
+    ("sim-missing-velocity", _sim(_sub("velocity = 818.0\n", "")), r"round\.toml: .*needs \[launch\] velocity"),
+    ("sim-no-reference", _sim(_sub('reference_drag = "cd.csv"\n', "")), r"simulate needs \[projectile\] reference_drag"),
+    ("sim-output-folder-missing", lambda d: ["simulate", "round.toml", "-o", "nowhere/t.csv"],
+     r"output folder nowhere does not exist"),
+]
+
+#: entries whose hole is in a file this catalogue's owner may not fix (cli.py / fitting.py):
+#: kept as strict xfails so the fix shows up as XPASS
+XFAIL = {
+    "fit-reference-scale-without-reference":
+        "fitting.py/scheme1 let make_drag_model's ValueError through: exit 1 'internal error' instead of exit 2",
+}
+
+
+def _params(cases, commands=("fit", "simulate")):
+    out = []
+    for name, setup, match in cases:
+        marks = [pytest.mark.xfail(strict=True, reason=XFAIL[name])] if name in XFAIL else []
+        out.append(pytest.param(name, setup, match, id=name, marks=marks))
+    return out
+
+
+def _snapshot(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _run_case(tmp_path, good, capsys, monkeypatch, setup):
+    d = tmp_path / "case"
+    shutil.copytree(good, d)
+    out = d / "out"
+    out.mkdir()
+    # files of an earlier run that a failed run must leave alone
+    (out / "result.json").write_text('{"earlier": "run"}\n')
+    (out / "track_sim.csv").write_text("t,x\n0,0\n1,1\n")
+    (out / "cd.png").write_bytes(b"\x89PNG earlier figure")
+    before = _snapshot(out)
+    monkeypatch.chdir(d)
+    argv = setup(d)
+    capsys.readouterr()
+    status = main(argv)
+    cap = capsys.readouterr()
+    return status, cap, before, _snapshot(out)
+
+
+def _check(status, cap, before, after, match):
+    lines = cap.err.strip().splitlines()
+    assert status == 2, f"exit {status}, stderr: {cap.err!r}"
+    assert "Traceback" not in cap.err
+    assert len(lines) == 1, f"expected one stderr line, got {lines!r}"
+    assert lines[0].startswith("bayesdrag: error: ")
+    assert re.search(match, lines[0]), f"{lines[0]!r} does not match {match!r}"
+    assert after == before, "a failed run changed files in the output folder"
+
+
+@pytest.mark.parametrize("name, setup, match", _params(TRACK_CASES + OPTION_CASES))
+def test_bad_input(name, setup, match, tmp_path, good, capsys, monkeypatch):
+    _check(*_run_case(tmp_path, good, capsys, monkeypatch, setup), match)
+
+
+@pytest.mark.parametrize("command", ["fit", "simulate"])
+@pytest.mark.parametrize("name, setup, match", _params(ROUND_CASES))
+def test_bad_round(command, name, setup, match, tmp_path, good, capsys, monkeypatch):
+    run = (_fit if command == "fit" else _sim)(setup)
+    _check(*_run_case(tmp_path, good, capsys, monkeypatch, run), match)
+
+
+def test_catalogue_size():
+    # issue 7: >= 25 kinds of bad track / round / option
+    kinds = {n for n, _, _ in TRACK_CASES + ROUND_CASES + OPTION_CASES}
+    assert len(kinds) >= 25
