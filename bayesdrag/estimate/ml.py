@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import fftconvolve
 
 from ..errors import FitError, InputError
 from ..track import CHANNELS
@@ -52,6 +53,9 @@ _CH_INDEX = {"x": 0, "y": 1, "z": 2}
 #: finite-difference steps for the initial state (m, m/s): small against radar noise, large
 #: against the kernel's rounding
 IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
+
+#: longest backward extrapolation from the initial state for a shifted radar clock [s]
+MAX_BACKWARD = 0.25
 
 
 @dataclass(frozen=True)
@@ -291,15 +295,40 @@ class OutputErrorProblem:
         for s in np.unique(shift):
             g = np.flatnonzero(shift == s)
             t_out = self.track.t + s
-            if t_out[0] < self.t_ic - 1e-12:
-                continue  # samples before the initial state: left NaN, the fit rejects the step
+            if t_out[0] < self.t_ic - MAX_BACKWARD:
+                continue  # too far before the initial state: left NaN, the fit rejects the step
             ov = {k: np.asarray(v, float)[g] for k, v in inp.overrides.items()}
             atm = None if inp.atmospheres is None else [inp.atmospheres[i] for i in g]
-            tr = self.model.simulate_batch(thetas[g, :P], thetas[g, P:P + 6], t_out,
-                                           t_start=self.t_ic, overrides=ov, atmospheres=atm)
-            y[g] = _outputs(tr.state, self.channels)
-            mach[g] = tr.mach
+            state, m = self._simulate_shifted(thetas[g], t_out, ov, atm)
+            y[g] = _outputs(state, self.channels)
+            mach[g] = m
         return y, mach
+
+    def _simulate_shifted(self, th, t_out, ov, atm):
+        """States (G, N, 6) and Mach (G, N) at ``t_out``; samples before the initial state (an
+        early radar clock) are extrapolated backwards to second order from it."""
+        P = self.P
+        pre = t_out < self.t_ic - 1e-12
+        if not pre.any():
+            tr = self.model.simulate_batch(th[:, :P], th[:, P:P + 6], t_out, t_start=self.t_ic,
+                                           overrides=ov, atmospheres=atm)
+            return tr.state, tr.mach
+        hh = 1e-3
+        t_post = t_out[~pre]
+        extra = [t for t in (self.t_ic, self.t_ic + hh) if not np.any(np.abs(t_post - t) < 1e-9)]
+        t_req = np.sort(np.concatenate([extra, t_post]))
+        tr = self.model.simulate_batch(th[:, :P], th[:, P:P + 6], t_req, t_start=self.t_ic,
+                                       overrides=ov, atmospheres=atm)
+        st = tr.state
+        i1 = int(np.argmin(np.abs(t_req - (self.t_ic + hh))))
+        a0 = (st[:, i1, 3:] - st[:, 0, 3:]) / (t_req[i1] - t_req[0])
+        tau = (t_out[pre] - self.t_ic)[None, :, None]
+        pos = st[:, :1, :3] + st[:, :1, 3:] * tau + 0.5 * a0[:, None, :] * tau**2
+        vel = st[:, :1, 3:] + a0[:, None, :] * tau
+        post = np.searchsorted(t_req, t_post - 1e-9)
+        state = np.concatenate([np.concatenate([pos, vel], axis=-1), st[:, post]], axis=1)
+        mach = np.concatenate([np.repeat(tr.mach[:, :1], int(pre.sum()), axis=1), tr.mach[:, post]], axis=1)
+        return state, mach
 
     def sensitivities(self, theta):
         """Outputs at theta (N, C) and d outputs / d theta_free (N, C, n_free) by central
@@ -457,11 +486,13 @@ class OutputErrorProblem:
             below = np.flatnonzero(r < limit)
             kmax = int(below[0]) if below.size else N // 4
             kmax = min(kmax, N // 4)
-            s = Sw[:, j, :]
+            s = np.ascontiguousarray(Sw[:, j, :])
             D += r[0] * s.T @ s
-            for k in range(1, kmax + 1):
-                X = s[:-k].T @ s[k:]
-                D += r[k] * (X + X.T)
+            if kmax > 0:
+                # sum_k r_k (s[:-k]' s[k:] + its transpose) = s' (T s), T the Toeplitz matrix of
+                # r_1..r_kmax: one FFT convolution instead of kmax matrix products
+                ker = np.concatenate([r[kmax:0:-1], [0.0], r[1:kmax + 1]])
+                D += s.T @ fftconvolve(s, ker[:, None], mode="same", axes=0)
         cov_c = Minv @ (D + (pJ.T @ pJ if pr.size else 0.0)) @ Minv
         cov = np.zeros((n, n))
         covc = np.zeros((n, n))
