@@ -1,0 +1,731 @@
+"""The sim-to-real gap diagnosis: where the nominal simulation misses a track, which unmodelled
+effect explains it, how large the effect is, how much of the gap it removes, and what it would
+have done to a fitted Cd (issue 6, DESIGN.md ``diagnosis.json``). Pure functions, no I/O;
+:mod:`bayesdrag.diagnose_report` writes the files.
+
+Method (each decision with its reason; docs/diagnosis.md has the long form):
+
+1. **Noise and outliers from the data, not from the fit.** Per channel the residual about a
+   local cubic (Savitzky-Golay, 11 samples) measures the high-frequency content. Samples further
+   than ``OUTLIER_K`` robust sd from it are flagged as gross outliers and get weight 0 in every
+   fit (listed in the output). The noise sd is the round's ``[radar] sigma`` when given;
+   otherwise the robust sd of that local residual corrected for the smoother. The baseline
+   residuals are never used for sigma: a misfit would inflate it and hide the gap. Limitation:
+   strongly correlated (AR(1)) noise has little high-frequency content, so an estimated sigma is
+   then too small; the significance rule below is invariant to that scale (it uses the residual
+   autocovariance measured against the assumed sigma), but ``chi2_per_sample`` and the gap are
+   inflated — the output says which sigma was estimated.
+2. **Baseline** = the round's reference drag (or, without one, a spline Cd as nuisance) in the
+   round's atmosphere, without Earth rotation and without any effect, with the initial state as
+   nuisance parameters. When the round gives launch velocity and elevation the state is the one
+   *at launch, t = 0*, with Gaussian priors: muzzle at the origin (``position_sd``), launch speed
+   (``velocity_sd``), elevation (``elevation_sd``) and heading along the firing azimuth
+   (sd = ``elevation_sd``: the gun is laid in deflection as carefully as in elevation). So a
+   track whose start is inconsistent with the muzzle at t = 0 costs prior misfit (a late radar
+   clock is a symptom, not absorbed). Without launch data the state is at the first sample and
+   ``radar_time`` is not identifiable.
+3. **Gap** = chi2 (noise-weighted residuals plus prior misfit) minus its noise-only expectation
+   (number of weighted samples + priors - free parameters); ``shrink`` = fraction of it an
+   effect removes, clipped to [0, 1].
+4. **Which**: every candidate is fitted by ML with its parameters and the initial state.
+   Significance: the chi2 drop ``d`` is divided by the colored-noise inflation
+   ``g' Rvv g / g' R g`` of the fitted output change ``g`` (residual autocovariance measured on
+   the candidate's own residuals, summed to the lag where it drops below its noise level, as in
+   Morelli & Klein's colored-residual CRB). Under AR(1) noise with rho = 0.95 this inflation is
+   ~30, and it also absorbs a wrong assumed sigma. The statistic is compared with the chi2
+   quantile of the effect's number of parameters at ``ALPHA / K`` (Bonferroni over the K
+   candidates tested). Ranking by chi2 drop (= 2 delta log-likelihood); exact ties keep the
+   library order.
+5. **Confounding**: two effects are ``confounded_with`` each other when their signatures (output
+   sensitivities with the initial state and drag nuisance projected out) span nearly the same
+   direction (canonical correlation >= ``CONFOUND_CORR``: density vs drag_scale is exactly 1),
+   or when both are significant and the data prefer one over the other by less than the 95 %
+   point of chi2(1) in colored units.
+6. **Forward selection**: the best significant effect enters the verdict; the others are refitted
+   together with the selected ones and enter when their conditional chi2 drop is significant
+   (same rule, K = remaining candidates) and removes at least ``MIN_SECOND_SHARE`` of the
+   baseline gap (a practical-size rule: a model mismatch that no effect describes leaves
+   correlated residuals that a second effect would always nibble at).
+7. **Where**: normalised baseline residuals smoothed over ~1 % of the flight; segments where the
+   smoothed residual exceeds the noise sd (merged over short breaks), by channel, with time,
+   Mach range, phase (ascent, apex = within 10 % of the flight time of the summit, descent) and
+   share of the systematic residual energy.
+8. **Cd shift**: the output change an effect causes, refitted by a Scheme 1 spline Cd plus the
+   initial state (linearised), shows what a Cd fit that ignored the effect would have absorbed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+from scipy.stats import chi2 as _chi2
+
+from .effects import EFFECTS, EffectContext, effect_fn, extra_params, static_model
+from .estimate.ml import OutputErrorProblem, Prior
+
+#: overall false-alarm rate of the verdict on a track the nominal model explains
+ALPHA = 0.05
+#: gross-outlier threshold in robust sd of the high-frequency residual
+OUTLIER_K = 5.0
+#: Savitzky-Golay window (samples) and order of the local smoother for noise and outliers
+HF_WINDOW, HF_ORDER = 11, 3
+#: canonical correlation of two effects' signatures above which the data cannot separate them
+CONFOUND_CORR = 0.995
+#: a second (third) effect must remove at least this fraction of the baseline gap
+MIN_SECOND_SHARE = 0.02
+#: projected-signature norm fraction below which an effect is unidentifiable (absorbed by the
+#: initial state and, without reference drag, the fitted Cd)
+IDENTIFIABLE_FRACTION = 0.02
+#: largest number of effects forward selection puts in the verdict
+MAX_VERDICT = 3
+#: apex phase: within this fraction of the flight time of the summit
+APEX_FRACTION = 0.1
+
+
+# ----------------------------------------------------------------------------------------------
+# noise, outliers, autocorrelation
+def hf_residual(z, window=HF_WINDOW, order=HF_ORDER):
+    """Residual of a channel about a local polynomial smoother and its variance factor.
+
+    Parameters
+    ----------
+    z : (N,) array
+    window, order : int
+
+    Returns
+    -------
+    e : (N,) array
+        ``z - smoothed(z)``.
+    factor : float
+        ``var(e) / sigma^2`` for white noise of sd sigma (``1 - h0``, h0 the smoother's central
+        weight).
+    """
+    n = z.size
+    w = min(window, n if n % 2 else n - 1)
+    if w <= order + 1:
+        return np.zeros_like(z), 1.0
+    e = z - savgol_filter(z, w, order, mode="interp")
+    h0 = float(savgol_coeffs(w, order)[w // 2])  # central weight of the smoother
+    return e, max(1.0 - h0, 1e-3)
+
+
+def _robust_sd(e):
+    med = np.median(e)
+    return 1.4826 * float(np.median(np.abs(e - med)))
+
+
+def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
+    """Noise sd per channel and a gross-outlier mask, from the data's high-frequency content.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    channels : sequence of str
+    sigma_given : dict, optional
+        A-priori sd per channel (the round's ``[radar] sigma``); used where given.
+    k : float
+        Outlier threshold in robust sd of the high-frequency residual.
+
+    Returns
+    -------
+    sigma : dict channel -> sd; source : dict channel -> "round" | "estimated";
+    outliers : (N, C) bool array
+    """
+    sigma, source = {}, {}
+    out = np.zeros((track.n, len(channels)), bool)
+    for j, c in enumerate(channels):
+        z = np.asarray(track.channels[c], float)
+        flagged = np.zeros(z.size, bool)
+        e, fac = hf_residual(z)
+        for _ in range(3):  # re-smooth with the flagged samples interpolated over
+            zz = z.copy()
+            if flagged.any() and (~flagged).sum() > 2:
+                zz[flagged] = np.interp(track.t[flagged], track.t[~flagged], z[~flagged])
+            e, fac = hf_residual(zz)
+            s = _robust_sd(e[~flagged]) if (~flagged).sum() > 10 else _robust_sd(e)
+            if s <= 0:
+                break
+            new = np.abs(z - (zz - e)) > k * s
+            if np.array_equal(new, flagged):
+                break
+            flagged = new
+        out[:, j] = flagged
+        if sigma_given and c in sigma_given:
+            sigma[c], source[c] = float(sigma_given[c]), "round"
+        else:
+            s = _robust_sd(e[~flagged]) if (~flagged).sum() > 10 else _robust_sd(e)
+            sigma[c] = max(s / math.sqrt(fac), 1e-6)
+            source[c] = "estimated"
+    return sigma, source, out
+
+
+def autocovariance(resid, weights, max_lag=None):
+    """Autocovariance per channel of weighted residuals, truncated where it first drops below
+    its noise level ``2 r0 / sqrt(N)`` (as the Morelli-Klein correction in ml.py).
+
+    Parameters
+    ----------
+    resid : (N, C) array
+    weights : (N, C) array (0 = excluded sample)
+
+    Returns
+    -------
+    list of (L_c,) arrays r_c(0..L_c)
+    """
+    N, C = resid.shape
+    out = []
+    for j in range(C):
+        w = weights[:, j] > 0
+        e = np.where(w, resid[:, j] - (resid[w, j].mean() if w.any() else 0.0), 0.0)
+        r = np.correlate(e, e, mode="full")[N - 1:] / max(w.sum(), 1)
+        lim = 2.0 / math.sqrt(N) * r[0]
+        below = np.flatnonzero(r < lim)
+        kmax = int(below[0]) if below.size else N // 4
+        kmax = min(kmax, N // 4, max_lag or N)
+        out.append(r[:kmax + 1])
+    return out
+
+
+def colored_inflation(g, acov, sigma_vec, weights):
+    """Variance inflation ``g' Rvv g / g' R g`` of a weighted output change under the measured
+    residual autocovariance (1 for white noise at the assumed sigma).
+
+    Parameters
+    ----------
+    g : (N, C) array
+        Output change (model units).
+    acov : list of arrays (from :func:`autocovariance`)
+    sigma_vec : (C,) assumed noise sd
+    weights : (N, C)
+    """
+    gw = g * weights / sigma_vec[None, :] ** 2  # R^-1 g
+    num = 0.0
+    den = float(np.sum(g * gw))
+    for j, r in enumerate(acov):
+        s = gw[:, j]
+        num += r[0] * float(s @ s)
+        for k in range(1, len(r)):
+            num += 2.0 * r[k] * float(s[:-k] @ s[k:])
+    if den <= 0:
+        return 1.0
+    return max(num / den, 0.05)
+
+
+# ----------------------------------------------------------------------------------------------
+@dataclass
+class Setup:
+    """Everything the baseline and candidate fits share."""
+
+    model: object
+    track: object
+    rnd: object
+    channels: tuple
+    theta0: np.ndarray
+    free: np.ndarray
+    priors: tuple
+    t_ic: float
+    sigma: dict
+    sigma_source: dict
+    weights: np.ndarray
+    outliers: np.ndarray
+    ctx: EffectContext
+    has_reference: bool
+    launch_known: bool
+    notes: list = field(default_factory=list)
+
+    @property
+    def P(self):
+        return self.model.drag.n_params
+
+
+def _launch_priors(L, P):
+    """Priors on the state at launch (t = 0): muzzle at the origin, speed, elevation, heading."""
+    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[P + k]), 0.0, L.position_sd)
+           for k, n in enumerate(("X0", "Y0", "Z0"))]
+    pri.append(Prior("launch_speed", lambda th: float(np.linalg.norm(th[P + 3:P + 6])), L.velocity, L.velocity_sd))
+    pri.append(Prior("elevation", lambda th: float(np.degrees(np.arctan2(th[P + 5], np.hypot(th[P + 3], th[P + 4])))),
+                     L.elevation_deg, L.elevation_sd_deg))
+    pri.append(Prior("heading", lambda th: float(np.degrees(np.arctan2(th[P + 4], th[P + 3]))),
+                     0.0, L.elevation_sd_deg))
+    return tuple(pri)
+
+
+def make_setup(track, rnd, sigma=None, channels=None):
+    """Baseline problem definition for a track and a round (see the module docstring)."""
+    from .drag import make_drag_model
+    from .dynamics.pointmass import PointMassModel, initial_state
+    from .estimate.scheme1 import _initial_state, mach_span
+
+    chans = tuple(channels) if channels is not None else tuple(track.names)
+    L = rnd.launch
+    notes = []
+    sig_given = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
+    sig, source, outl = noise_and_outliers(track, chans, sig_given)
+    if any(v == "estimated" for v in source.values()):
+        notes.append("noise sd estimated from the track's high-frequency content for "
+                     + ", ".join(c for c in chans if source[c] == "estimated")
+                     + " (no [radar] sigma); strongly correlated noise makes this estimate low")
+    weights = (~outl).astype(float)
+    if outl.any():
+        notes.append(f"{int(outl.any(axis=1).sum())} samples have gross outliers (> {OUTLIER_K:g} robust sd "
+                     f"from a local smoother) and are left out")
+    launch_known = L.velocity is not None and L.elevation_deg is not None
+    if launch_known:
+        t_ic = 0.0
+        s0 = initial_state(L.velocity, L.elevation_deg)
+    else:
+        t_ic = float(track.t[0])
+        s0 = _initial_state(track, rnd)
+        notes.append("no [launch] velocity/elevation: initial state fitted at the first sample without "
+                     "priors; a late radar clock (radar_time) cannot be told from a later start")
+    ref = rnd.reference_drag
+    if ref is not None:
+        drag = ref
+        dparams = np.zeros(0)
+    else:
+        lo, hi = mach_span(track, rnd, s0 if not launch_known else s0)
+        drag = make_drag_model("spline", mach_range=(lo, hi))
+        dparams = drag.initial_params(None)
+        notes.append("no reference drag in the round: the diagnosis works relative to a fitted Cd "
+                     "(spline as nuisance); effects that only rescale drag are not identifiable")
+    model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, drag, rnd.atmosphere)
+    P = drag.n_params
+    theta0 = np.concatenate([dparams, s0])
+    free = np.ones(theta0.size, bool)
+    if "y" not in chans:
+        free[P + 1] = free[P + 4] = False
+    if not any(c in chans for c in ("x", "y", "z")):
+        free[P:P + 3] = False
+    priors = _launch_priors(L, P) if launch_known else ()
+    ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg,
+                        azimuth_deg=L.azimuth_deg, v0=L.velocity)
+    return Setup(model, track, rnd, chans, theta0, free, priors, t_ic, sig, source, weights, outl,
+                 ctx, ref is not None, launch_known, notes)
+
+
+def _problem(setup, effects, theta_start):
+    """OutputErrorProblem of the baseline plus ``effects`` (parameters appended)."""
+    eff = [e for e in effects if e.k]
+    model = static_model(setup.model, effects, setup.ctx)
+    ex = extra_params(eff)
+    theta0 = np.concatenate([theta_start, [p.start for p in ex]]) if len(theta_start) == setup.theta0.size \
+        else np.asarray(theta_start, float)
+    free = np.concatenate([setup.free, np.ones(len(ex), bool)])
+    fn = effect_fn(eff, setup.ctx, setup.theta0[setup.P:]) if eff else None
+    return OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
+                              priors=setup.priors, channels=setup.channels, extras=ex, effect_fn=fn,
+                              t_ic=setup.t_ic, weights=setup.weights)
+
+
+def _fit(setup, effects, theta_start, max_iter=40):
+    prob = _problem(setup, effects, theta_start)
+    res = prob.fit(max_iter=max_iter)
+    y = np.stack([res.fitted[c] for c in setup.channels], axis=-1)
+    return res, prob, y
+
+
+def _n_obs(setup):
+    return float(setup.weights.sum())
+
+
+# ----------------------------------------------------------------------------------------------
+def signatures(setup, base_theta, effects):
+    """Effect signatures at the baseline with the nuisance parameters projected out.
+
+    Returns
+    -------
+    dict name -> (Q (n, r) orthonormal basis of the projected signature or None, fraction of the
+    signature norm left after projection)
+    """
+    sw = np.sqrt(setup.weights / np.array([setup.sigma[c] for c in setup.channels])[None, :] ** 2)
+    prob0 = _problem(setup, [], base_theta)
+    y0, _, S0 = prob0.sensitivities(base_theta)
+    A = (S0 * sw[:, :, None]).reshape(-1, S0.shape[-1])
+    # the launch priors are pseudo-measurements: appending their Jacobian makes the projection
+    # below the Schur complement (information left for the effect after the nuisance)
+    _, pJ = prob0._prior_terms(base_theta)
+    n_pr = pJ.shape[0]
+    A = np.vstack([A, pJ]) if n_pr else A
+    Qn, _ = np.linalg.qr(A)
+    out = {}
+    for e in effects:
+        if e.k == 0:
+            prob = _problem(setup, [e], base_theta)
+            y1, _ = prob.predict(base_theta[None])
+            cols = ((y1[0] - y0) * sw).reshape(-1, 1)
+        else:
+            prob = _problem(setup, [e], base_theta)
+            th = prob.theta0.copy()
+            if e.name == "yaw_drag":
+                th[-2] = 0.05  # the decay column is flat at zero amplitude: evaluate at a small one
+            _, _, S = prob.sensitivities(th)
+            cols = (S[:, :, -e.k:] * sw[:, :, None]).reshape(-1, e.k)
+        cols = np.vstack([cols, np.zeros((n_pr, cols.shape[1]))]) if n_pr else cols
+        norms = np.linalg.norm(cols, axis=0)
+        keep = norms > 0
+        if not keep.any():
+            out[e.name] = (None, 0.0)
+            continue
+        cols = cols[:, keep] / norms[keep]
+        proj = cols - Qn @ (Qn.T @ cols)
+        frac = float(np.max(np.linalg.norm(proj, axis=0)))
+        pn = np.linalg.norm(proj, axis=0)
+        if frac < 1e-12:
+            out[e.name] = (None, frac)
+            continue
+        Q, _ = np.linalg.qr(proj[:, pn > 1e-12 * pn.max()])
+        out[e.name] = (Q, frac)
+    return out
+
+
+def canonical_corr(Qa, Qb):
+    """Largest canonical correlation between two orthonormal bases (1 = same direction)."""
+    if Qa is None or Qb is None:
+        return 0.0
+    return float(np.linalg.svd(Qa.T @ Qb, compute_uv=False).max())
+
+
+# ----------------------------------------------------------------------------------------------
+def _phase(t, t_apex, t_end, t0):
+    span = max(t_end - t0, 1e-9)
+    if abs(t - t_apex) <= APEX_FRACTION * span:
+        return "apex"
+    return "ascent" if t < t_apex else "descent"
+
+
+def where_segments(t, resid_norm, weights, mach, z_model, channels, window=None):
+    """Segments where the systematic (smoothed) normalised residual exceeds the noise sd.
+
+    Parameters
+    ----------
+    t : (N,) s; resid_norm : (N, C) residual / sigma; weights : (N, C); mach : (N,);
+    z_model : (N,) model height (for the apex); channels : tuple of str
+
+    Returns
+    -------
+    list of dicts (channel, t_start, t_end, mach_min, mach_max, phase, phases, share,
+    peak_sigma), sorted by share.
+    """
+    N, C = resid_norm.shape
+    w = window or max(9, int(round(N / 100)) | 1)
+    k = np.ones(w)
+    smooth = np.zeros_like(resid_norm)
+    for j in range(C):
+        r = np.where(weights[:, j] > 0, resid_norm[:, j], 0.0)
+        num = np.convolve(r, k, mode="same")
+        den = np.convolve((weights[:, j] > 0).astype(float), k, mode="same")
+        smooth[:, j] = num / np.maximum(den, 1)
+    energy = smooth ** 2
+    total = float(energy.sum())
+    t_apex = float(t[int(np.argmax(z_model))]) if z_model is not None else float(t[N // 2])
+    segs = []
+    if total <= 0:
+        return segs
+    for j, c in enumerate(channels):
+        on = np.abs(smooth[:, j]) > 1.0
+        # close short breaks, drop short runs
+        idx = np.flatnonzero(on)
+        if idx.size == 0:
+            continue
+        runs = np.split(idx, np.flatnonzero(np.diff(idx) > w) + 1)
+        for run in runs:
+            a, b = int(run[0]), int(run[-1])
+            if b - a + 1 < max(3, w // 2):
+                continue
+            sl = slice(a, b + 1)
+            share = float(energy[sl, j].sum() / total)
+            ph_t = [_phase(tt, t_apex, t[-1], t[0]) for tt in t[sl]]
+            phases = [p for p in ("ascent", "apex", "descent") if p in ph_t]
+            e_by = {p: float(energy[sl, j][np.array(ph_t) == p].sum()) for p in phases}
+            m = mach[sl]
+            m = m[np.isfinite(m)]
+            segs.append({"channel": c, "t_start": float(t[a]), "t_end": float(t[b]),
+                         "mach_min": float(m.min()) if m.size else None,
+                         "mach_max": float(m.max()) if m.size else None,
+                         "phase": max(e_by, key=e_by.get), "phases": phases, "share": share,
+                         "peak_sigma": float(np.max(np.abs(smooth[sl, j])))})
+    segs.sort(key=lambda s: -s["share"])
+    return segs
+
+
+# ----------------------------------------------------------------------------------------------
+def cd_shift(setup, theta_eff, effects, y_eff, base_theta, n_mach=9):
+    """Cd change a Scheme 1 spline fit would absorb had ``effects`` been ignored (linearised).
+
+    The output change the effect causes at the fitted state, ``dy = y(effect) - y(no effect)``,
+    is least-squares fitted (noise-weighted) by spline-Cd and initial-state sensitivities;
+    ``dCd(M) = B(M) d beta``.
+
+    Returns
+    -------
+    dict with ``mach`` (list), ``cd_relative`` (list, dCd / Cd), ``max_abs_relative``.
+    """
+    from .drag import make_drag_model
+    from .dynamics.pointmass import PointMassModel
+
+    P = setup.P
+    s0 = theta_eff[P:P + 6]
+    prob_no = _problem(setup, [], np.concatenate([theta_eff[:P], s0]))
+    y_no, mach_no = prob_no.predict(np.concatenate([theta_eff[:P], s0])[None])
+    dy = y_eff - y_no[0]
+    m = mach_no[0][np.isfinite(mach_no[0])]
+    lo, hi = float(m.min()), float(m.max())
+    spl = make_drag_model("spline", mach_range=(lo, hi))
+    ref = setup.rnd.reference_drag
+    if ref is not None:
+        beta = spl.initial_params(ref)
+    else:
+        beta = theta_eff[:P] if P == spl.n_params else spl.initial_params(None)
+    model = PointMassModel(setup.model.mass, setup.model.diameter, spl, setup.model.atmosphere)
+    th = np.concatenate([beta, s0])
+    free = np.concatenate([np.ones(spl.n_params, bool), setup.free[P:P + 6]])
+    prob = OutputErrorProblem(model, setup.track, th, free=free, sigma=setup.sigma,
+                              channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
+    _, _, S = prob.sensitivities(th)
+    sw = np.sqrt(setup.weights) / np.array([setup.sigma[c] for c in setup.channels])[None, :]
+    A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
+    b = (dy * sw).reshape(-1)
+    d, *_ = np.linalg.lstsq(A, b, rcond=None)
+    grid = np.linspace(lo, hi, n_mach)
+    cd0 = spl.cd(beta, grid)
+    dcd = spl.jacobian(grid) @ d[:spl.n_params]
+    rel = dcd / cd0
+    return {"mach": [round(float(v), 3) for v in grid], "cd_relative": [float(v) for v in rel],
+            "max_abs_relative": float(np.max(np.abs(rel)))}
+
+
+# ----------------------------------------------------------------------------------------------
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`: ``summary`` is diagnosis.json; the arrays feed the figures."""
+
+    summary: dict
+    t: np.ndarray
+    channels: tuple
+    sigma: dict
+    resid_base: np.ndarray
+    resid_best: np.ndarray | None
+    mach: np.ndarray
+    weights: np.ndarray
+    best: str | None
+
+
+def _effect_order(name):
+    return list(EFFECTS).index(name)
+
+
+def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA, cd_shifts=True):
+    """Diagnose the gap between a radar track and the nominal simulation of its round.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    candidates : sequence of str, optional
+        Effect names to test (default: the whole library that the round makes testable).
+    sigma : dict, optional
+        Noise sd per channel (default the round's ``[radar] sigma``, else estimated).
+    channels : sequence of str, optional
+    alpha : float
+        Family-wise false-alarm rate of the verdict.
+    cd_shifts : bool
+        Compute the Cd shift of the significant effects (one extra sensitivity batch each).
+
+    Returns
+    -------
+    Diagnosis
+    """
+    setup = make_setup(track, rnd, sigma, channels)
+    chans = setup.channels
+    sig_vec = np.array([setup.sigma[c] for c in chans])
+    W = setup.weights / sig_vec[None, :] ** 2
+    base, base_prob, y_base = _fit(setup, [], setup.theta0)
+    if not np.all(np.isfinite(y_base)):
+        from .errors import FitError
+
+        raise FitError("the nominal simulation of the round does not reach the track's times")
+    base_theta = base.theta.copy()
+    n_obs = _n_obs(setup)
+    n_free0 = int(base.free.sum())
+    floor0 = n_obs + len(setup.priors) - n_free0
+    chi2_base = float(base.cost)
+    gap = max(chi2_base - floor0, 0.0)
+    resid_base = np.stack([base.residuals[c] for c in chans], axis=-1)
+    acov_base = autocovariance(resid_base, setup.weights)
+    prior_terms = {p.name: float((p.mean - p.fn(base_theta)) / p.sd) for p in setup.priors}
+    prior_chi2 = float(sum(v * v for v in prior_terms.values()))
+
+    # candidates
+    names = list(candidates) if candidates is not None else list(EFFECTS)
+    skipped = {}
+    if setup.ctx.latitude_deg is None and "coriolis" in names:
+        skipped["coriolis"] = "the round gives no [launch] latitude: Earth rotation cannot be formed"
+    if not setup.launch_known and "radar_time" in names:
+        skipped["radar_time"] = "no [launch] velocity/elevation: a clock offset is a later start of the same trajectory"
+    effs = [EFFECTS[n] for n in names if n not in skipped]
+    sigs = signatures(setup, base_theta, effs)
+    for e in list(effs):
+        Q, frac = sigs[e.name]
+        if Q is None or frac < IDENTIFIABLE_FRACTION:
+            why = ("absorbed by the fitted Cd and the initial state" if not setup.has_reference
+                   else "absorbed by the initial state")
+            skipped[e.name] = f"not identifiable from this track ({why}; {frac:.3g} of its signature left)"
+            effs.remove(e)
+    K = max(len(effs), 1)
+
+    rows = []
+    fits = {}
+    for e in effs:
+        res, prob, y = _fit(setup, [e], base_theta)
+        fits[e.name] = (res, prob, y)
+        rows.append(_candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K))
+    rows.sort(key=lambda r: (-round(r["delta_chi2"], 6 if r["delta_chi2"] < 1e3 else 3), _effect_order(r["name"])))
+    # confounding
+    for a in rows:
+        a["confounded_with"] = []
+    for i, a in enumerate(rows):
+        for b in rows[i + 1:]:
+            cc = canonical_corr(sigs[a["name"]][0], sigs[b["name"]][0])
+            a.setdefault("_corr", {})[b["name"]] = cc
+            close = (a["significant"] and b["significant"]
+                     and abs(a["delta_chi2"] - b["delta_chi2"]) / max(a["inflation"], b["inflation"])
+                     < _chi2.ppf(0.95, 1))
+            if cc >= CONFOUND_CORR or close:
+                a["confounded_with"].append(b["name"])
+                b["confounded_with"].append(a["name"])
+    for r in rows:
+        corr = r.pop("_corr", {})
+        r["signature_corr"] = {k: round(v, 4) for k, v in corr.items()}
+
+    # forward selection
+    verdict = []
+    selected_fit = None
+    if rows and rows[0]["significant"]:
+        verdict.append(rows[0]["name"])
+        selected_fit = fits[rows[0]["name"]]
+        remaining = [r for r in rows[1:] if r["significant"]
+                     and not set(r["confounded_with"]) & set(verdict)]
+        while remaining and len(verdict) < MAX_VERDICT:
+            sel_res, _, sel_y = selected_fit
+            sel_effs = [EFFECTS[n] for n in verdict]
+            best_add = None
+            Kr = len(remaining)
+            for r in remaining:
+                e = EFFECTS[r["name"]]
+                start = np.concatenate([sel_res.theta, [p.start for p in e.params]])
+                res, prob, y = _fit(setup, sel_effs + [e], start)
+                d = float(sel_res.cost - res.cost)
+                resid = np.stack([res.residuals[c] for c in chans], axis=-1)
+                infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
+                stat = d / infl
+                ok = (stat > _chi2.ppf(1 - alpha / Kr, max(e.k, 1)) and d >= MIN_SECOND_SHARE * gap)
+                if ok and (best_add is None or d > best_add[1]):
+                    best_add = (r["name"], d, (res, prob, y))
+            if best_add is None:
+                break
+            verdict.append(best_add[0])
+            selected_fit = best_add[2]
+            remaining = [r for r in remaining if r["name"] != best_add[0]
+                         and not set(r["confounded_with"]) & set(verdict)]
+    # Cd shifts
+    if cd_shifts:
+        for r in rows:
+            if r["significant"] or r is rows[0]:
+                try:
+                    res, prob, y = fits[r["name"]]
+                    r["cd_shift"] = cd_shift(setup, res.theta, [EFFECTS[r["name"]]], y, base_theta)
+                except Exception as exc:  # noqa: BLE001 - a report item, never the verdict
+                    r["cd_shift"] = {"error": f"{type(exc).__name__}: {exc}"}
+    joint = None
+    if len(verdict) > 1:
+        res, _, y = selected_fit
+        joint = {"effects": list(verdict), "params": {k: float(v) for k, v in res.extras.items()},
+                 "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0}
+    best_name = rows[0]["name"] if rows else None
+    y_best = fits[best_name][2] if best_name else None
+    resid_best = (np.stack([track.channels[c] for c in chans], axis=-1) - y_best) if y_best is not None else None
+    mach = np.asarray(base.mach, float)
+    rn = resid_base / sig_vec[None, :]
+    z_model = y_base[:, chans.index("z")] if "z" in chans else None
+    where = where_segments(track.t, rn, setup.weights, mach, z_model, chans)
+    if prior_chi2 > 0 and gap > 0:
+        where.append({"channel": "launch", "t_start": 0.0, "t_end": float(track.t[0]),
+                      "mach_min": None, "mach_max": None, "phase": "launch", "phases": ["launch"],
+                      "share": float(min(prior_chi2 / max(chi2_base - floor0 + prior_chi2, 1e-9), 1.0)),
+                      "peak_sigma": float(max(abs(v) for v in prior_terms.values())),
+                      "prior_misfit_sd": prior_terms})
+    for r in rows:
+        r.pop("inflation_raw", None)
+    summary = {
+        "baseline": {
+            "rms": {c: float(np.sqrt(np.sum(setup.weights[:, j] * resid_base[:, j] ** 2)
+                                     / max(setup.weights[:, j].sum(), 1))) for j, c in enumerate(chans)},
+            "chi2_per_sample": float(chi2_base / max(n_obs, 1)),
+            "chi2": chi2_base, "chi2_noise_floor": float(floor0), "gap": float(gap),
+            "prior_misfit_sd": prior_terms, "n_samples": int(track.n), "n_weighted": n_obs,
+            "sigma": {c: float(setup.sigma[c]) for c in chans}, "sigma_source": setup.sigma_source,
+            "drag": "reference" if setup.has_reference else "fitted spline (no reference drag)",
+            "initial_state": {n: float(v) for n, v in zip(base.names[setup.P:], base_theta[setup.P:])},
+            "ic_time": setup.t_ic, "converged": bool(base.converged), "message": base.message,
+        },
+        "where": where,
+        "effects": rows,
+        "verdict": verdict,
+        "joint": joint,
+        "skipped": skipped,
+        "outliers": {c: [int(i) for i in np.flatnonzero(setup.outliers[:, j])] for j, c in enumerate(chans)},
+        "tests": {"alpha": alpha, "candidates": K, "per_test_alpha": alpha / K,
+                  "rule": "chi2 drop / colored inflation > chi2_k quantile at alpha/K"},
+        "notes": setup.notes,
+        "reference_drag": setup.has_reference,
+    }
+    return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), resid_base, resid_best,
+                     mach, setup.weights, best_name)
+
+
+def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
+    chans = setup.channels
+    sig_vec = np.array([setup.sigma[c] for c in chans])
+    d = float(chi2_base - res.cost)
+    resid = np.stack([res.residuals[c] for c in chans], axis=-1)
+    acov = autocovariance(resid, setup.weights)
+    infl = colored_inflation(y - y_base, acov, sig_vec, setup.weights)
+    stat = d / infl
+    thr = float(_chi2.ppf(1 - alpha / K, max(e.k, 1)))
+    n_obs = _n_obs(setup)
+    vals = res.theta[-e.k:] if e.k else np.zeros(0)
+    idx = slice(res.theta.size - e.k, res.theta.size)
+    cov = res.cov[idx, idx] if e.k else np.zeros((0, 0))
+    covc = res.cov_colored[idx, idx] if e.k else np.zeros((0, 0))
+    floor_e = n_obs + len(setup.priors) - int(res.free.sum())
+    remaining = max(float(res.cost) - floor_e, 0.0)
+    physical = True
+    if e.name == "yaw_drag" and vals[0] < 0:
+        physical = False
+    sd_c = e.report_sd(vals, covc) if e.k else {}
+    # inflate the white sd by the colored factor where the Morelli-Klein bound is smaller
+    row = {
+        "name": e.name,
+        "params": e.report_params(vals) if e.k else {},
+        "sd": sd_c,
+        "sd_white": e.report_sd(vals, cov) if e.k else {},
+        "delta_loglik": d / 2.0,
+        "delta_chi2": d,
+        "delta_bic": -d + e.k * math.log(max(n_obs, 1)),
+        "shrink": float(np.clip(d / gap, 0.0, 1.0)) if gap > 0 else 0.0,
+        "remaining_gap": remaining,
+        "remaining_gap_fraction": float(remaining / gap) if gap > 0 else 0.0,
+        "inflation": float(infl),
+        "test_statistic": float(stat),
+        "threshold": thr,
+        "significant": bool(stat > thr and d > 0 and physical and np.isfinite(res.cost)),
+        "physical": physical,
+        "converged": bool(res.converged),
+        "explanation": e.explanation,
+        "units": dict(zip(e.report_params(vals).keys(), e.units)) if e.k else {},
+    }
+    if not res.success:
+        row["message"] = res.message
+    return row
