@@ -71,6 +71,11 @@ def build_parser():
     f.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (the Bayesian layer is being built)")
     f.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at the launch values")
 
+    g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
+    g.add_argument("track", help="radar track (CSV)")
+    g.add_argument("round", help="round file (TOML)")
+    g.add_argument("-o", "--output", required=True, help="output folder")
+
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
     return p
@@ -111,13 +116,19 @@ def cmd_demo(args):
     return 0
 
 
+def cmd_diagnose(args):
+    from .diagnose_report import run_diagnose
+
+    return run_diagnose(args)
+
+
 def cmd_fit(args):
     from .fitting import run_fit
 
     return run_fit(args)
 
 
-COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo}
+COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo, "diagnose": cmd_diagnose}
 
 
 def main(argv=None):

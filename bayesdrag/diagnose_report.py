@@ -1,0 +1,188 @@
+"""``bayesdrag diagnose``: run :func:`bayesdrag.diagnose.diagnose` and write ``diagnosis.json``,
+``diagnosis.html`` (self-contained, figures embedded), the figures as PNG and a one-paragraph
+summary on stderr. I/O and plotting only; the analysis lives in :mod:`bayesdrag.diagnose`.
+"""
+from __future__ import annotations
+
+import base64
+import io
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .outputs import atomic_write, ensure_output_dir, write_json
+
+
+def summary_paragraph(s):
+    """One paragraph (no line breaks) saying what the diagnosis found."""
+    b = s["baseline"]
+    parts = [f"Baseline chi2/sample {b['chi2_per_sample']:.3g} (gap {b['gap']:.4g})."]
+    if not s["reference_drag"]:
+        parts.append("No reference drag: effects are judged relative to a fitted Cd.")
+    if not s["verdict"]:
+        parts.append("The nominal simulation explains the track within its noise: no effect is significant"
+                     f" (family-wise false-alarm rate {s['tests']['alpha']:g}).")
+    else:
+        rows = {e["name"]: e for e in s["effects"]}
+        for i, n in enumerate(s["verdict"]):
+            e = rows[n]
+            ps = ", ".join(f"{k} = {v:.4g} ± {e['sd'].get(k, float('nan')):.2g}" for k, v in e["params"].items())
+            txt = (f"{'Found' if i == 0 else 'Also'}: {n}" + (f" ({ps})" if ps else "") +
+                   f", removing {100 * e['shrink']:.1f} % of the gap")
+            if e["confounded_with"]:
+                txt += f" (the data cannot tell it from {', '.join(e['confounded_with'])})"
+            if e.get("cd_shift") and "max_abs_relative" in e["cd_shift"]:
+                txt += f"; ignored, it would shift a fitted Cd by up to {100 * e['cd_shift']['max_abs_relative']:.2f} %"
+            parts.append(txt + ".")
+        if s.get("joint"):
+            parts.append(f"Together they remove {100 * s['joint']['shrink']:.1f} % of the gap.")
+        top = rows[s["verdict"][0]]
+        if top["remaining_gap_fraction"] > 0.05:
+            parts.append(f"{100 * top['remaining_gap_fraction']:.0f} % of the gap remains after {top['name']} "
+                         f"(e.g. an effect that varies along the path).")
+    if s["where"]:
+        w = s["where"][0]
+        parts.append(f"Largest miss: {w['channel']} {w['t_start']:.1f}-{w['t_end']:.1f} s ({w['phase']}, "
+                     f"{100 * w['share']:.0f} % of the systematic residual).")
+    return " ".join(parts)
+
+
+def _png_b64(fig):
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_residuals_before_after(d, fig=None):
+    """Normalised residuals per channel, nominal vs best effect. Returns the Figure."""
+    plt = _plt()
+    C = len(d.channels)
+    if fig is None:
+        fig, axes = plt.subplots(C, 1, figsize=(9, 1.9 * C + 0.6), sharex=True, layout="constrained")
+    axes = np.atleast_1d(fig.axes)
+    for j, c in enumerate(d.channels):
+        ax = axes[j]
+        w = d.weights[:, j] > 0
+        ax.plot(d.t[w], d.resid_base[w, j] / d.sigma[c], ".", ms=1.5, color="0.5", label="nominal")
+        if d.resid_best is not None:
+            ax.plot(d.t[w], d.resid_best[w, j] / d.sigma[c], ".", ms=1.5, color="C0", label=f"with {d.best}")
+        ax.axhspan(-1, 1, color="C2", alpha=0.15)
+        ax.set_ylabel(f"{c} / sd")
+    axes[0].legend(fontsize="small", markerscale=5, loc="upper left")
+    axes[-1].set_xlabel("time [s]")
+    return fig
+
+
+def plot_ranking(s, ax=None):
+    """Horizontal bars of the fraction of the gap each candidate removes. Returns the Axes."""
+    plt = _plt()
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 0.35 * max(len(s["effects"]), 2) + 1), layout="constrained")
+    eff = s["effects"][::-1]
+    names = [e["name"] for e in eff]
+    vals = [e["shrink"] for e in eff]
+    colors = ["C2" if e["name"] in s["verdict"] else ("C0" if e["significant"] else "0.7") for e in eff]
+    ax.barh(names, vals, color=colors)
+    ax.set(xlim=(0, 1.05), xlabel="shrink (fraction of the gap removed)",
+           title="candidates (green: verdict, blue: significant alone)")
+    return ax
+
+
+def plot_where(d, fig=None):
+    """Where-map: smoothed normalised residual against time and Mach per channel."""
+    plt = _plt()
+    if fig is None:
+        fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), layout="constrained")
+    ax_t, ax_m = fig.axes[:2]
+    N = d.t.size
+    k = np.ones(max(9, int(round(N / 100)) | 1))
+    for j, c in enumerate(d.channels):
+        r = np.where(d.weights[:, j] > 0, d.resid_base[:, j] / d.sigma[c], 0.0)
+        sm = np.convolve(r, k, "same") / np.maximum(np.convolve((d.weights[:, j] > 0) * 1.0, k, "same"), 1)
+        ax_t.plot(d.t, sm, label=c)
+        ax_m.plot(d.mach, sm, label=c)
+    for ax in (ax_t, ax_m):
+        ax.axhspan(-1, 1, color="C2", alpha=0.15)
+        ax.grid(alpha=0.3)
+    ax_t.set(xlabel="time [s]", ylabel="smoothed residual / sd", title="nominal misfit along time")
+    ax_m.set(xlabel="Mach", title="... and along Mach")
+    ax_t.legend(fontsize="small")
+    return fig
+
+
+def write_diagnosis(out, d, track_name="", round_name=""):
+    """Write diagnosis.json, diagnosis.html and the PNG figures into ``out``. Returns the
+    summary paragraph."""
+    import jinja2
+
+    out = ensure_output_dir(out)
+    s = d.summary
+    paragraph = summary_paragraph(s)
+    s = dict(s, summary=paragraph)
+    write_json(out / "diagnosis.json", _jsonable(s))
+    figs = {"residuals": plot_residuals_before_after(d), "ranking": plot_ranking(s).figure,
+            "where": plot_where(d)}
+    b64 = {}
+    for name, fig in figs.items():
+        data = io.BytesIO()
+        fig.savefig(data, format="png", dpi=90)
+        atomic_write(out / f"diagnosis_{name}.png", lambda tmp, b=data.getvalue(): Path(tmp).write_bytes(b))
+        b64[name] = _png_b64(fig)
+    env = jinja2.Environment(loader=jinja2.PackageLoader("bayesdrag", "templates"),
+                             autoescape=jinja2.select_autoescape(["html", "j2"]))
+    html = env.get_template("diagnosis.html.j2").render(
+        s=s, paragraph=paragraph, notes=s.get("notes", []), track_name=track_name, round_name=round_name,
+        fig_residuals=b64["residuals"], fig_ranking=b64["ranking"], fig_where=b64["where"])
+    atomic_write(out / "diagnosis.html", lambda tmp: Path(tmp).write_text(html, encoding="utf-8"))
+    return paragraph
+
+
+def _jsonable(o):
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        v = float(o)
+        return v if np.isfinite(v) else None
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return o
+
+
+def run_diagnose(args):
+    """Body of ``bayesdrag diagnose TRACK ROUND -o DIR``. Returns the exit status."""
+    from .diagnose import diagnose
+    from .errors import InputError
+    from .track import read_round, read_track
+
+    track = read_track(args.track)
+    rnd = read_round(args.round)
+    for note in getattr(track, "notes", ()):
+        print(f"bayesdrag: note: {note}", file=sys.stderr)
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: output path exists and is not a folder")
+    if track.n < 20:
+        raise InputError(f"{args.track}: {track.n} samples are too few for a diagnosis (need >= 20)")
+    d = diagnose(track, rnd)
+    paragraph = write_diagnosis(out, d, track_name=str(args.track), round_name=str(args.round))
+    print(f"bayesdrag: diagnosis: {paragraph}", file=sys.stderr)
+    print(f"diagnose: verdict {d.summary['verdict'] or 'none'}; wrote {out / 'diagnosis.json'}, diagnosis.html, "
+          f"diagnosis_*.png")
+    return 0
