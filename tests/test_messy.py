@@ -57,7 +57,7 @@ def _cases(full, truth):
         "irregular": _track(truth, ti[ti < 60.0]),
         # radar locks on 2 s after launch: ICs belong to the first sample (t = 2 s)
         "late_lock": full.subset(full.t >= 2.0),
-        # track lost at 25 s, before impact (~31 s)
+        # track lost at 25 s, before impact (32.4 s)
         "ends_early": full.subset(full.t <= 25.0),
     }
 
