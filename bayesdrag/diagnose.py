@@ -80,6 +80,10 @@ MIN_SECOND_SHARE = 0.02
 IDENTIFIABLE_FRACTION = 0.02
 #: largest number of effects forward selection puts in the verdict
 MAX_VERDICT = 3
+#: the runner-up starts a second forward selection when it removes this much of the gap alone
+LOOKAHEAD_SHRINK = 0.5
+#: starting yaw amplitude k delta0^2 of a yaw_drag fit (delta0 = 0.045 rad)
+YAW_AMP_START = 0.02
 #: apex phase: within this fraction of the flight time of the summit
 APEX_FRACTION = 0.1
 
@@ -305,13 +309,20 @@ def make_setup(track, rnd, sigma=None, channels=None):
                  ctx, ref is not None, launch_known, notes)
 
 
+def _fit_starts(e):
+    """Starting values of an effect's parameters: its null value, except the yaw amplitude,
+    started slightly positive so that the decay rate has a gradient (at zero amplitude the
+    decay is invisible and Gauss-Newton would stop at once)."""
+    return [YAW_AMP_START if p.name == "yaw_amp" else p.start for p in e.params]
+
+
 def _problem(setup, effects, theta_start):
     """OutputErrorProblem of the baseline plus ``effects`` (parameters appended)."""
     eff = [e for e in effects if e.k]
     model = static_model(setup.model, effects, setup.ctx)
     ex = extra_params(eff)
-    theta0 = np.concatenate([theta_start, [p.start for p in ex]]) if len(theta_start) == setup.theta0.size \
-        else np.asarray(theta_start, float)
+    theta0 = np.concatenate([theta_start, [s for e in eff for s in _fit_starts(e)]]) \
+        if len(theta_start) == setup.theta0.size else np.asarray(theta_start, float)
     free = np.concatenate([setup.free, np.ones(len(ex), bool)])
     fn = effect_fn(eff, setup.ctx, setup.theta0[setup.P:]) if eff else None
     return OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
@@ -599,36 +610,24 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         corr = r.pop("_corr", {})
         r["signature_corr"] = {k: round(v, 4) for k, v in corr.items()}
 
-    # forward selection
-    verdict = []
-    selected_fit = None
+    # forward selection, with a look-ahead from the runner-up when it is a real alternative
+    verdict, selected_fit = [], None
     if rows and rows[0]["significant"]:
-        verdict.append(rows[0]["name"])
-        selected_fit = fits[rows[0]["name"]]
-        remaining = [r for r in rows[1:] if r["significant"]
-                     and not set(r["confounded_with"]) & set(verdict)]
-        while remaining and len(verdict) < MAX_VERDICT:
-            sel_res, _, sel_y = selected_fit
-            sel_effs = [EFFECTS[n] for n in verdict]
-            best_add = None
-            Kr = len(remaining)
-            for r in remaining:
-                e = EFFECTS[r["name"]]
-                start = np.concatenate([sel_res.theta, [p.start for p in e.params]])
-                res, prob, y = _fit(setup, sel_effs + [e], start)
-                d = float(sel_res.cost - res.cost)
-                resid = np.stack([res.residuals[c] for c in chans], axis=-1)
-                infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-                stat = d / infl
-                ok = (stat > _chi2.ppf(1 - alpha / Kr, max(e.k, 1)) and d >= MIN_SECOND_SHARE * gap)
-                if ok and (best_add is None or d > best_add[1]):
-                    best_add = (r["name"], d, (res, prob, y))
-            if best_add is None:
-                break
-            verdict.append(best_add[0])
-            selected_fit = best_add[2]
-            remaining = [r for r in remaining if r["name"] != best_add[0]
-                         and not set(r["confounded_with"]) & set(verdict)]
+        starts = [rows[0]]
+        if len(rows) > 1 and rows[1]["significant"] and rows[1]["shrink"] >= LOOKAHEAD_SHRINK \
+                and rows[1]["name"] not in rows[0]["confounded_with"]:
+            starts.append(rows[1])
+        best = None
+        n_obs_log = math.log(max(n_obs, 1))
+        for r0 in starts:
+            v, f = _forward(setup, rows, r0, fits[r0["name"]], gap, sig_vec, alpha)
+            score = f[0].cost + sum(EFFECTS[n].k for n in v) * n_obs_log  # BIC
+            if best is None or score < best[0] - 1e-9:
+                best = (score, v, f)
+        verdict, selected_fit = best[1], best[2]
+        # the effects list is "best first": the verdict (in selection order), then the rest
+        order = {n: i for i, n in enumerate(verdict)}
+        rows.sort(key=lambda r: (order.get(r["name"], len(order)),))
     # Cd shifts
     if cd_shifts:
         for r in rows:
@@ -683,6 +682,39 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     }
     return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), resid_base, resid_best,
                      mach, setup.weights, best_name)
+
+
+def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
+    """Forward selection starting from ``first``: add the candidate whose conditional chi2
+    drop is significant (colored, Bonferroni over the remaining) and at least
+    ``MIN_SECOND_SHARE`` of the gap, the largest first, up to ``MAX_VERDICT`` effects."""
+    chans = setup.channels
+    verdict = [first["name"]]
+    selected_fit = first_fit
+    remaining = [r for r in rows if r is not first and r["significant"]
+                 and not set(r["confounded_with"]) & set(verdict)]
+    while remaining and len(verdict) < MAX_VERDICT:
+        sel_res, _, sel_y = selected_fit
+        sel_effs = [EFFECTS[n] for n in verdict]
+        best_add = None
+        Kr = len(remaining)
+        for r in remaining:
+            e = EFFECTS[r["name"]]
+            start = np.concatenate([sel_res.theta, _fit_starts(e)])
+            res, prob, y = _fit(setup, sel_effs + [e], start)
+            d = float(sel_res.cost - res.cost)
+            resid = np.stack([res.residuals[c] for c in chans], axis=-1)
+            infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
+            ok = (d / infl > _chi2.ppf(1 - alpha / Kr, max(e.k, 1)) and d >= MIN_SECOND_SHARE * gap)
+            if ok and (best_add is None or d > best_add[1]):
+                best_add = (r["name"], d, (res, prob, y))
+        if best_add is None:
+            break
+        verdict.append(best_add[0])
+        selected_fit = best_add[2]
+        remaining = [r for r in remaining if r["name"] != best_add[0]
+                     and not set(r["confounded_with"]) & set(verdict)]
+    return verdict, selected_fit
 
 
 def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):

@@ -1,0 +1,75 @@
+"""Run the withheld-effect validation suite of the gap diagnosis and print a confusion matrix,
+magnitude errors and shrink values (issue 6 acceptance), then one JSON line.
+
+    python tests/validation/run_suite.py            # full suite (31 effect + 20 null + 1 6-DOF null)
+    python tests/validation/run_suite.py --small    # the default-test subset
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from tests.validation.cases import EFFECT_CASES, NULL_CASES, SIXDOF_NULL, SMALL, run_case  # noqa: E402
+
+
+def summarise(results):
+    eff = [r for r in results if r["truth"] != "none" and not r["id"].startswith("6dof-null")]
+    nul = [r for r in results if r["truth"] == "none"]
+    top1 = sum(r["correct"] for r in eff) / max(len(eff), 1)
+    mags = [r["magnitude_ok"] for r in eff if r["magnitude_ok"] is not None]
+    shr = [r["shrink"] for r in eff if r["shrink"] is not None and r["truth"] != "coriolis" or
+           (r["truth"] == "coriolis" and r["shrink"] is not None)]
+    fa = sum(bool(r["verdict"]) for r in nul) / max(len(nul), 1)
+    return {"n_effect": len(eff), "n_null": len(nul), "top1_rate": top1,
+            "magnitude_rate": sum(mags) / max(len(mags), 1), "n_magnitude": len(mags),
+            "shrink_min": min(shr) if shr else None,
+            "shrink_ge_0.9_rate": sum(s >= 0.9 for s in shr) / max(len(shr), 1),
+            "false_alarm_rate": fa}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--small", action="store_true")
+    ap.add_argument("--out", default=None, help="write all case results to this JSON file")
+    a = ap.parse_args(argv)
+    cases = SMALL if a.small else EFFECT_CASES + NULL_CASES + SIXDOF_NULL
+    results = []
+    t0 = time.time()
+    for c in cases:
+        t1 = time.time()
+        r = run_case(c)
+        r["time_s"] = round(time.time() - t1, 2)
+        results.append(r)
+        print(f"{r['id']:<26} truth {r['truth']:<12} top {str(r['top']):<12} verdict {r['verdict']} "
+              f"{'OK ' if r['correct'] else 'BAD'} mag {r['magnitude_ok']} "
+              f"shrink {r['shrink'] if r['shrink'] is None else round(r['shrink'], 4)} ({r['time_s']} s)",
+              flush=True)
+    # confusion matrix: truth -> first verdict entry (or "none")
+    conf = Counter((r["truth"], r["verdict"][0] if r["verdict"] else "none") for r in results)
+    truths = sorted({t for t, _ in conf})
+    preds = sorted({p for _, p in conf})
+    print("\nconfusion (rows truth, columns first verdict entry):")
+    print(" " * 13 + "".join(f"{p[:11]:>12}" for p in preds))
+    for t in truths:
+        print(f"{t[:12]:<13}" + "".join(f"{conf.get((t, p), 0):>12}" for p in preds))
+    print("\nmagnitude errors:")
+    for r in results:
+        if r["params"] and r["true_params"]:
+            errs = {k: round(r["params"][k] - v, 4) for k, v in r["true_params"].items() if k in r["params"]}
+            print(f"  {r['id']:<26} fitted {({k: round(v, 4) for k, v in r['params'].items()})} error {errs}")
+    s = summarise(results)
+    s["total_time_s"] = round(time.time() - t0, 1)
+    if a.out:
+        Path(a.out).write_text(json.dumps(results, indent=1))
+    print(json.dumps(s))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
