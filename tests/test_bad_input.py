@@ -270,15 +270,45 @@ def _check(status, cap, before, after, match):
     assert after == before, "a failed run changed files in the output folder"
 
 
+def _has_command(name):
+    import argparse
+
+    from bayesdrag.cli import build_parser
+
+    subs = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    return any(name in a.choices for a in subs)
+
+
+#: ``bayesdrag diagnose`` is built by another issue; its entries run when the command exists
+needs_diagnose = pytest.mark.skipif(not _has_command("diagnose"), reason="bayesdrag diagnose not registered")
+
+
+def _as_diagnose(setup):
+    """The same case through ``bayesdrag diagnose TRACK ROUND -o DIR`` (no fit options)."""
+    def run(d):
+        argv = setup(d)
+        assert argv[0] == "fit"
+        return ["diagnose"] + [a for a in argv[1:] if a != "--no-mcmc"]
+    return run
+
+
 @pytest.mark.parametrize("name, setup, match", _params(TRACK_CASES + OPTION_CASES))
 def test_bad_input(name, setup, match, tmp_path, good, capsys, monkeypatch):
     _check(*_run_case(tmp_path, good, capsys, monkeypatch, setup), match)
 
 
-@pytest.mark.parametrize("command", ["fit", "simulate"])
+@needs_diagnose
+@pytest.mark.parametrize("name, setup, match", _params(TRACK_CASES))
+def test_bad_track_diagnose(name, setup, match, tmp_path, good, capsys, monkeypatch):
+    _check(*_run_case(tmp_path, good, capsys, monkeypatch, _as_diagnose(setup)), match)
+
+
+@pytest.mark.parametrize("command", ["fit", "simulate", "diagnose"])
 @pytest.mark.parametrize("name, setup, match", _params(ROUND_CASES))
 def test_bad_round(command, name, setup, match, tmp_path, good, capsys, monkeypatch):
-    run = (_fit if command == "fit" else _sim)(setup)
+    if command == "diagnose" and not _has_command("diagnose"):
+        pytest.skip("bayesdrag diagnose not registered")
+    run = {"fit": _fit, "simulate": _sim, "diagnose": lambda s: _as_diagnose(_fit(s))}[command](setup)
     _check(*_run_case(tmp_path, good, capsys, monkeypatch, run), match)
 
 
