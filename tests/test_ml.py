@@ -15,6 +15,7 @@ from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
 
 CD_RECOVERY_RTOL = 0.01     # issue 4: spline Cd within 1 % over Mach 1.2-2.3
 Z_ORDER_ONE = 3.0           # |error| / CRB sd "of order 1"
+SIX_DOF_RTOL = 0.02        # issue 4: from the 6-DOF track, Cd within 2 %
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 
 
@@ -156,3 +157,21 @@ def test_cli_fit_writes_result(noisy_track, round_, tmp_path, capsys):
     const.write_text("t,x,v\n" + "\n".join(f"{0.027 * i:.3f},{21.0 * i:.2f},818.0" for i in range(200)))
     assert main(["fit", str(const), str(rf), "-o", str(tmp_path / "o2"), "--no-mcmc"]) == 2
     assert "constant" in capsys.readouterr().err
+
+
+def test_six_dof_track_within_two_percent():
+    """The shipped 6-DOF track (paper Table 1 shell, QE 15 deg): the point-mass Scheme 1 fit
+    gives Cd within 2 % of M101 over Mach 1.2-2.3 (issue 4). The 6-DOF's yaw-of-repose lift,
+    absent from the point mass, shows up in the initial conditions instead: the fitted muzzle
+    moves sideways by tens of metres against a 1 m launch prior (docs/ml.md explains)."""
+    from bayesdrag.demo import demo_inputs
+    from bayesdrag.track import read_round, read_track
+
+    tp, rp = demo_inputs()
+    track, rnd = read_track(tp), read_round(rp)
+    res, prob = fit_scheme1(track, rnd)
+    assert res.converged, res.message
+    rows = cd_table(res, prob.model.drag, np.linspace(1.2, 2.3, 23), rnd.reference_drag)
+    err = np.array([r["ml"] / r["reference"] - 1 for r in rows])
+    assert np.max(np.abs(err)) < SIX_DOF_RTOL
+    assert abs(res.params["Y0"]) > 10 * rnd.launch.position_sd
