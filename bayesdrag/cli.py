@@ -44,6 +44,28 @@ def _positive_float(value):
     return v
 
 
+def _walkers(value):
+    try:
+        v = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value!r}")
+    return v
+
+
+def _nu(value):
+    if value == "sample":
+        return value
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--nu must be a positive number or 'sample', got {value!r}") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"--nu must be a positive number or 'sample', got {value!r}")
+    return value
+
+
 def build_parser():
     p = _Parser(prog="bayesdrag", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=_version())
@@ -59,7 +81,7 @@ def build_parser():
     s.add_argument("--clock-offset", type=float, default=0.0,
                    help="radar clock late by this many seconds (recorded = true - offset)")
 
-    f = sub.add_parser("fit", help="estimate Cd(M) from a track (maximum likelihood, Scheme 1)")
+    f = sub.add_parser("fit", help="estimate Cd(M) from a track (ML with Cramér-Rao bounds, then emcee posterior)")
     f.add_argument("track", help="radar track (CSV)")
     f.add_argument("round", help="round file (TOML)")
     f.add_argument("-o", "--output", required=True, help="output folder")
@@ -68,13 +90,19 @@ def build_parser():
     f.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline",
                    help="drag model (default spline: the only one that follows a transonic rise)")
     f.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")
-    f.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (the Bayesian layer is being built)")
+    f.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (no posterior sampling)")
     f.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at the launch values")
-
-    g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
-    g.add_argument("track", help="radar track (CSV)")
-    g.add_argument("round", help="round file (TOML)")
-    g.add_argument("-o", "--output", required=True, help="output folder")
+    f.add_argument("--seed", type=_seed, default=None, help="seed of the sampler (reproducible chains)")
+    f.add_argument("--resume", action="store_true",
+                   help="continue the unfinished chain in OUTPUT/chain.partial.h5 (after a kill)")
+    f.add_argument("--quiet", action="store_true", help="no progress bar or status lines")
+    f.add_argument("--walkers", type=_walkers, default=None, help="emcee walkers (default 16)")
+    f.add_argument("--max-steps", type=_walkers, default=20000,
+                   help="hard limit of sampler steps (default 20000; the run stops earlier at convergence)")
+    f.add_argument("--likelihood", choices=("gaussian", "student-t"), default="gaussian",
+                   help="noise model: gaussian (default) or student-t (robust to outliers)")
+    f.add_argument("--nu", type=_nu, default="4",
+                   help="Student-t degrees of freedom: a number (default 4) or 'sample'")
 
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")

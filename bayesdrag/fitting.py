@@ -1,28 +1,49 @@
-"""``bayesdrag fit``: read a track and a round, fit, write result.json and figures.
+"""``bayesdrag fit``: read a track and a round, fit, write result.json, posterior.nc, figures
+and report.html.
 
 Kept apart from :mod:`bayesdrag.cli` (argument parsing, exit codes) and from the estimators
 (:mod:`bayesdrag.estimate`), which stay free of I/O.
+
+Outputs (DESIGN.md): ``result.json``; with sampling (the default) also ``posterior.nc``
+(ArviZ), ``chain.h5`` (the emcee chain); always ``report.html`` and the figures. While sampling,
+the chain is written to ``chain.partial.h5``; ``--resume`` continues it after a kill, and it is
+renamed to ``chain.h5`` when the run finishes. A fresh run refuses to start over an unfinished
+chain (it would destroy it): resume it or delete it.
 """
 from __future__ import annotations
 
+import os
 import sys
+import time
 from pathlib import Path
 
 from .errors import FitError, InputError
 from .outputs import atomic_write as _atomic_write
 from .outputs import write_json as _write_json
+from .outputs import write_figure as _write_figure
+
+PARTIAL = "chain.partial.h5"
+CHAIN = "chain.h5"
 
 
-def run_fit(args):
+def _echo_err(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def run_fit(args, echo=print):
+    """Run the ``fit`` command; returns the exit status. ``args`` as parsed by the CLI."""
     import numpy as np
 
     from .estimate.scheme1 import cd_table, determined_range, fit_scheme1
     from .track import read_round, read_track
 
+    t_start = time.perf_counter()
     track = read_track(args.track)
     rnd = read_round(args.round)
+    quiet = getattr(args, "quiet", False)
     for note in getattr(track, "notes", ()):
-        print(f"bayesdrag: note: {note}", file=sys.stderr)
+        if not quiet:
+            _echo_err(f"bayesdrag: note: {note}")
     chans = None
     if args.channels:
         chans = tuple(c.strip() for c in args.channels.split(",") if c.strip())
@@ -33,10 +54,13 @@ def run_fit(args):
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output path exists and is not a folder")
+    mcmc = not args.no_mcmc
+    resume = getattr(args, "resume", False)
+    if mcmc and (out / PARTIAL).exists() and not resume:
+        raise InputError(f"{out / PARTIAL}: an unfinished chain from an earlier run is there; rerun with "
+                         f"--resume to continue it, or delete it to start afresh")
     res, prob = fit_scheme1(track, rnd, drag=args.drag, channels=chans, free_ic=not args.fix_ic)
     if not res.success:
-        from .errors import FitError
-
         raise FitError(f"{args.track}: {res.message}")
     out.mkdir(parents=True, exist_ok=True)
     dm = prob.model.drag
@@ -57,32 +81,204 @@ def run_fit(args):
                "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None},
         "cd": rows,
     }
-    if not args.no_mcmc:
-        print("bayesdrag: note: the Bayesian layer is not built yet; writing the ML result only "
-              "(use --no-mcmc to silence this)", file=sys.stderr)
+    smoothing = getattr(prob, "smoothing", None)
+    if smoothing:
+        result["ml"]["smoothing"] = {k: v for k, v in smoothing.items() if isinstance(v, (int, float, str))}
+    warnings = list(res.warnings)
+    bayes = post = idata = None
+    if mcmc:
+        bayes, post, idata, rows = _sample(args, prob, res, rows, dm, grid, rnd, out, quiet)
+        result["cd"] = rows
+        result["posterior"] = _posterior_json(bayes)
+        result["mcmc"] = _mcmc_json(bayes, post)
+        warnings += list(bayes.warnings)
+        info = [r for r in rows if r["crb_sd"] > 0 and r["ml"] > 0 and r["crb_sd"] / r["ml"] < 0.01]
+        ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
+        if ratios:
+            result["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
     _write_json(out / "result.json", result)
-    _fit_figures(out, res, dm, rows, rnd, track)
-    for w in res.warnings:
-        print(f"bayesdrag: warning: {w}", file=sys.stderr)
-    print(f"fit: {res.message} in {res.iterations} iterations; Cd determined over Mach "
-          f"{det[0]:.2f}-{det[1]:.2f}" if det else f"fit: {res.message}; Cd nowhere determined to 1 %")
-    print(f"  wrote {out / 'result.json'}, cd.png, residuals.png")
+    if idata is not None:
+        _atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
+    figs = _fit_figures(out, res, prob, dm, rows, rnd, track, bayes, post)
+    _report(out, args, track, rnd, res, prob, rows, bayes, post, figs, warnings, result,
+            time.perf_counter() - t_start)
+    if not quiet:
+        for w in warnings:
+            _echo_err(f"bayesdrag: warning: {w}")
+    echo(f"fit: {res.message} in {res.iterations} iterations; Cd determined over Mach "
+         f"{det[0]:.2f}-{det[1]:.2f}" if det else f"fit: {res.message}; Cd nowhere determined to 1 %")
+    if bayes is not None:
+        echo(f"mcmc: {bayes.message}; {bayes.steps} steps x {bayes.nwalkers} walkers in {bayes.elapsed:.1f} s")
+        echo(f"  wrote {out / 'result.json'}, posterior.nc, chain.h5, report.html and figures")
+    else:
+        echo(f"  wrote {out / 'result.json'}, report.html, cd.png, residuals.png")
     return 0
 
 
-def _fit_figures(out, res, dm, rows, rnd, track):
+def _sample(args, prob, res, rows, dm, grid, rnd, out, quiet):
+    import numpy as np
+
+    from .estimate.bayes import LogPosterior, cd_draws, cd_posterior_rows, sample_posterior, to_inference_data
+
+    nu = getattr(args, "nu", "4")
+    nu = "sample" if str(nu) == "sample" else float(nu)
+    post = LogPosterior(prob, res, likelihood=getattr(args, "likelihood", "gaussian"), nu=nu)
+    progress = (not quiet) and sys.stderr.isatty()
+    log = None if (quiet or progress) else _echo_err
+    partial = out / PARTIAL
+    resume = getattr(args, "resume", False)
+    if resume and not partial.exists() and not quiet:
+        _echo_err(f"bayesdrag: note: --resume: no unfinished chain in {out}; starting afresh")
+    bayes = sample_posterior(post, nwalkers=getattr(args, "walkers", None),
+                             max_steps=getattr(args, "max_steps", 20000), seed=getattr(args, "seed", None),
+                             backend_path=partial, resume=resume and partial.exists(),
+                             progress=progress, log=log)
+    os.replace(partial, out / CHAIN)
+    cd = cd_draws(bayes, dm, grid, prob.P)
+    rows = cd_posterior_rows(rows, cd)
+    idata = to_inference_data(bayes, post, grid, cd, rnd.reference_drag, seed=getattr(args, "seed", None))
+    return bayes, post, idata, rows
+
+
+def _posterior_json(b):
+    s = b.summary
+    col = lambda k: {n: float(v) for n, v in zip(s.index, s[k])}  # noqa: E731
+    return {"mean": col("mean"), "sd": col("sd"), "r_hat": col("r_hat"), "ess_bulk": col("ess_bulk"),
+            "ess_tail": col("ess_tail"), "q05": col("q05"), "q95": col("q95")}
+
+
+def _mcmc_json(b, post):
+    import numpy as np
+
+    return {"converged": b.converged, "message": b.message, "steps": b.steps, "burn": b.burn,
+            "thin": b.thin, "walkers": b.nwalkers, "draws": int(b.draws.shape[0] * b.draws.shape[1]),
+            "tau_max": float(np.max(b.tau)), "tau_mean": float(np.mean(b.tau)),
+            "acceptance": b.acceptance, "moves": b.moves, "likelihood": b.likelihood,
+            "nu": post.nu, "resumed_from": b.resumed_from, "seconds": round(b.elapsed, 3),
+            "sigma": {c: {"median": float(np.exp(np.median(b.draws[..., b.names.index(f"log_sigma_{c}")]))),
+                          "q05": float(np.exp(np.quantile(b.draws[..., b.names.index(f"log_sigma_{c}")], 0.05))),
+                          "q95": float(np.exp(np.quantile(b.draws[..., b.names.index(f"log_sigma_{c}")], 0.95)))}
+                      for c in post.channels}}
+
+
+def _fit_figures(out, res, prob, dm, rows, rnd, track, bayes, post):
+    """Write the figures; returns [(file name, title, caption)] for the report."""
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import numpy as np
 
-    from .plots import plot_cd_ml, plot_residuals
+    from .plots import (plot_cd_ml, plot_cd_posterior, plot_cd_relative, plot_corner, plot_residuals,
+                        plot_residuals_acf, plot_traces)
 
-    ax = plot_cd_ml(rows, label=f"ML ({dm.name})")
-    _atomic_write(out / "cd.png", lambda tmp: ax.figure.savefig(tmp, dpi=110, format="png"))
-    plt.close(ax.figure)
-    fig = plot_residuals(track.t, res.residuals, res.sigma)
-    _atomic_write(out / "residuals.png", lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+    figs = []
+    if bayes is None:
+        ax = plot_cd_ml(rows, label=f"ML ({dm.name})")
+        _write_figure(out / "cd.png", ax.figure)
+        figs.append(("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % Cramér-Rao band and the reference."))
+        fig = plot_residuals(track.t, res.residuals, res.sigma)
+        _write_figure(out / "residuals.png", fig)
+        figs.append(("residuals.png", "Residuals", "Measured minus fitted with ±σ bands."))
+        return figs
+    ax = plot_cd_posterior(rows, label=f"posterior ({dm.name})")
+    _write_figure(out / "cd.png", ax.figure)
+    figs.append(("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
+                 "Cramér-Rao band (dotted) and the reference firing table (dashed)."))
+    ax = plot_cd_relative(rows)
+    _write_figure(out / "cd_sd_ratio.png", ax.figure)
+    figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the "
+                 "bound; above 1 where the noise is estimated larger than the round's or the data are weak."))
+    flat = bayes.thetas.reshape(-1, bayes.thetas.shape[-1])
+    det = [r["mach"] for r in rows if r["ml"] > 0 and r["crb_sd"] / r["ml"] < 0.01] or [r["mach"] for r in rows]
+    ms = np.quantile(det, [0.1, 0.5, 0.9]).round(2)
+    B = dm.jacobian(ms)
+    sel = {f"Cd(M{m:.2f})": flat[:, :prob.P] @ B[i] for i, m in enumerate(ms)}
+    for n in ("X0", "Z0", "Ux0", "Uz0", "Uy0"):
+        if n in bayes.names:
+            sel[n] = flat[:, list(prob.names).index(n)]
+    fig = plot_corner(sel)
+    _write_figure(out / "corner.png", fig, dpi=80)
+    figs.append(("corner.png", "Corner plot", "Cd at three Mach numbers of the determined range and the "
+                 "initial state; lines at the 5, 50 and 95 % quantiles."))
+    picks = [n for n in ("Ux0", "Uz0", "log_sigma_x", "log_sigma_v") if n in post.names]
+    chains = {n: bayes.chain[:, :, post.names.index(n)] for n in picks}
+    mid = prob.P // 2
+    chains[prob.names[mid]] = bayes.chain[:, :, list(post.names).index(prob.names[mid])] \
+        if prob.names[mid] in post.names else None
+    chains = {k: v for k, v in chains.items() if v is not None}
+    if chains:
+        fig = plot_traces(chains)
+        for ax in fig.axes:
+            ax.axvline(bayes.burn, color="k", lw=0.8, ls="--")
+        _write_figure(out / "traces.png", fig)
+        figs.append(("traces.png", "Traces", f"Walkers against step; burn-in ({bayes.burn} steps) left of the "
+                     "dashed line."))
+    theta_mean = flat.mean(axis=0)
+    y, _ = prob.predict(theta_mean[None])
+    resid = {c: prob.z[:, j] - y[0, :, j] for j, c in enumerate(prob.channels)}
+    sig = {c: float(np.exp(np.median(bayes.draws[..., bayes.names.index(f"log_sigma_{c}")])))
+           for c in prob.channels}
+    fig = plot_residuals_acf(track.t, resid, sig)
+    _write_figure(out / "residuals.png", fig)
+    figs.append(("residuals.png", "Residuals and their autocorrelation",
+                 "Measured minus the posterior-mean trajectory with ±σ (posterior median noise sd); right: "
+                 "autocorrelation with the white-noise band ±2/√N. Correlated residuals mean model error: "
+                 "the bands are then too narrow (compare the colored CRB)."))
+    return figs
 
 
+def _report(out, args, track, rnd, res, prob, rows, bayes, post, figs, warnings, result, seconds):
+    import datetime
+
+    from .report import render_report, versions
+
+    def b64(name):
+        import base64
+
+        return base64.b64encode((out / name).read_bytes()).decode("ascii")
+
+    crb_c = dict(zip(res.names, res.crb_colored))
+    mlrows = []
+    for n, v, s, f in zip(res.names, res.theta, res.crb, res.free):
+        r = {"name": n + ("" if f else " (fixed)"), "value": v, "crb": s if f else None,
+             "crb_colored": crb_c[n] if f else None, "mean": None, "sd": None, "ratio": None}
+        if bayes is not None and n in bayes.summary.index:
+            r["mean"] = bayes.summary.loc[n, "mean"]
+            r["sd"] = bayes.summary.loc[n, "sd"]
+            r["ratio"] = r["sd"] / s if s > 0 else None
+        mlrows.append(r)
+    det = result["ml"]["mach_range_determined"]
+    inputs = [("track", f"{args.track} ({track.n} samples, channels {', '.join(prob.channels)}, "
+                        f"t = {track.t[0]:.3f} .. {track.t[-1]:.3f} s)"),
+              ("round", f"{args.round}: {rnd.projectile.name}, {rnd.projectile.mass} kg, "
+                        f"{rnd.projectile.diameter} m"),
+              ("drag model", f"{prob.model.drag.name} ({prob.P} coefficients)"),
+              ("Mach range of the data", f"{result['ml']['mach_range_data'][0]:.3f} - {result['ml']['mach_range_data'][1]:.3f}"),
+              ("Mach range determined (CRB < 1 % of Cd)", f"{det[0]:.2f} - {det[1]:.2f}" if det else "none"),
+              ("noise sd used by the ML fit", ", ".join(f"{c} {v:.3g}" for c, v in res.sigma.items())),
+              ("wall-clock time", f"{seconds:.1f} s")]
+    conv = None
+    post_ctx = None
+    if bayes is not None:
+        m = result["mcmc"]
+        conv = {"converged": bayes.converged, "message": bayes.message,
+                "rows": [("likelihood", f"{m['likelihood']}" + (f" (nu = {m['nu']})" if m["likelihood"] != "gaussian" else "")),
+                         ("moves", m["moves"]), ("walkers", m["walkers"]), ("steps", m["steps"]),
+                         ("burn-in / thinning", f"{m['burn']} / {m['thin']}"),
+                         ("autocorrelation time tau (max, mean)", f"{m['tau_max']:.2f}, {m['tau_mean']:.2f} steps"),
+                         ("acceptance", f"{m['acceptance']:.3f}"), ("retained draws", m["draws"]),
+                         ("resumed from step", m["resumed_from"]),
+                         ("max r_hat", f"{bayes.summary['r_hat'].max():.4f}"),
+                         ("min ESS bulk / tail", f"{bayes.summary['ess_bulk'].min():.0f} / {bayes.summary['ess_tail'].min():.0f}"),
+                         ("noise sd (posterior median)", ", ".join(f"{c} {v['median']:.3g}" for c, v in m["sigma"].items())),
+                         ("sampling time", f"{m['seconds']:.1f} s")]}
+        cols = ["mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk", "ess_tail", "mcse_mean"]
+        post_ctx = {"columns": cols, "rows": [(n, [bayes.summary.loc[n, c] for c in cols]) for n in bayes.summary.index]}
+    headline = (f"Scheme 1, {prob.model.drag.name} drag. ML: {res.message}. "
+                + (f"Posterior: {bayes.message}." if bayes is not None else "No sampling (--no-mcmc)."))
+    ctx = {"title": f"bayesdrag fit: {Path(args.track).name}", "created": datetime.datetime.now().isoformat(timespec="seconds"),
+           "headline": headline, "inputs": inputs, "warnings": warnings, "convergence": conv,
+           "figures": [{"title": t, "caption": c, "png": b64(f)} for f, t, c in figs],
+           "ml": {"message": res.message, "iterations": res.iterations, "cost": res.cost, "rows": mlrows},
+           "posterior": post_ctx, "cd_rows": rows[::2], "windows": None, "versions": versions()}
+    render_report(out / "report.html", ctx)

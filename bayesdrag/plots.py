@@ -178,3 +178,211 @@ def plot_residuals(t, residuals, sigma, fig=None):
     axes[-1].set_xlabel("time [s]")
     axes[0].set_title("residuals: measured minus fitted")
     return fig
+
+
+def plot_cd_posterior(rows, ax=None, truth=None, label="posterior", crb_band=0.90):
+    """Cd(M) posterior: median, 50 % and 90 % bands, the Cramér-Rao band of the ML fit, the
+    reference (firing-table) curve and the truth when known.
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``result.json`` ``cd`` rows with the posterior part (keys mach, ml, crb_sd, q05, q25,
+        q50, q75, q95, reference).
+    ax : matplotlib Axes, optional
+    truth : callable or (M,) array, optional
+        True Cd (a drag model's ``value`` or values at the rows' Mach numbers).
+    crb_band : float
+        Central probability of the Gaussian CRB band drawn around the ML curve.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from scipy.stats import norm
+
+    ax = _axes(ax, (7.5, 4.8))
+    m = np.array([r["mach"] for r in rows])
+    g = {k: np.array([r[k] for r in rows], float) for k in ("q05", "q25", "q50", "q75", "q95", "ml", "crb_sd")}
+    ax.fill_between(m, g["q05"], g["q95"], color="C0", alpha=0.22, lw=0, label="90 % posterior")
+    ax.fill_between(m, g["q25"], g["q75"], color="C0", alpha=0.45, lw=0, label="50 % posterior")
+    ax.plot(m, g["q50"], color="C0", lw=1.4, label=f"{label} median")
+    k = norm.ppf(0.5 + crb_band / 2)
+    ax.plot(m, g["ml"] - k * g["crb_sd"], color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
+    ax.plot(m, g["ml"] + k * g["crb_sd"], color="C3", ls=":", lw=1.1)
+    ref = [r.get("reference") for r in rows]
+    if all(v is not None for v in ref):
+        ax.plot(m, ref, "k--", lw=1, label="reference (firing table)")
+    if truth is not None:
+        tv = truth(m) if callable(truth) else np.asarray(truth)
+        ax.plot(m, tv, color="C2", lw=1.2, label="truth")
+    ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient: posterior vs Cramér-Rao vs reference")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_cd_relative(rows, ax=None):
+    """Posterior sd of Cd over the Cramér-Rao sd against Mach (1 = the bound is attained).
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``cd`` rows with ``sd_over_crb``.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax, (6, 3))
+    m = np.array([r["mach"] for r in rows])
+    q = np.array([np.nan if r.get("sd_over_crb") is None else r["sd_over_crb"] for r in rows])
+    ax.axhspan(0.7, 1.5, color="0.9", label="0.7-1.5")
+    ax.plot(m, q, "C0")
+    ax.axhline(1, color="k", lw=0.6)
+    ax.set(xlabel="Mach", ylabel="posterior sd / CRB sd", title="posterior width vs Cramér-Rao bound")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_corner(samples, truths=None, fig=None):
+    """Corner plot (``corner``) of selected quantities.
+
+    Parameters
+    ----------
+    samples : dict name -> (S,) array
+        Posterior draws (flattened over chains).
+    truths : dict name -> float, optional
+    fig : matplotlib Figure, optional
+        Passed to ``corner.corner``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import corner
+
+    _plt()
+    names = list(samples)
+    X = np.column_stack([np.asarray(samples[n], float) for n in names])
+    tv = None if truths is None else [truths.get(n) for n in names]
+    return corner.corner(X, labels=names, truths=tv, fig=fig, quantiles=(0.05, 0.5, 0.95),
+                         show_titles=True, title_fmt=".4g", title_kwargs={"fontsize": 8},
+                         label_kwargs={"fontsize": 8})
+
+
+def plot_traces(chains, fig=None, max_walkers=32):
+    """Traces of selected parameters, one thin line per walker.
+
+    Parameters
+    ----------
+    chains : dict name -> (steps, walkers) array
+        Full chains (burn-in included) as stored by emcee.
+    fig : matplotlib Figure, optional
+    max_walkers : int
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _plt()
+    names = list(chains)
+    if fig is None:
+        fig, _ = plt.subplots(len(names), 1, figsize=(8, 1.5 * len(names) + 0.6), sharex=True,
+                              layout="constrained", squeeze=False)
+    axes = np.array(fig.axes).reshape(-1)
+    for ax, n in zip(axes, names):
+        c = np.asarray(chains[n])
+        ax.plot(c[:, :max_walkers], lw=0.4, alpha=0.6)
+        ax.set_ylabel(n, fontsize="small")
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("step")
+    axes[0].set_title("traces (one line per walker)")
+    return fig
+
+
+def residual_acf(r, max_lag):
+    """Sample autocorrelation of residuals ``r`` (N,) at lags 0..max_lag."""
+    e = np.asarray(r, float) - np.mean(r)
+    n = e.size
+    c = np.correlate(e, e, mode="full")[n - 1:n + max_lag] / n
+    return c / c[0] if c[0] > 0 else c
+
+
+def plot_residuals_acf(t, residuals, sigma, fig=None, max_lag=60):
+    """Residuals per channel with ±σ bands (left) and their autocorrelation with the ±2/√N
+    white-noise band (right).
+
+    Parameters
+    ----------
+    t : (N,) s
+    residuals : dict channel -> (N,)
+    sigma : dict channel -> float (posterior or ML noise sd)
+    fig : matplotlib Figure, optional
+    max_lag : int
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _plt()
+    chans = list(residuals)
+    if fig is None:
+        fig, _ = plt.subplots(len(chans), 2, figsize=(10, 2.1 * len(chans) + 0.5), layout="constrained",
+                              squeeze=False, gridspec_kw={"width_ratios": [3, 1.3]})
+    axes = np.array(fig.axes).reshape(-1, 2)
+    n = len(t)
+    for (a, b), c in zip(axes, chans):
+        s = sigma[c]
+        a.axhspan(-s, s, color="0.85")
+        a.plot(t, residuals[c], ".", ms=2)
+        a.set_ylabel(f"{c} [{_unit(c)}]")
+        a.grid(alpha=0.3)
+        lag = min(max_lag, n - 1)
+        b.bar(np.arange(lag + 1), residual_acf(residuals[c], lag), width=0.8)
+        b.axhspan(-2 / np.sqrt(n), 2 / np.sqrt(n), color="C1", alpha=0.3)
+        b.set_ylim(-0.5, 1.05)
+        b.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("lag [samples]")
+    axes[0, 0].set_title("residuals (measured − posterior median), ±σ")
+    axes[0, 1].set_title("autocorrelation")
+    return fig
+
+
+def plot_windows(windows, ax=None, reference=None):
+    """Scheme 2: Cd per window against its Mach number with the posterior 90 % interval (or the
+    ML ±1.645 CRB sd when there is no posterior) and the reference curve.
+
+    Parameters
+    ----------
+    windows : list of dict
+        ``result.json`` ``windows`` rows (mach, ml, crb_sd, optional q05, q95, mean, reference).
+    ax : matplotlib Axes, optional
+    reference : callable, optional
+        Reference Cd(M) drawn as a curve.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax, (7, 4.5))
+    m = np.array([w["mach"] for w in windows])
+    if all(w.get("q05") is not None for w in windows):
+        mid = np.array([w["mean"] for w in windows])
+        lo = mid - np.array([w["q05"] for w in windows])
+        hi = np.array([w["q95"] for w in windows]) - mid
+        lab = "window posterior mean, 90 % interval"
+    else:
+        mid = np.array([w["ml"] for w in windows])
+        lo = hi = 1.645 * np.array([w["crb_sd"] for w in windows])
+        lab = "window ML, 90 % CRB interval"
+    ax.errorbar(m, mid, yerr=[lo, hi], fmt="o", ms=3, capsize=2, label=lab)
+    if reference is not None:
+        mm = np.linspace(m.min(), m.max(), 300)
+        ax.plot(mm, reference(mm), "k--", lw=1, label="reference (firing table)")
+    ax.set(xlabel="Mach", ylabel="Cd", title="Scheme 2: constant Cd per window")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
