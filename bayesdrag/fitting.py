@@ -30,8 +30,13 @@ def _echo_err(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-def run_fit(args, echo=print):
-    """Run the ``fit`` command; returns the exit status. ``args`` as parsed by the CLI."""
+def run_fit(args, echo=print, on_fit=None):
+    """Run the ``fit`` command; returns the exit status. ``args`` as parsed by the CLI.
+
+    ``on_fit``, when given, is called once the outputs are written as
+    ``on_fit(res=MLResult, prob=OutputErrorProblem, rnd=Round, track=RadarTrack, result=dict)``
+    (campaigns use it to keep each round's Cd covariance for pooling).
+    """
     import numpy as np
 
     from .estimate.scheme1 import cd_table, determined_range, fit_scheme1
@@ -112,6 +117,8 @@ def run_fit(args, echo=print):
         echo(f"  wrote {out / 'result.json'}, posterior.nc, chain.h5, report.html and figures")
     else:
         echo(f"  wrote {out / 'result.json'}, report.html, cd.png, residuals.png")
+    if on_fit is not None:
+        on_fit(res=res, prob=prob, rnd=rnd, track=track, result=result)
     return 0
 
 
