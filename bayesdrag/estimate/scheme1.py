@@ -144,6 +144,12 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
     penalised = drag == "spline" and knots is None and penalise
     if penalised:
         knots = pspline_knots(lo, hi)
+        # a short track (e.g. a Doppler report every 100 yd) cannot carry ~40 coefficients: keep
+        # the coefficients below a third of the data values, coarsening the knots evenly
+        n_data = track.n * len(tuple(channels) if channels is not None else track.names)
+        max_coef = max(4, (n_data - 6) // 3)
+        if knots.size + 2 > max_coef:
+            knots = pspline_knots(lo, hi, spacing=(hi - lo) / max(max_coef - 3, 1), fine=np.inf)
     dm = make_drag_model(drag, reference=rnd.reference_drag, mach_range=(lo, hi), knots=knots)
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, dm, rnd.atmosphere,
                            coriolis=_coriolis(rnd))
@@ -183,7 +189,7 @@ def pspline_knots(mach_min, mach_max, spacing=PSPLINE_SPACING, fine=PSPLINE_FINE
     a, b = TRANSONIC
     pts = [lo, hi]
     pts += list(np.arange(lo, hi, spacing))
-    if a < hi and b > lo:
+    if a < hi and b > lo and np.isfinite(fine):
         pts += list(np.arange(max(a, lo), min(b, hi), fine))
     k = np.unique(np.round(np.asarray(pts) / dm) * dm)
     # no knot closer than dm/2 to another (rounding) and at least 3 intervals
