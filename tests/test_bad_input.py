@@ -224,10 +224,7 @@ OPTION_CASES = [
 
 #: entries whose hole is in a file this catalogue's owner may not fix (cli.py / fitting.py):
 #: kept as strict xfails so the fix shows up as XPASS
-XFAIL = {
-    "fit-reference-scale-without-reference":
-        "fitting.py/scheme1 let make_drag_model's ValueError through: exit 1 'internal error' instead of exit 2",
-}
+XFAIL = {}
 
 
 def _params(cases, commands=("fit", "simulate")):

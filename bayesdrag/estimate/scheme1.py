@@ -150,7 +150,10 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
         max_coef = max(4, (n_data - 6) // 3)
         if knots.size + 2 > max_coef:
             knots = pspline_knots(lo, hi, spacing=(hi - lo) / max(max_coef - 3, 1), fine=np.inf)
-    dm = make_drag_model(drag, reference=rnd.reference_drag, mach_range=(lo, hi), knots=knots)
+    try:
+        dm = make_drag_model(drag, reference=rnd.reference_drag, mach_range=(lo, hi), knots=knots)
+    except ValueError as exc:
+        raise InputError(f"{rnd.path or 'round'}: {exc}") from None
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, dm, rnd.atmosphere,
                            coriolis=_coriolis(rnd))
     theta0 = np.concatenate([dm.initial_params(rnd.reference_drag), s0])
