@@ -82,8 +82,14 @@ IDENTIFIABLE_FRACTION = 0.02
 MAX_VERDICT = 3
 #: the runner-up starts a second forward selection when it removes this much of the gap alone
 LOOKAHEAD_SHRINK = 0.5
+#: forward selection is started from at most this many of the best single candidates
+LOOKAHEAD_STARTS = 3
+#: forward selection tries at most this many further candidates per step (best single first)
+FORWARD_MAX_CANDIDATES = 5
 #: starting yaw amplitude k delta0^2 of a yaw_drag fit (delta0 = 0.045 rad)
 YAW_AMP_START = 0.02
+#: Bonferroni factor for the unidentified yaw decay rate under the null (see :func:`threshold`)
+YAW_DECAY_MULTIPLICITY = 5
 #: apex phase: within this fraction of the flight time of the summit
 APEX_FRACTION = 0.1
 
@@ -614,18 +620,22 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     verdict, selected_fit = [], None
     if rows and rows[0]["significant"]:
         starts = [rows[0]]
-        if len(rows) > 1 and rows[1]["significant"] and rows[1]["shrink"] >= LOOKAHEAD_SHRINK \
-                and rows[1]["name"] not in rows[0]["confounded_with"]:
-            starts.append(rows[1])
+        for r in rows[1:LOOKAHEAD_STARTS]:
+            twin = any(r["signature_corr"].get(x["name"], 0) >= CONFOUND_CORR
+                       or x["signature_corr"].get(r["name"], 0) >= CONFOUND_CORR for x in starts)
+            if r["significant"] and r["shrink"] >= LOOKAHEAD_SHRINK and not twin:
+                starts.append(r)
         best = None
-        n_obs_log = math.log(max(n_obs, 1))
         for r0 in starts:
             v, f = _forward(setup, rows, r0, fits[r0["name"]], gap, sig_vec, alpha)
-            score = f[0].cost + sum(EFFECTS[n].k for n in v) * n_obs_log  # BIC
-            if best is None or score < best[0] - 1e-9:
-                best = (score, v, f)
+            if best is None or _better(setup, (v, f), best, sig_vec, alpha, gap, K):
+                best = (v, f)
+        best = (None,) + best
         verdict, selected_fit = best[1], best[2]
-        # the effects list is "best first": the verdict (in selection order), then the rest
+        # the verdict is ordered by what each effect explains alone (its single chi2 drop), and
+        # the effects list is "best first": the verdict, then the rest
+        rank = {r["name"]: i for i, r in enumerate(rows)}
+        verdict = sorted(verdict, key=rank.get)
         order = {n: i for i, n in enumerate(verdict)}
         rows.sort(key=lambda r: (order.get(r["name"], len(order)),))
     # Cd shifts
@@ -684,6 +694,43 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
                      mach, setup.weights, best_name)
 
 
+def threshold(e, a):
+    """Critical value of the colored chi2-drop statistic of effect ``e`` at level ``a``.
+
+    chi2 quantile with the effect's number of parameters; for ``yaw_drag`` the decay rate is
+    not identified when the amplitude is zero (Davies' problem: the fit maximises over it, which
+    inflates the statistic under the null), so its amplitude is tested with 1 degree of freedom
+    at ``a / YAW_DECAY_MULTIPLICITY`` (as if that many separate decay rates were tried)."""
+    if e.name == "yaw_drag":
+        return float(_chi2.ppf(1 - a / YAW_DECAY_MULTIPLICITY, 1))
+    return float(_chi2.ppf(1 - a, max(e.k, 1)))
+
+
+def _better(setup, new, old, sig_vec, alpha, gap, K):
+    """Is the explanation ``new`` = (effect names, fit) preferable to ``old``?
+
+    Parsimony first, judged in colored-noise units: a set with more parameters (effects count
+    one each on top of their parameters) wins only when its chi2 drop over the smaller set is
+    significant (chi2 quantile of the extra parameters at ``alpha / K``, drop divided by the
+    colored inflation of the output difference) and, when it merely adds effects to the smaller
+    set, removes at least ``MIN_SECOND_SHARE`` of the gap (the forward-selection rule); equal
+    sizes: the lower cost."""
+    (vn, fn), (vo, fo) = new, old
+    kn = sum(EFFECTS[n].k for n in vn) + len(vn)
+    ko = sum(EFFECTS[n].k for n in vo) + len(vo)
+    if kn == ko:
+        return fn[0].cost < fo[0].cost
+    big, small = (fn, fo) if kn > ko else (fo, fn)
+    d = float(small[0].cost - big[0].cost)
+    resid = np.stack([big[0].residuals[c] for c in setup.channels], axis=-1)
+    infl = colored_inflation(big[2] - small[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
+    nested = set(vn) <= set(vo) or set(vo) <= set(vn)
+    big_wins = d / infl > _chi2.ppf(1 - alpha / K, abs(kn - ko))
+    if nested:  # the bigger set adds effects to the smaller: the forward-selection rule applies
+        big_wins = big_wins and d >= MIN_SECOND_SHARE * gap
+    return big_wins if kn > ko else not big_wins
+
+
 def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     """Forward selection starting from ``first``: add the candidate whose conditional chi2
     drop is significant (colored, Bonferroni over the remaining) and at least
@@ -692,7 +739,7 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     verdict = [first["name"]]
     selected_fit = first_fit
     remaining = [r for r in rows if r is not first and r["significant"]
-                 and not set(r["confounded_with"]) & set(verdict)]
+                 and not set(r["confounded_with"]) & set(verdict)][:FORWARD_MAX_CANDIDATES]
     while remaining and len(verdict) < MAX_VERDICT:
         sel_res, _, sel_y = selected_fit
         sel_effs = [EFFECTS[n] for n in verdict]
@@ -705,7 +752,7 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
             d = float(sel_res.cost - res.cost)
             resid = np.stack([res.residuals[c] for c in chans], axis=-1)
             infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-            ok = (d / infl > _chi2.ppf(1 - alpha / Kr, max(e.k, 1)) and d >= MIN_SECOND_SHARE * gap)
+            ok = (d / infl > threshold(e, alpha / Kr) and d >= MIN_SECOND_SHARE * gap)
             if ok and (best_add is None or d > best_add[1]):
                 best_add = (r["name"], d, (res, prob, y))
         if best_add is None:
@@ -725,7 +772,7 @@ def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
     acov = autocovariance(resid, setup.weights)
     infl = colored_inflation(y - y_base, acov, sig_vec, setup.weights)
     stat = d / infl
-    thr = float(_chi2.ppf(1 - alpha / K, max(e.k, 1)))
+    thr = threshold(e, alpha / K)
     n_obs = _n_obs(setup)
     vals = res.theta[-e.k:] if e.k else np.zeros(0)
     idx = slice(res.theta.size - e.k, res.theta.size)

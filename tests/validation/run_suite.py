@@ -13,9 +13,9 @@ import time
 from collections import Counter
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from tests.validation.cases import EFFECT_CASES, NULL_CASES, SIXDOF_NULL, SMALL, run_case  # noqa: E402
+from cases import EFFECT_CASES, NULL_CASES, SIXDOF_NULL, SMALL, run_case  # noqa: E402
 
 
 def summarise(results):

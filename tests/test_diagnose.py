@@ -1,0 +1,132 @@
+"""Gap diagnosis: building blocks, outputs, CLI (issue 6). The withheld-effect acceptance suite
+is tests/validation/ (small version in the default run, full one marked slow)."""
+import json
+
+import numpy as np
+import pytest
+
+from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.cli import main
+from bayesdrag.diagnose import (autocovariance, colored_inflation, diagnose, hf_residual,
+                                noise_and_outliers, where_segments)
+from bayesdrag.drag import load_m101
+from bayesdrag.simulate import add_noise, add_outliers, ar1_noise, simulate_round
+from bayesdrag.track import Launch, Projectile, Radar, Round, write_round, write_track
+
+SIG = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
+#: relative tolerance of a noise sd estimated from ~400 samples
+SD_RTOL = 0.15
+
+
+def _round(el=10.0, ref=True, sigma=True, lat=None, atm=None):
+    return Round(Projectile("155", 42.6, 0.155, load_m101() if ref else None),
+                 Launch(elevation_deg=el, velocity=818.0, azimuth_deg=90.0, latitude_deg=lat),
+                 atmosphere=atm, radar=Radar(dict(SIG) if sigma else {}))
+
+
+def _track(rnd, seed=0, rho=0.0, dt=0.05, **kw):
+    tr = simulate_round(Round(rnd.projectile, Launch(elevation_deg=rnd.launch.elevation_deg, velocity=818.0),
+                              atmosphere=kw.pop("atm", None)), dt=dt, **kw)
+    return add_noise(tr, SIG, np.random.default_rng(seed), rho=rho)
+
+
+def test_hf_residual_factor_and_noise_estimate():
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 20, 400)
+    z = 1000 * np.sin(t / 7) + rng.standard_normal(t.size) * 2.0
+    e, fac = hf_residual(z)
+    assert 0 < fac < 1
+    assert np.std(e) / np.sqrt(fac) == pytest.approx(2.0, rel=SD_RTOL)
+
+
+def test_outliers_are_flagged_and_sigma_estimated_from_the_data():
+    rnd = _round(sigma=False)
+    tr = _track(rnd, seed=3)
+    tr, idx = add_outliers(tr, 0.02, 15.0, SIG, np.random.default_rng(4))
+    sig, src, out = noise_and_outliers(tr, tr.names)
+    assert src == {c: "estimated" for c in tr.names}
+    for c in tr.names:
+        assert sig[c] == pytest.approx(SIG[c], rel=SD_RTOL)
+    flagged = np.flatnonzero(out.any(axis=1))
+    assert set(idx) <= set(flagged) and len(flagged) <= len(idx) + 3
+
+
+def test_colored_inflation_is_one_for_white_and_large_for_ar1():
+    rng = np.random.default_rng(5)
+    n = 3000
+    g = np.sin(np.linspace(0, 3, n))[:, None]  # a smooth signature
+    w = np.ones((n, 1))
+    white = rng.standard_normal((n, 1))
+    ar = ar1_noise(n, 1.0, 0.95, rng)[:, None]
+    assert colored_inflation(g, autocovariance(white, w), np.ones(1), w) == pytest.approx(1.0, abs=0.3)
+    # AR(1): (1 + rho) / (1 - rho) = 39 for a signature much smoother than the noise
+    assert 15 < colored_inflation(g, autocovariance(ar, w), np.ones(1), w) < 60
+
+
+def test_where_finds_the_segment_that_misses():
+    n = 500
+    t = np.linspace(0, 50, n)
+    r = np.random.default_rng(0).standard_normal((n, 2))
+    r[300:400, 1] += 5.0  # z misses by 5 sd in 30-40 s
+    segs = where_segments(t, r, np.ones((n, 2)), np.linspace(2, 0.8, n), 1000 - (t - 20) ** 2, ("x", "z"))
+    assert segs and segs[0]["channel"] == "z" and segs[0]["share"] > 0.8
+    assert 29.0 < segs[0]["t_start"] < 31.5 and 38.5 < segs[0]["t_end"] < 41.0
+    assert segs[0]["phase"] == "descent"
+
+
+def test_null_track_has_an_empty_verdict_and_design_keys():
+    rnd = _round()
+    s = diagnose(_track(rnd, seed=11), rnd).summary
+    assert s["verdict"] == []
+    assert set(s) >= {"baseline", "where", "effects", "verdict"}
+    assert set(s["baseline"]) >= {"rms", "chi2_per_sample"}
+    e = s["effects"][0]
+    assert set(e) >= {"name", "params", "sd", "delta_loglik", "delta_bic", "shrink", "significant",
+                      "confounded_with"}
+    assert abs(s["baseline"]["chi2_per_sample"] - 1.0) < 0.1
+    assert "coriolis" in s["skipped"]  # no latitude
+
+
+def test_headwind_found_with_density_and_drag_scale_confounded():
+    rnd = _round(el=12.0)
+    d = diagnose(_track(rnd, seed=2, wind=(-6.0, 0.0, 0.0)), rnd)
+    s = d.summary
+    assert s["verdict"][0] == "wind"
+    w = s["effects"][0]
+    assert w["params"]["wx"] == pytest.approx(-6.0, abs=0.5) and abs(w["params"]["wy"]) < 0.5
+    assert w["shrink"] > 0.9 and w["delta_bic"] < 0
+    rows = {r["name"]: r for r in s["effects"]}
+    assert "drag_scale" in rows["density"]["confounded_with"]
+    assert "cd_shift" in w and w["cd_shift"]["max_abs_relative"] > 0.001
+
+
+def test_no_reference_drag_says_so_and_skips_drag_only_effects():
+    rnd = _round(el=10.0)
+    tr = _track(rnd, seed=7, clock_offset=0.04)
+    s = diagnose(tr, _round(el=10.0, ref=False)).summary
+    assert s["reference_drag"] is False
+    assert any("no reference drag" in n for n in s["notes"])
+    assert "drag_scale" in s["skipped"] and "density" in s["skipped"]
+    assert s["verdict"][:1] == ["radar_time"]
+
+
+def test_cli_writes_outputs_and_rejects_bad_input(tmp_path, capsys):
+    rnd = _round(el=8.0)
+    tr = _track(rnd, seed=9, clock_offset=0.03)
+    write_track(tmp_path / "t.csv", tr)
+    write_round(tmp_path / "r.toml", rnd)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(tmp_path / "t.csv"), str(tmp_path / "r.toml"), "-o", str(out)]) == 0
+    s = json.loads((out / "diagnosis.json").read_text())
+    assert s["verdict"][0] == "radar_time" and s["effects"][0]["params"]["dt"] == pytest.approx(0.03, rel=0.15)
+    html = (out / "diagnosis.html").read_text()
+    assert html.count("data:image/png;base64,") == 3
+    for f in ("diagnosis_residuals.png", "diagnosis_ranking.png", "diagnosis_where.png"):
+        assert (out / f).stat().st_size > 1000
+    err = capsys.readouterr().err
+    assert "diagnosis:" in err and "radar_time" in err
+    (tmp_path / "bad.csv").write_text("t,x\n0,0\n1,abc\n")
+    assert main(["diagnose", str(tmp_path / "bad.csv"), str(tmp_path / "r.toml"), "-o", str(tmp_path / "o2")]) == 2
+    lines = [l for l in capsys.readouterr().err.splitlines() if l]
+    assert len(lines) == 1 and "bad.csv" in lines[0]
+    assert not (tmp_path / "o2").exists()
