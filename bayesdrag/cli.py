@@ -104,6 +104,11 @@ def build_parser():
     f.add_argument("--nu", type=_nu, default="4",
                    help="Student-t degrees of freedom: a number (default 4) or 'sample'")
 
+    g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
+    g.add_argument("track", help="radar track (CSV)")
+    g.add_argument("round", help="round file (TOML)")
+    g.add_argument("-o", "--output", required=True, help="output folder")
+
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
     return p
