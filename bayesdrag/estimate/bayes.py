@@ -105,6 +105,53 @@ def _logsumexp_rows(a):
     return (m + np.log(np.sum(np.exp(a - m), axis=1, keepdims=True)))[:, 0]
 
 
+def _student_t_mode(problem, theta, sigma, nu, cov, iterations=30):
+    """Mode of the Student-t likelihood by iteratively reweighted Gauss-Newton (the EM
+    algorithm of the t distribution: weights ``(nu + 1) / (nu + r^2 / sigma^2)``, then
+    ``sigma_c^2 = mean(w r^2)``), started at the Gaussian mode.
+
+    Returns the mode (n,), the noise sd per channel and the covariance of the free parameters
+    from the expected Fisher information of the t likelihood, ``(nu + 1) / (nu + 3) S^T R^-1 S``.
+    """
+    idx = np.flatnonzero(problem.free)
+    th = np.asarray(theta, float).copy()
+    sig = np.array([sigma[c] for c in problem.channels], float)
+    for _ in range(iterations):
+        y, _, S = problem.sensitivities(th)
+        r = problem.z - y
+        if not np.all(np.isfinite(r)):
+            break
+        w = (nu + 1) / (nu + (r / sig) ** 2)                     # (N, C)
+        sig = np.sqrt(np.mean(w * r ** 2, axis=0))
+        sw = np.sqrt(w) / sig                                    # (N, C)
+        A = (S * sw[..., None]).reshape(-1, idx.size)
+        b = (r * sw).reshape(-1)
+        pr, pJ = problem._prior_terms(th)
+        if pr.size:
+            A, b = np.vstack([A, pJ]), np.concatenate([b, pr])
+        step = np.linalg.lstsq(A, b, rcond=None)[0]
+        new = th.copy()
+        new[idx] = np.clip(th[idx] + step, problem.lower[idx], problem.upper[idx])
+        done = np.all(np.abs(step) < 1e-4 * np.sqrt(np.diag(cov)))
+        th = new
+        if done:
+            break
+    _, _, S = problem.sensitivities(th)
+    W = (nu + 1) / (nu + 3) / sig ** 2
+    A = (S * np.sqrt(W)[None, :, None]).reshape(-1, idx.size)
+    M = A.T @ A
+    pr, pJ = problem._prior_terms(th)
+    if pr.size:
+        M = M + pJ.T @ pJ
+    try:
+        cov_t = np.linalg.inv(M)
+        cov_t = 0.5 * (cov_t + cov_t.T)
+        np.linalg.cholesky(cov_t)
+    except np.linalg.LinAlgError:
+        cov_t = cov
+    return th, dict(zip(problem.channels, map(float, sig))), cov_t
+
+
 def _mode_fit(problem, ml):
     """ML fit of ``problem`` with every noise sd estimated, started at ``ml.theta``; None when
     the ML fit already estimated them all or the refit fails (then the ML estimate is used)."""
@@ -214,12 +261,17 @@ class LogPosterior:
                            "cannot be approximated to start the sampler (a parameter is not "
                            "identifiable from this track)") from exc
         self.crb_rms = np.sqrt(np.diag(cov))
-        is_drag = self.idx < self.P
-        self.gauss_sd = np.where(is_drag, np.inf, IC_PRIOR_FACTOR * self.crb_rms)
+        self.gauss_sd = np.where(self.idx < self.P, np.inf, IC_PRIOR_FACTOR * self.crb_rms)
+        t_sigma = None
+        if likelihood == "student-t":
+            # the Gaussian fit is pulled by outliers: start from the Student-t mode (IRLS)
+            nu0 = 4.0 if self.sample_nu else float(nu)
+            mode, t_sigma, cov = _student_t_mode(problem, mode, self.rms, nu0, cov)
+            self.mode = mode
         mean = mode[self.idx]
         if likelihood == "student-t":
-            mean = np.concatenate([mean, np.log([self.rms[c] for c in self.channels])])
-            sd_ls = np.full(self.C, 1.0 / math.sqrt(2.0 * self.N))
+            mean = np.concatenate([mean, np.log([t_sigma[c] for c in self.channels])])
+            sd_ls = np.full(self.C, math.sqrt((nu0 + 3.0) / (2.0 * nu0 * self.N)))
             extra = [sd_ls]
             if self.sample_nu:
                 mean = np.append(mean, math.log(4.0))
