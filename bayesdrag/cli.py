@@ -82,8 +82,8 @@ def build_parser():
                    help="radar clock late by this many seconds (recorded = true - offset)")
 
     f = sub.add_parser("fit", help="estimate Cd(M) from a track (ML with Cramér-Rao bounds, then emcee posterior)")
-    f.add_argument("track", help="radar track (CSV)")
-    f.add_argument("round", help="round file (TOML)")
+    f.add_argument("track", help="radar track (CSV), or a campaign file (TOML) without ROUND")
+    f.add_argument("round", nargs="?", default=None, help="round file (TOML); omitted for a campaign")
     f.add_argument("-o", "--output", required=True, help="output folder")
     f.add_argument("--scheme", type=int, choices=(1,), default=1,
                    help="1 = Cd model over the whole flight (Scheme 2 is being built)")
@@ -103,6 +103,10 @@ def build_parser():
                    help="noise model: gaussian (default) or student-t (robust to outliers)")
     f.add_argument("--nu", type=_nu, default="4",
                    help="Student-t degrees of freedom: a number (default 4) or 'sample'")
+
+    from .batch import add_batch_parser  # campaigns on Dask (issue 8)
+
+    add_batch_parser(sub, {"seed": _seed, "walkers": _walkers, "nu": _nu})
 
     g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
     g.add_argument("track", help="radar track (CSV)")
@@ -158,10 +162,25 @@ def cmd_diagnose(args):
 def cmd_fit(args):
     from .fitting import run_fit
 
+    if args.round is None:  # bayesdrag fit CAMPAIGN.toml -o DIR
+        from .batch import run_campaign_fit
+        from .campaign import is_campaign_file
+
+        if not is_campaign_file(args.track):
+            raise InputError(f"command line: fit needs TRACK ROUND, or a campaign file ({args.track} is not a "
+                             f"TOML file with [campaign] and [[rounds]])")
+        return run_campaign_fit(args)
     return run_fit(args)
 
 
+def cmd_batch(args):
+    from .batch import cmd_batch as run
+
+    return run(args)
+
+
 COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo, "diagnose": cmd_diagnose}
+COMMANDS["batch"] = cmd_batch
 
 
 def main(argv=None):

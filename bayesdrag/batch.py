@@ -1,0 +1,400 @@
+"""Running the rounds of a campaign: ``bayesdrag batch CAMPAIGN.toml -o DIR`` on Dask, and the
+sequential runner behind ``bayesdrag fit CAMPAIGN.toml -o DIR``.
+
+Decisions written down:
+
+* **One task per round** (:func:`round_task`): it reads the round's files itself, runs the
+  jobs (``fit``: the same pipeline and outputs as ``bayesdrag fit`` for one round, through
+  :func:`bayesdrag.fitting.run_fit`; ``diagnose``: :func:`bayesdrag.diagnose.diagnose` and
+  :func:`bayesdrag.diagnose_report.write_diagnosis`) into ``DIR/<name>/`` and returns a small
+  dict (status, seconds, message). Nothing big crosses the scheduler: the campaign pooling
+  reads each round's ``pooling.json`` (Cd and its covariance on the campaign nodes, a few kB).
+* **Done means a marker**: a job is finished when ``DIR/<name>/done.<job>.json`` exists. It is
+  written atomically *after* every other output of the job, and records a fingerprint of the
+  inputs (SHA-256 of the track, the round file and the files it references) and of the
+  options that change results. A rerun skips a job whose marker matches; a batch killed
+  mid-way therefore resumes where it stopped, and a round whose inputs or options changed is
+  redone, not silently kept.
+* **A failing round does not stop the others**: its exception is caught in the task and
+  reported (name, error) at the end; the exit status is then 1 (outputs of the other rounds
+  and the pooled campaign are still written).
+* **Same code path for a local cluster and a real scheduler**: ``--scheduler ADDRESS`` makes a
+  :class:`distributed.Client` to that address; otherwise a
+  :class:`distributed.LocalCluster` with ``--workers`` processes of one thread each. Workers get
+  ``NUMBA_NUM_THREADS=1`` (and one BLAS thread) so two workers do not oversubscribe two cores;
+  each worker loads the numba kernel from its on-disk cache (compiled once). On a remote
+  cluster the campaign's files and ``DIR`` must be on a file system the workers share.
+* **Progress**: a tqdm bar over :func:`distributed.as_completed` on stderr.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from .errors import InputError
+
+JOBS = ("fit", "diagnose")
+#: options of ``fit`` that change its results (part of the done-marker fingerprint)
+FIT_OPTIONS = ("scheme", "drag", "channels", "no_mcmc", "fix_ic", "seed", "walkers", "max_steps",
+               "likelihood", "nu")
+#: environment of every worker process: one thread per numeric library
+WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+              "MKL_NUM_THREADS": "1"}
+POOLING = "pooling.json"
+
+
+def marker_path(outdir, job):
+    """``DIR/<name>/done.<job>.json``."""
+    return Path(outdir) / f"done.{job}.json"
+
+
+def _sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def fingerprint(track, round_path, job, options):
+    """Fingerprint of a job's inputs: file hashes (track, round, reference drag, met profile)
+    and the options that change its results. Paths are not part of it (moving a campaign
+    folder keeps its results valid)."""
+    from .track import read_round
+
+    files = {"track": _sha256(track), "round": _sha256(round_path)}
+    try:
+        rnd = read_round(round_path)
+    except InputError:
+        rnd = None
+    if rnd is not None:
+        ref = rnd.projectile.reference_drag_path
+        if ref and Path(ref).is_file():
+            files["reference_drag"] = _sha256(ref)
+        prof = getattr(rnd.atmosphere, "source", "")
+        if prof and Path(prof).is_file():
+            files["met_profile"] = _sha256(prof)
+    opts = {k: options.get(k) for k in FIT_OPTIONS} if job == "fit" else {}
+    return {"job": job, "files": files, "options": opts}
+
+
+def job_done(outdir, job, fp):
+    """True if the job's marker exists and its fingerprint equals ``fp``."""
+    m = marker_path(outdir, job)
+    if not m.is_file():
+        return False
+    try:
+        return json.loads(m.read_text(encoding="utf-8")).get("fingerprint") == fp
+    except (OSError, ValueError):
+        return False
+
+
+def _fit_namespace(track, round_path, outdir, options):
+    ns = argparse.Namespace(scheme=1, drag="spline", channels=None, no_mcmc=False, fix_ic=False, seed=None,
+                            resume=False, quiet=True, walkers=None, max_steps=20000, likelihood="gaussian",
+                            nu="4")
+    for k, v in options.items():
+        setattr(ns, k, v)
+    ns.track, ns.round, ns.output, ns.quiet = str(track), str(round_path), str(outdir), True
+    return ns
+
+
+def run_fit_job(track, round_path, outdir, options, covariance="colored"):
+    """The ``fit`` job of one round: :func:`bayesdrag.fitting.run_fit` into ``outdir`` plus
+    ``pooling.json`` (:func:`bayesdrag.campaign.pooling_input`). Returns a message."""
+    from .campaign import pooling_input
+    from .fitting import run_fit
+    from .outputs import write_json
+
+    kept = {}
+
+    def keep(res, prob, rnd, track, result):
+        kept["input"] = pooling_input(res, prob.model.drag, rnd.reference_drag, covariance=covariance,
+                                      name=Path(outdir).name)
+        kept["message"] = res.message
+
+    lines = []
+    run_fit(_fit_namespace(track, round_path, outdir, options), echo=lines.append, on_fit=keep)
+    write_json(Path(outdir) / POOLING, kept["input"])
+    return kept["message"]
+
+
+def run_diagnose_job(track, round_path, outdir):
+    """The ``diagnose`` job of one round (as ``bayesdrag diagnose``). Returns the verdict text."""
+    from .diagnose import diagnose
+    from .diagnose_report import write_diagnosis
+    from .track import read_round, read_track
+
+    tr = read_track(track)
+    rnd = read_round(round_path)
+    if tr.n < 20:
+        raise InputError(f"{track}: {tr.n} samples are too few for a diagnosis (need >= 20)")
+    d = diagnose(tr, rnd)
+    write_diagnosis(outdir, d, track_name=str(track), round_name=str(round_path))
+    return f"verdict {d.summary['verdict'] or 'none'}"
+
+
+def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, covariance="colored"):
+    """Run the jobs of one round; never raises (a failure is returned).
+
+    Parameters
+    ----------
+    name : str
+    track, round_path : str
+        Input files.
+    outdir : str
+        ``DIR/<name>``; created.
+    jobs : sequence of {"fit", "diagnose"}
+    options : dict
+        ``fit`` options (attributes of the ``fit`` command line).
+    covariance : {"colored", "crb"}
+        Stage-1 covariance kept for pooling.
+
+    Returns
+    -------
+    dict
+        ``name``, ``jobs``: {job: {"status": "done" | "skipped" | "failed", "seconds", "message"}},
+        ``pid`` (the worker process).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .outputs import ensure_output_dir, write_json
+
+    options = dict(options or {})
+    report = {"name": name, "jobs": {}, "pid": os.getpid()}
+    try:
+        out = ensure_output_dir(outdir)
+    except Exception as exc:  # noqa: BLE001 - reported, the batch goes on
+        for job in jobs:
+            report["jobs"][job] = {"status": "failed", "seconds": 0.0, "message": f"{type(exc).__name__}: {exc}"}
+        return report
+    for job in jobs:
+        t0 = time.perf_counter()
+        try:
+            fp = fingerprint(track, round_path, job, options)
+            if job_done(out, job, fp):
+                report["jobs"][job] = {"status": "skipped", "seconds": 0.0, "message": "done in an earlier run"}
+                continue
+            marker_path(out, job).unlink(missing_ok=True)
+            if job == "fit":
+                msg = run_fit_job(track, round_path, out, options, covariance)
+            elif job == "diagnose":
+                msg = run_diagnose_job(track, round_path, out)
+            else:
+                raise InputError(f"unknown job {job!r}; allowed: {', '.join(JOBS)}")
+            secs = time.perf_counter() - t0
+            write_json(marker_path(out, job), {"fingerprint": fp, "seconds": round(secs, 3), "message": msg})
+            report["jobs"][job] = {"status": "done", "seconds": secs, "message": msg}
+        except BaseException as exc:  # noqa: BLE001 - reported, the batch goes on
+            if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+                raise
+            report["jobs"][job] = {"status": "failed", "seconds": time.perf_counter() - t0,
+                                   "message": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+    return report
+
+
+# ----------------------------------------------------------------------------------------------
+# executors
+class _Sequential:
+    """In-process executor with the interface used below (for ``bayesdrag fit CAMPAIGN``)."""
+
+    def run(self, calls, progress):
+        for kw in calls:
+            yield round_task(**kw)
+
+
+class _Dask:
+    """Dask executor: a LocalCluster (default) or a Client to ``scheduler``."""
+
+    def __init__(self, scheduler=None, workers=2):
+        self.scheduler, self.workers = scheduler, workers
+
+    def run(self, calls, progress):
+        import logging
+
+        from distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        # distributed logs every closed connection at INFO, also while the cluster shuts down
+        # after we return; keep stderr for the progress bar and our one-line reports
+        for name in ("distributed", "distributed.core", "distributed.worker", "distributed.nanny"):
+            logging.getLogger(name).setLevel(logging.ERROR)
+        if self.scheduler:
+            try:
+                client = Client(self.scheduler, timeout="20s")
+            except (OSError, TimeoutError) as exc:
+                raise InputError(f"command line: --scheduler {self.scheduler}: cannot connect ({exc})") from None
+        else:
+            cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, env=dict(WORKER_ENV),
+                                   silence_logs=logging.CRITICAL)
+            client = Client(cluster)
+        try:
+            futures = [client.submit(round_task, **kw, key=f"round-{kw['name']}", pure=False) for kw in calls]
+            for fut in as_completed(futures):
+                try:
+                    yield fut.result()
+                except Exception as exc:  # noqa: BLE001 - a worker died: report the round, go on
+                    name = fut.key.split("round-", 1)[-1] if isinstance(fut.key, str) else str(fut.key)
+                    yield {"name": name, "jobs": {"?": {"status": "failed", "seconds": 0.0,
+                                                       "message": f"{type(exc).__name__}: {exc}"}}}
+        finally:
+            # workers first, then the scheduler: no heartbeat errors from orphaned workers
+            if cluster is not None:
+                client.retire_workers(close_workers=True)
+                cluster.close()
+            client.close()
+
+
+def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="dask", scheduler=None,
+                 workers=2, covariance="colored", quiet=False, echo=print, pool_seed=0):
+    """Run every round of a campaign, then pool the fitted rounds.
+
+    Parameters
+    ----------
+    campaign_path : path
+        Campaign TOML (:func:`bayesdrag.campaign.read_campaign`).
+    output : path
+        ``DIR``: rounds go to ``DIR/<name>/``, the campaign to ``DIR/campaign.json``,
+        ``campaign.html`` and figures.
+    jobs : sequence of {"fit", "diagnose"}
+    options : dict
+        ``fit`` options.
+    executor : {"dask", "sequential"}
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); default a LocalCluster.
+    workers : int
+        LocalCluster worker processes.
+    covariance : {"colored", "crb"}
+    quiet : bool
+        No progress bar.
+    echo : callable
+        Status lines (stdout).
+    pool_seed : int
+        Seed of the pooling sampler (reproducible campaign outputs).
+
+    Returns
+    -------
+    dict
+        ``reports`` (per round), ``failed`` (list of {name, job, message}), ``campaign``
+        (campaign.json document or None), ``seconds``.
+    """
+    from tqdm import tqdm
+
+    from .campaign import read_campaign
+    from .outputs import ensure_output_dir
+
+    bad = [j for j in jobs if j not in JOBS]
+    if bad or not jobs:
+        raise InputError(f"command line: --jobs {','.join(jobs)!r}: allowed jobs are {', '.join(JOBS)}")
+    camp = read_campaign(campaign_path)
+    out = ensure_output_dir(output)
+    options = dict(options or {})
+    calls = [dict(name=r.name, track=str(r.track), round_path=str(r.round), outdir=str(out / r.name),
+                  jobs=tuple(jobs), options=options, covariance=covariance) for r in camp.rounds]
+    ex = _Sequential() if executor == "sequential" else _Dask(scheduler, workers)
+    t0 = time.perf_counter()
+    reports = []
+    bar = tqdm(total=len(calls), desc="rounds", unit="round", file=sys.stderr, disable=quiet, leave=True)
+    for rep in ex.run(calls, bar):
+        reports.append(rep)
+        status = ", ".join(f"{j} {v['status']}" for j, v in rep["jobs"].items())
+        bar.set_postfix_str(f"{rep['name']}: {status}", refresh=False)
+        bar.update(1)
+    bar.close()
+    failed = [{"name": r["name"], "job": j, "message": v["message"]}
+              for r in reports for j, v in r["jobs"].items() if v["status"] == "failed"]
+    order = {n: i for i, n in enumerate(camp.names)}
+    reports.sort(key=lambda r: order.get(r["name"], len(order)))
+    doc = None
+    if "fit" in jobs:
+        doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo)
+    return {"reports": reports, "failed": failed, "campaign": doc, "seconds": time.perf_counter() - t0}
+
+
+def pool_campaign(camp, out, failed=(), seed=0, echo=print):
+    """Pool the rounds of ``camp`` whose ``pooling.json`` exists in ``out`` and write
+    ``campaign.json``, ``campaign.html`` and the figures. Returns the document or None when no
+    round was fitted."""
+    import numpy as np
+
+    from .campaign import campaign_json, pool_rounds
+    from .campaign_report import write_campaign_report
+
+    inputs = []
+    for r in camp.rounds:
+        p = Path(out) / r.name / POOLING
+        if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
+            inputs.append(json.loads(p.read_text(encoding="utf-8")))
+    if not inputs:
+        echo("campaign: no fitted round to pool")
+        return None
+    pooled = pool_rounds(inputs, rng=np.random.default_rng(seed))
+    doc = campaign_json(pooled, inputs, camp.name, failed)
+    write_campaign_report(out, camp, inputs, pooled, doc)
+    s = doc["scatter"]
+    echo(f"campaign: pooled {len(inputs)} of {len(camp.rounds)} rounds; round-to-round scatter of Cd "
+         f"{100 * s['median']:.2f} % (90 % interval {100 * s['q05']:.2f}-{100 * s['q95']:.2f} %); "
+         f"wrote {Path(out) / 'campaign.json'}, campaign.html")
+    return doc
+
+
+# ----------------------------------------------------------------------------------------------
+# command line
+def add_batch_parser(sub, helpers):
+    """Register ``bayesdrag batch`` on the CLI's subparsers. ``helpers``: the CLI's argument
+    type functions (``seed``, ``walkers``, ``nu``)."""
+    b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
+    b.add_argument("campaign", help="campaign file (TOML)")
+    b.add_argument("-o", "--output", required=True, help="output folder")
+    b.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of a running Dask scheduler (default: a local cluster)")
+    b.add_argument("--workers", type=helpers["walkers"], default=None,
+                   help="local cluster worker processes (default: the number of CPUs, at most the rounds)")
+    b.add_argument("--jobs", default="fit", help="comma-separated jobs per round among fit,diagnose (default fit)")
+    b.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline")
+    b.add_argument("--channels", default=None, help="comma-separated subset of the tracks' x,y,z,v")
+    b.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (no posterior sampling)")
+    b.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at the launch values")
+    b.add_argument("--seed", type=helpers["seed"], default=None, help="seed of each round's sampler and of the pooling")
+    b.add_argument("--covariance", choices=("colored", "crb"), default="colored",
+                   help="round covariance pooled: colored-residual corrected (default) or plain CRB")
+    b.add_argument("--quiet", action="store_true", help="no progress bar")
+    return b
+
+
+def cmd_batch(args):
+    """``bayesdrag batch``; returns the exit status (1 when a round failed)."""
+    jobs = tuple(j.strip() for j in args.jobs.split(",") if j.strip())
+    workers = args.workers or max(1, min(os.cpu_count() or 1, 64))
+    options = {k: getattr(args, k) for k in ("drag", "channels", "no_mcmc", "fix_ic", "seed")}
+    res = run_campaign(args.campaign, args.output, jobs=jobs, options=options, executor="dask",
+                       scheduler=args.scheduler, workers=workers, covariance=args.covariance, quiet=args.quiet,
+                       pool_seed=args.seed or 0)
+    return _summarise(res)
+
+
+def _summarise(res, echo=print):
+    done = sum(1 for r in res["reports"] for v in r["jobs"].values() if v["status"] == "done")
+    skipped = sum(1 for r in res["reports"] for v in r["jobs"].values() if v["status"] == "skipped")
+    echo(f"batch: {len(res['reports'])} rounds, {done} jobs run, {skipped} skipped (done earlier), "
+         f"{len(res['failed'])} failed, {res['seconds']:.1f} s")
+    for f in res["failed"]:
+        print(f"bayesdrag: round {f['name']} ({f['job']}) failed: {f['message']}", file=sys.stderr)
+    return 1 if res["failed"] else 0
+
+
+def run_campaign_fit(args):
+    """``bayesdrag fit CAMPAIGN.toml -o DIR [fit options]``: every round fitted in this process,
+    one after the other, then pooled. Finished rounds are skipped as in ``batch``."""
+    options = {k: getattr(args, k) for k in FIT_OPTIONS if hasattr(args, k)}
+    res = run_campaign(args.track, args.output, jobs=("fit",), options=options, executor="sequential",
+                       covariance=getattr(args, "covariance", "colored"), quiet=getattr(args, "quiet", False),
+                       pool_seed=getattr(args, "seed", None) or 0)
+    return _summarise(res)
