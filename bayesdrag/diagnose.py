@@ -665,6 +665,12 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
                       "share": float(min(prior_chi2 / max(chi2_base - floor0 + prior_chi2, 1e-9), 1.0)),
                       "peak_sigma": float(max(abs(v) for v in prior_terms.values())),
                       "prior_misfit_sd": prior_terms})
+        # channel shares are of the systematic residual energy; rescale them to the part of the
+        # gap that is not launch-prior misfit so that all shares add up to at most 1
+        launch_share = where[-1]["share"]
+        for w in where[:-1]:
+            w["share"] *= 1.0 - launch_share
+        where.sort(key=lambda w: -w["share"])
     for r in rows:
         r.pop("inflation_raw", None)
     summary = {
@@ -673,6 +679,9 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
                                      / max(setup.weights[:, j].sum(), 1))) for j, c in enumerate(chans)},
             "chi2_per_sample": float(chi2_base / max(n_obs, 1)),
             "chi2": chi2_base, "chi2_noise_floor": float(floor0), "gap": float(gap),
+            # sd of chi2 under white noise: a gap or a remaining gap of this order is noise, and
+            # shrink cannot be resolved better than gap_noise_sd / gap
+            "gap_noise_sd": float(math.sqrt(2.0 * max(floor0, 1.0))),
             "prior_misfit_sd": prior_terms, "n_samples": int(track.n), "n_weighted": n_obs,
             "sigma": {c: float(setup.sigma[c]) for c in chans}, "sigma_source": setup.sigma_source,
             "drag": "reference" if setup.has_reference else "fitted spline (no reference drag)",

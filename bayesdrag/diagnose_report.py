@@ -43,8 +43,13 @@ def summary_paragraph(s):
                          f"(e.g. an effect that varies along the path).")
     if s["where"]:
         w = s["where"][0]
-        parts.append(f"Largest miss: {w['channel']} {w['t_start']:.1f}-{w['t_end']:.1f} s ({w['phase']}, "
-                     f"{100 * w['share']:.0f} % of the systematic residual).")
+        if w["channel"] == "launch":
+            worst = max(w["prior_misfit_sd"].items(), key=lambda kv: abs(kv[1]))
+            parts.append(f"Largest miss: the track's start is inconsistent with the muzzle at t = 0 "
+                         f"({worst[0]} off by {abs(worst[1]):.1f} sd).")
+        else:
+            parts.append(f"Largest miss: {w['channel']} {w['t_start']:.1f}-{w['t_end']:.1f} s ({w['phase']}, "
+                         f"{100 * w['share']:.0f} % of the systematic residual).")
     return " ".join(parts)
 
 
@@ -67,22 +72,26 @@ def _plt():
 
 
 def plot_residuals_before_after(d, fig=None):
-    """Normalised residuals per channel, nominal vs best effect. Returns the Figure."""
+    """Normalised residuals per channel: nominal simulation (left) and with the best effect
+    (right), the noise band shaded. Returns the Figure."""
     plt = _plt()
     C = len(d.channels)
     if fig is None:
-        fig, axes = plt.subplots(C, 1, figsize=(9, 1.9 * C + 0.6), sharex=True, layout="constrained")
-    axes = np.atleast_1d(fig.axes)
+        fig, _ = plt.subplots(C, 2, figsize=(11, 1.9 * C + 0.8), sharex=True, sharey="row",
+                              layout="constrained", squeeze=False)
+    axes = np.array(fig.axes).reshape(C, 2)
     for j, c in enumerate(d.channels):
-        ax = axes[j]
         w = d.weights[:, j] > 0
-        ax.plot(d.t[w], d.resid_base[w, j] / d.sigma[c], ".", ms=1.5, color="0.5", label="nominal")
+        axes[j, 0].plot(d.t[w], d.resid_base[w, j] / d.sigma[c], ".", ms=1.5, color="C3")
         if d.resid_best is not None:
-            ax.plot(d.t[w], d.resid_best[w, j] / d.sigma[c], ".", ms=1.5, color="C0", label=f"with {d.best}")
-        ax.axhspan(-1, 1, color="C2", alpha=0.15)
-        ax.set_ylabel(f"{c} / sd")
-    axes[0].legend(fontsize="small", markerscale=5, loc="upper left")
-    axes[-1].set_xlabel("time [s]")
+            axes[j, 1].plot(d.t[w], d.resid_best[w, j] / d.sigma[c], ".", ms=1.5, color="C0")
+        for ax in axes[j]:
+            ax.axhspan(-1, 1, color="C2", alpha=0.15)
+        axes[j, 0].set_ylabel(f"{c} residual / sd")
+    axes[0, 0].set_title("nominal simulation")
+    axes[0, 1].set_title(f"with {d.best}" if d.best else "no candidate")
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("time [s]")
     return fig
 
 
