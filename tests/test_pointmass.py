@@ -7,7 +7,8 @@ from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.drag import make_drag_model
 from bayesdrag.dynamics import _kernel as K
 from bayesdrag.dynamics.pointmass import (LIFT_REF_FRACTION, PointMassModel, coriolis_matrix,
-                                          initial_state, lift_parameter, step_schedule)
+                                          initial_state, lift_parameter, output_schedule,
+                                          step_schedule)
 
 KERNEL_VS_SCIPY_M = 1e-3      # m, issue 3: kernel vs solve_ivp over a full 155 mm trajectory
 PBC_M = 1.0                   # m, issue 3: vs py-ballisticcalc over the whole flight
@@ -110,6 +111,58 @@ def test_coriolis_eastward_fire_goes_long():
     assert a[2] == pytest.approx(2 * 7.292115e-5 * 100.0, rel=1e-9)
     C = coriolis_matrix(50.0, 0.0)  # north: a_y = +2 Omega sin(lat) vx
     assert (C @ np.array([100.0, 0, 0]))[1] == pytest.approx(2 * 7.292115e-5 * np.sin(np.radians(50)) * 100, rel=1e-9)
+
+
+def test_output_schedule_places_outputs_in_uniform_steps(rng):
+    t = np.sort(rng.uniform(0.5, 40.0, 200))
+    h, n, step, theta = output_schedule(t, 0.5, 0.07)
+    assert h <= 0.07 and n * h == pytest.approx(t[-1] - 0.5, rel=1e-12)
+    assert np.all(np.diff(step) >= 0) and step.max() == n - 1
+    assert np.all((theta >= 0.0) & (theta <= 1.0))
+    assert np.allclose(0.5 + (step + theta) * h, t, rtol=0, atol=1e-12)
+    # an output only at the initial state: zero-length step, the initial state comes back
+    assert output_schedule(np.array([2.0]), 2.0, 0.1)[:2] == (0.0, 1)
+
+
+def test_output_at_initial_state_only(m101):
+    model = PointMassModel(MASS, DIAM, m101)
+    s0 = initial_state(818.0, 15.0)
+    tr = model.simulate((), s0, [3.0], t_start=3.0)
+    assert np.array_equal(tr.state[0], s0)
+
+
+def test_default_step_scales_with_drag_time(m101):
+    """The default step (a fixed fraction of the drag time scale) keeps a rifle bullet, whose drag
+    time scale is ~10x shorter than a shell's, within the kernel tolerance through Mach 1."""
+    shell = PointMassModel(MASS, DIAM, m101)
+    bullet = PointMassModel(0.0194, 0.0086, m101, wind=(2.0, -3.0, 0.0))   # .338, 300 gr
+    assert bullet.kernel_step < shell.kernel_step / 5
+    t = np.arange(0.0, 3.5, 0.01)  # 900 m/s -> Mach 1 at ~3 s
+    ref = bullet.simulate((), initial_state(900.0, 2.0), t, backend="scipy")
+    assert ref.mach[0] > 2.5 and ref.mach[-1] < 1.0
+    tk = bullet.simulate((), ref.state[0], t)
+    assert np.max(np.abs(tk.state[:, :3] - ref.state[:, :3])) < KERNEL_VS_SCIPY_M
+
+
+@pytest.mark.parametrize("B", [21, 64])
+def test_vector_lanes_match_single_runs(m101, B, rng):
+    """Batches run in vector lanes (and padded blocks); every trajectory with its own drag,
+    wind, yaw drag and lift must equal its single (scalar-path) run to rounding."""
+    drag = make_drag_model("reference-scale", reference=m101)
+    model = PointMassModel(MASS, DIAM, drag)
+    t = np.arange(0.0, 30.0, 0.027)
+    factors = rng.uniform(0.9, 1.1, (B, 1))
+    s0 = np.stack([initial_state(v, e) for v, e in zip(rng.uniform(780, 830, B), rng.uniform(10, 40, B))])
+    wy = rng.uniform(-5, 5, B)
+    yaw = np.where(np.arange(B) % 3 == 0, 0.05, 0.0)
+    lift = lift_parameter(rng.uniform(0, 2, B), 818.0)
+    over = {K.P_WY: wy, K.P_YAW_AMP: yaw, K.P_YAW_DECAY: np.full(B, 0.4), K.P_LIFT: lift}
+    batch = model.simulate_batch(factors, s0, t, overrides=over)
+    for i in (0, 1, B // 2, B - 1):
+        single = model.with_(wind=(0.0, wy[i], 0.0), yaw_amp=yaw[i], yaw_decay=0.4).simulate_batch(
+            factors[i:i + 1], s0[i:i + 1], t, overrides={K.P_LIFT: lift[i:i + 1]})
+        assert np.allclose(batch.state[i], single.state[0], rtol=0, atol=1e-9)
+        assert np.allclose(batch.mach[i], single.mach[0], rtol=0, atol=1e-12)
 
 
 def test_step_schedule_lands_on_outputs():

@@ -39,62 +39,73 @@ P_T0 = 19        # time since launch at the initial state [s] (yaw decay clock)
 P_LIFT = 20      # lift constant L = Ix p C_La / (m d C_Ma) [m/s] (> 0: right-hand spin, drift to +y)
 N_PAR = 21
 
+#: rows of the per-block lane parameter array (``_L_*``): copies of the ``par`` columns laid out
+#: lane-contiguous so every RK stage loop reads them with plain vector loads
+_L_KREF, _L_WX, _L_WY, _L_WZ, _L_G, _L_LIFT, _L_COR = 0, 1, 2, 3, 4, 5, 6   # _L_COR: 9 rows
+_L_SCALE, _L_YAW_AMP, _L_YAW_RATE, _L_T0, _L_F0, _L_FH2, _L_FH = 15, 16, 17, 18, 19, 20, 21
+_N_L = 22
 
-@njit(inline="always", fastmath=True)
-def _lookup(z, V, atm, z0, inv_dz, zmax):
-    """Density and Mach from the height table (columns rho, 1/a), clamped at its ends."""
+#: lanes per block are a multiple of this (8 doubles = one AVX-512 register)
+LANE_WIDTH = 8
+#: largest lanes per block: 32 keeps four independent vectors in flight per stage loop; more
+#: only starves the second thread for the ML (B ~ 21) and emcee (B ~ 64) batch sizes
+MAX_LANES = 32
+
+_OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
+
+
+def lanes_per_block(B, n_threads):
+    """Lanes per block for a batch of B trajectories on ``n_threads`` threads: enough blocks
+    for every thread, each a multiple of :data:`LANE_WIDTH`, at most :data:`MAX_LANES`.
+    Fewer than :data:`LANE_WIDTH` trajectories run as one block of B lanes, i.e. the scalar
+    remainder of the vector loops: a single trajectory padded to 8 lanes would cost twice the
+    scalar code."""
+    if B < LANE_WIDTH:
+        return int(max(1, B))
+    per_thread = -(-B // max(1, n_threads))
+    return int(min(MAX_LANES, LANE_WIDTH * max(1, -(-per_thread // LANE_WIDTH))))
+
+
+@njit(forceinline=True, **_OPTS)
+def _acc(z, vx, vy, vz, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
+    """Acceleration (ax, ay, az) [m/s^2] of lane ``l`` of block ``blk`` at height z [m] and
+    ground velocity (vx, vy, vz) [m/s], drag multiplier ``fac``. Branch-free so that the lane
+    loops around it vectorise (the table reads become gathers)."""
+    m0, inv_dm, dm, kmax, z0, inv_dz, zmax = tab
+    wx = LP[blk, _L_WX, l]
+    wy = LP[blk, _L_WY, l]
+    wz = LP[blk, _L_WZ, l]
+    g = LP[blk, _L_G, l]
+    ux = vx - wx
+    uy = vy - wy
+    uz = vz - wz
+    V2 = ux * ux + uy * uy + uz * uz
+    V = np.sqrt(V2)
     zi = min(max((z - z0) * inv_dz, 0.0), zmax)
     j = int(zi)
     f = zi - j
-    rho = atm[j, 0] + f * (atm[j + 1, 0] - atm[j, 0])
-    mach = V * (atm[j, 1] + f * (atm[j + 1, 1] - atm[j, 1]))
-    return rho, mach
-
-
-@njit(inline="always", fastmath=True)
-def _accel(z, vx, vy, vz, fac, wx, wy, wz, kref, g, cor, has_cor, lift, cdt, m0, inv_dm, dm, kmax,
-           atm, z0, inv_dz, zmax):
-    vax = vx - wx
-    vay = vy - wy
-    vaz = vz - wz
-    V = np.sqrt(vax * vax + vay * vay + vaz * vaz)
-    rho, mach = _lookup(z, V, atm, z0, inv_dz, zmax)
+    ja = ATO[blk, l] + 2 * j
+    rho = atf[ja] + f * (atf[ja + 2] - atf[ja])
+    mach = V * (atf[ja + 1] + f * (atf[ja + 3] - atf[ja + 1]))
     mi = min(max((mach - m0) * inv_dm, 0.0), kmax)
     k = int(mi)
     u = (mi - k) * dm
-    cd = cdt[k, 0] + u * (cdt[k, 1] + u * (cdt[k, 2] + u * cdt[k, 3]))
-    kd = kref * fac * rho * cd * V
-    ax = -kd * vax
-    ay = -kd * vay
-    az = -kd * vaz - g
-    if lift != 0.0:
-        # yaw-of-repose lift: L g / |u|^2 * (-u_y, u_x, 0) (derivation in pointmass.lift_parameter)
-        kl = lift * g / (V * V)
-        ax -= kl * vay
-        ay += kl * vax
-    if has_cor:
-        ax += cor[0] * vx + cor[1] * vy + cor[2] * vz
-        ay += cor[3] * vx + cor[4] * vy + cor[5] * vz
-        az += cor[6] * vx + cor[7] * vy + cor[8] * vz
+    kc = CDO[blk, l] + 4 * k
+    cd = cdf[kc] + u * (cdf[kc + 1] + u * (cdf[kc + 2] + u * cdf[kc + 3]))
+    kd = LP[blk, _L_KREF, l] * fac * rho * cd * V
+    # yaw-of-repose lift L g / |u|^2 (-u_y, u_x, 0) (pointmass.lift_parameter)
+    kl = LP[blk, _L_LIFT, l] * g / V2
+    c = _L_COR
+    ax = -kd * ux - kl * uy + LP[blk, c, l] * vx + LP[blk, c + 1, l] * vy + LP[blk, c + 2, l] * vz
+    ay = -kd * uy + kl * ux + LP[blk, c + 3, l] * vx + LP[blk, c + 4, l] * vy + LP[blk, c + 5, l] * vz
+    az = -kd * uz - g + LP[blk, c + 6, l] * vx + LP[blk, c + 7, l] * vy + LP[blk, c + 8, l] * vz
     return ax, ay, az
 
 
-@njit(inline="always", fastmath=True)
-def _yaw_factor(p, t):
-    if p[P_YAW_AMP] == 0.0:
-        return p[P_CD_SCALE] * p[P_RHO_SCALE]
-    return p[P_CD_SCALE] * p[P_RHO_SCALE] * (1.0 + p[P_YAW_AMP] * np.exp(-2.0 * p[P_YAW_DECAY] * (t + p[P_T0])))
-
-
-#: trajectories advanced together by one thread: their independent RK4 chains overlap in the
-#: CPU pipeline (the evaluation is latency-bound); 4 measured best on the 2-core AMD EPYC dev box
-CHUNK = 4
-
-
-@njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
-def integrate_batch(y0, t_start, step_h, step_out, out_first, par, cd_tabs, cd_idx, m0, dm,
-                    atm_tabs, atm_idx, z0, dz, out, mach_out):
-    """Integrate B trajectories with classic RK4 on a shared step schedule.
+@njit(parallel=True, cache=True, **_OPTS)
+def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
+                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, nl, out, mach_out):
+    """Integrate B trajectories with classic RK4 on a uniform step, cubic Hermite output.
 
     Parameters
     ----------
@@ -102,113 +113,170 @@ def integrate_batch(y0, t_start, step_h, step_out, out_first, par, cd_tabs, cd_i
         Initial states at ``t_start``.
     t_start : float
         Time of the initial state [s] (the yaw clock adds ``par[:, P_T0]``).
-    step_h : (S,) float64
-        Step sizes [s].
-    step_out : (S,) int64
-        Output row written after each step, or -1.
-    out_first : int
-        Output row for the initial state, or -1.
+    h : float
+        Step [s] (0 allowed: every output is then the initial state).
+    n_steps : int
+        Number of steps (>= 1).
+    out_step : (N,) int64, non-decreasing
+        Step whose interval [t_start + s h, t_start + (s + 1) h] holds output row n.
+    out_theta : (N,) float64 in [0, 1]
+        Position of output n inside that interval.
     par : (B, N_PAR) float64
         Per-trajectory parameters (column layout ``P_*``).
-    cd_tabs : (T, K, 4) float64
-        Cubic drag cells on the Mach grid (m0, dm); trajectory b uses ``cd_tabs[cd_idx[b]]``.
+    cd_flat : (T * n_cells * 4,) float64
+        Cubic drag cells on the Mach grid (m0, dm), flattened from (T, n_cells, 4); trajectory
+        b uses table ``cd_idx[b]``.
     cd_idx : (B,) int64
     m0, dm : float
         Mach grid origin and cell width.
-    atm_tabs : (A, Z, 2) float64
-        Density [kg/m^3] and *inverse* speed of sound [s/m] on a uniform height grid (z0, dz);
-        trajectory b uses ``atm_tabs[atm_idx[b]]``.
+    atm_flat : (A * n_z * 2,) float64
+        Density [kg/m^3] and *inverse* speed of sound [s/m] on a uniform height grid (z0, dz),
+        flattened from (A, n_z, 2); trajectory b uses table ``atm_idx[b]``.
     atm_idx : (B,) int64
     z0, dz : float
         Height grid origin and spacing [m].
+    nl : int
+        Lanes per block (:func:`lanes_per_block`).
     out : (B, N, 6) float64
         Filled in place with the states at the output rows.
     mach_out : (B, N) float64
         Filled in place with the Mach number at the output rows.
     """
     B = y0.shape[0]
-    S = step_h.shape[0]
-    inv_dm = 1.0 / dm
+    N = out_step.shape[0]
+    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001)
     inv_dz = 1.0 / dz
-    kmax = cd_tabs.shape[1] - 1e-9
-    zmax = atm_tabs.shape[1] - 1.000001
-    n_chunks = (B + CHUNK - 1) // CHUNK
-    for ch in prange(n_chunks):
-        b0 = ch * CHUNK
-        n = min(B, b0 + CHUNK) - b0
-        st = np.empty((CHUNK, 6))
-        for i in range(n):
+    zmax = n_z - 1.000001
+    h2 = 0.5 * h
+    h6 = h / 6.0
+    n_blk = (B + nl - 1) // nl
+    yaw = False
+    for b in range(B):
+        if par[b, P_YAW_AMP] != 0.0:
+            yaw = True
+    # All scratch is allocated here, outside the prange: the parallel body then holds no
+    # array views, numba marks its array arguments noalias, and LLVM vectorises the lane loops.
+    BL = np.empty((n_blk, nl), dtype=np.int64)
+    LP = np.empty((n_blk, _N_L, nl))
+    CDO = np.empty((n_blk, nl), dtype=np.int64)
+    ATO = np.empty((n_blk, nl), dtype=np.int64)
+    ST = np.empty((n_blk, 6, nl))    # state at t_s
+    AC = np.empty((n_blk, 3, nl))    # acceleration at t_s (first RK stage)
+    K2 = np.empty((n_blk, 3, nl))
+    K3 = np.empty((n_blk, 3, nl))
+    K4 = np.empty((n_blk, 3, nl))
+    ST1 = np.empty((n_blk, 6, nl))   # state at t_s + h
+    AC1 = np.empty((n_blk, 3, nl))   # acceleration there (= next step's first stage)
+    OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
+    for blk in prange(n_blk):
+        # lanes past B repeat the last trajectory and are not stored
+        n_real = min(B, blk * nl + nl) - blk * nl
+        for l in range(nl):
+            b = min(blk * nl + l, B - 1)
+            BL[blk, l] = b
             for c in range(6):
-                st[i, c] = y0[b0 + i, c]
-            if out_first >= 0:
-                _store(out, mach_out, b0 + i, out_first, st[i], par[b0 + i], atm_tabs[atm_idx[b0 + i]],
-                       z0, inv_dz, zmax)
-        t = t_start
-        for s in range(S):
-            h = step_h[s]
-            h2 = 0.5 * h
-            h6 = h / 6.0
-            for i in range(n):
-                b = b0 + i
-                p = par[b]
-                cdt = cd_tabs[cd_idx[b]]
-                atm = atm_tabs[atm_idx[b]]
-                kref = p[P_KREF]
-                wx = p[P_WX]
-                wy = p[P_WY]
-                wz = p[P_WZ]
-                g = p[P_G]
-                cor = p[P_COR:P_COR + 9]
-                has_cor = p[P_HAS_COR] != 0.0
-                lift = p[P_LIFT]
-                f1 = _yaw_factor(p, t)
-                f2 = _yaw_factor(p, t + h2)
-                f4 = _yaw_factor(p, t + h)
-                x = st[i, 0]
-                y = st[i, 1]
-                z = st[i, 2]
-                vx = st[i, 3]
-                vy = st[i, 4]
-                vz = st[i, 5]
-                a1x, a1y, a1z = _accel(z, vx, vy, vz, f1, wx, wy, wz, kref, g, cor, has_cor, lift, cdt, m0,
-                                       inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
-                v2x = vx + h2 * a1x
-                v2y = vy + h2 * a1y
-                v2z = vz + h2 * a1z
-                a2x, a2y, a2z = _accel(z + h2 * vz, v2x, v2y, v2z, f2, wx, wy, wz, kref, g, cor, has_cor, lift,
-                                       cdt, m0, inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
-                v3x = vx + h2 * a2x
-                v3y = vy + h2 * a2y
-                v3z = vz + h2 * a2z
-                a3x, a3y, a3z = _accel(z + h2 * v2z, v3x, v3y, v3z, f2, wx, wy, wz, kref, g, cor, has_cor, lift,
-                                       cdt, m0, inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
-                v4x = vx + h * a3x
-                v4y = vy + h * a3y
-                v4z = vz + h * a3z
-                a4x, a4y, a4z = _accel(z + h * v3z, v4x, v4y, v4z, f4, wx, wy, wz, kref, g, cor, has_cor, lift,
-                                       cdt, m0, inv_dm, dm, kmax, atm, z0, inv_dz, zmax)
-                st[i, 0] = x + h6 * (vx + 2.0 * v2x + 2.0 * v3x + v4x)
-                st[i, 1] = y + h6 * (vy + 2.0 * v2y + 2.0 * v3y + v4y)
-                st[i, 2] = z + h6 * (vz + 2.0 * v2z + 2.0 * v3z + v4z)
-                st[i, 3] = vx + h6 * (a1x + 2.0 * a2x + 2.0 * a3x + a4x)
-                st[i, 4] = vy + h6 * (a1y + 2.0 * a2y + 2.0 * a3y + a4y)
-                st[i, 5] = vz + h6 * (a1z + 2.0 * a2z + 2.0 * a3z + a4z)
-            t += h
-            o = step_out[s]
-            if o >= 0:
-                for i in range(n):
-                    _store(out, mach_out, b0 + i, o, st[i], par[b0 + i], atm_tabs[atm_idx[b0 + i]],
-                           z0, inv_dz, zmax)
+                ST[blk, c, l] = y0[b, c]
+            LP[blk, _L_KREF, l] = par[b, P_KREF]
+            LP[blk, _L_WX, l] = par[b, P_WX]
+            LP[blk, _L_WY, l] = par[b, P_WY]
+            LP[blk, _L_WZ, l] = par[b, P_WZ]
+            LP[blk, _L_G, l] = par[b, P_G]
+            LP[blk, _L_LIFT, l] = par[b, P_LIFT]
+            for c in range(9):
+                LP[blk, _L_COR + c, l] = par[b, P_COR + c]
+            scale = par[b, P_CD_SCALE] * par[b, P_RHO_SCALE]
+            LP[blk, _L_SCALE, l] = scale
+            LP[blk, _L_YAW_AMP, l] = par[b, P_YAW_AMP]
+            LP[blk, _L_YAW_RATE, l] = -2.0 * par[b, P_YAW_DECAY]
+            LP[blk, _L_T0, l] = par[b, P_T0] + t_start
+            LP[blk, _L_F0, l] = scale
+            LP[blk, _L_FH2, l] = scale
+            LP[blk, _L_FH, l] = scale
+            CDO[blk, l] = cd_idx[b] * (n_cells * 4)
+            ATO[blk, l] = atm_idx[b] * (n_z * 2)
+        if yaw:
+            for l in range(nl):
+                LP[blk, _L_F0, l] = LP[blk, _L_SCALE, l] * (
+                    1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
+        for l in range(nl):
+            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l] = _acc(
+                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], LP[blk, _L_F0, l],
+                blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+        o = 0
+        for s in range(n_steps):
+            if yaw:
+                for l in range(nl):
+                    ts = LP[blk, _L_T0, l] + s * h
+                    LP[blk, _L_FH2, l] = LP[blk, _L_SCALE, l] * (
+                        1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h2)))
+                    LP[blk, _L_FH, l] = LP[blk, _L_SCALE, l] * (
+                        1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h)))
+            # one loop per RK stage, lanes innermost: independent vectors in flight
+            for l in range(nl):
+                K2[blk, 0, l], K2[blk, 1, l], K2[blk, 2, l] = _acc(
+                    ST[blk, 2, l] + h2 * ST[blk, 5, l], ST[blk, 3, l] + h2 * AC[blk, 0, l],
+                    ST[blk, 4, l] + h2 * AC[blk, 1, l], ST[blk, 5, l] + h2 * AC[blk, 2, l],
+                    LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+            for l in range(nl):
+                K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l] = _acc(
+                    ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
+                    ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
+                    ST[blk, 5, l] + h2 * K2[blk, 2, l],
+                    LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+            for l in range(nl):
+                K4[blk, 0, l], K4[blk, 1, l], K4[blk, 2, l] = _acc(
+                    ST[blk, 2, l] + h * (ST[blk, 5, l] + h2 * K2[blk, 2, l]),
+                    ST[blk, 3, l] + h * K3[blk, 0, l], ST[blk, 4, l] + h * K3[blk, 1, l],
+                    ST[blk, 5, l] + h * K3[blk, 2, l],
+                    LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+            for l in range(nl):
+                for c in range(3):
+                    v = ST[blk, 3 + c, l]
+                    a1 = AC[blk, c, l]
+                    # RK4 with the stage velocities v + h/2 a1, v + h/2 a2, v + h a3 folded in
+                    ST1[blk, c, l] = ST[blk, c, l] + h * v + h * h6 * (a1 + K2[blk, c, l] + K3[blk, c, l])
+                    ST1[blk, 3 + c, l] = v + h6 * (a1 + 2.0 * K2[blk, c, l] + 2.0 * K3[blk, c, l] + K4[blk, c, l])
+                AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l] = _acc(
+                    ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l],
+                    LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+            while o < N and out_step[o] == s:
+                # cubic Hermite on [t_s, t_s + h] from the states and accelerations at both ends
+                th = out_theta[o]
+                th2 = th * th
+                th3 = th2 * th
+                e00 = 2.0 * th3 - 3.0 * th2 + 1.0
+                e01 = 3.0 * th2 - 2.0 * th3
+                e10 = h * (th3 - 2.0 * th2 + th)
+                e11 = h * (th3 - th2)
+                for l in range(nl):
+                    for c in range(3):
+                        OB[blk, c, l] = (e00 * ST[blk, c, l] + e10 * ST[blk, c + 3, l]
+                                         + e01 * ST1[blk, c, l] + e11 * ST1[blk, c + 3, l])
+                        OB[blk, c + 3, l] = (e00 * ST[blk, c + 3, l] + e10 * AC[blk, c, l]
+                                             + e01 * ST1[blk, c + 3, l] + e11 * AC1[blk, c, l])
+                    ux = OB[blk, 3, l] - LP[blk, _L_WX, l]
+                    uy = OB[blk, 4, l] - LP[blk, _L_WY, l]
+                    uz = OB[blk, 5, l] - LP[blk, _L_WZ, l]
+                    zi = min(max((OB[blk, 2, l] - z0) * inv_dz, 0.0), zmax)
+                    j = int(zi)
+                    ja = ATO[blk, l] + 2 * j
+                    OB[blk, 6, l] = np.sqrt(ux * ux + uy * uy + uz * uz) * (
+                        atm_flat[ja + 1] + (zi - j) * (atm_flat[ja + 3] - atm_flat[ja + 1]))
+                for l in range(n_real):
+                    b = BL[blk, l]
+                    for c in range(6):
+                        out[b, o, c] = OB[blk, c, l]
+                    mach_out[b, o] = OB[blk, 6, l]
+                o += 1
+            for l in range(nl):
+                for c in range(6):
+                    ST[blk, c, l] = ST1[blk, c, l]
+                for c in range(3):
+                    AC[blk, c, l] = AC1[blk, c, l]
     return out
 
 
-@njit(inline="always", fastmath=True)
-def _store(out, mach_out, b, o, s, p, atm, z0, inv_dz, zmax):
-    for c in range(6):
-        out[b, o, c] = s[c]
-    vax = s[3] - p[P_WX]
-    vay = s[4] - p[P_WY]
-    vaz = s[5] - p[P_WZ]
-    V = np.sqrt(vax * vax + vay * vay + vaz * vaz)
-    rho, mach = _lookup(s[2], V, atm, z0, inv_dz, zmax)
-    mach_out[b, o] = mach
+#: the same kernel without threads, for batches of fewer than LANE_WIDTH trajectories (one
+#: scalar block): waking the thread pool costs more than such a batch, and on a loaded machine
+#: waiting for the second core to be scheduled can cost milliseconds
+integrate_batch_serial = njit(cache=True, **_OPTS)(integrate_batch.py_func)
