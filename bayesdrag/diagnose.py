@@ -90,6 +90,8 @@ FORWARD_MAX_CANDIDATES = 5
 YAW_AMP_START = 0.02
 #: Bonferroni factor for the unidentified yaw decay rate under the null (see :func:`threshold`)
 YAW_DECAY_MULTIPLICITY = 5
+#: the Cd shift is computed for the verdict and this many best-ranked candidates
+CD_SHIFT_TOP = 2
 #: apex phase: within this fraction of the flight time of the summit
 APEX_FRACTION = 0.1
 
@@ -640,8 +642,8 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         rows.sort(key=lambda r: (order.get(r["name"], len(order)),))
     # Cd shifts
     if cd_shifts:
-        for r in rows:
-            if r["significant"] or r is rows[0]:
+        for i, r in enumerate(rows):  # the verdict and the best few (each costs a batch)
+            if r["name"] in verdict or i < CD_SHIFT_TOP:
                 try:
                     res, prob, y = fits[r["name"]]
                     r["cd_shift"] = cd_shift(setup, res.theta, [EFFECTS[r["name"]]], y, base_theta)
@@ -747,10 +749,21 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     chans = setup.channels
     verdict = [first["name"]]
     selected_fit = first_fit
-    remaining = [r for r in rows if r is not first and r["significant"]
-                 and not set(r["confounded_with"]) & set(verdict)][:FORWARD_MAX_CANDIDATES]
+    remaining = []
+    for r in rows:  # one of each structural twin (density/drag_scale give the same fit)
+        if r is first or not r["significant"] or set(r["confounded_with"]) & set(verdict):
+            continue
+        if any(x["signature_corr"].get(r["name"], 0) >= CONFOUND_CORR for x in remaining):
+            continue
+        remaining.append(r)
+    remaining = remaining[:FORWARD_MAX_CANDIDATES]
+    floor_n = _n_obs(setup) + len(setup.priors)
     while remaining and len(verdict) < MAX_VERDICT:
         sel_res, _, sel_y = selected_fit
+        # an addition must remove MIN_SECOND_SHARE of the gap: pointless when less is left
+        left = float(sel_res.cost) - (floor_n - int(sel_res.free.sum()))
+        if left < MIN_SECOND_SHARE * gap:
+            break
         sel_effs = [EFFECTS[n] for n in verdict]
         best_add = None
         Kr = len(remaining)
