@@ -313,20 +313,22 @@ class _Stage2:
             self.quad0 += float(r["y"] @ r["Ci"] @ r["y"])
             self.logdet0 += r["logdet"]
 
-    def conditional(self, s):
+    def conditional(self, s, want_mean=True):
         """Batched over ``s`` (B,): log marginal likelihood of s with g integrated out under a
         flat prior (B,), and chol(H) (B, n, n), H^-1 b (B, n) where g | s, y ~ N(H^-1 b, H^-1).
         Sherman-Morrison per round: (C + s^2 11')^-1 = C^-1 - k C^-1 11' C^-1 with
         k = s^2 / (1 + s^2 q), |C + s^2 11'| = |C| (1 + s^2 q)."""
         s2 = np.atleast_1d(np.asarray(s, float)) ** 2
         k = s2[:, None] / (1.0 + s2[:, None] * self.q[None, :])            # (B, R)
-        H = self.H0[None] - np.einsum("ir,br,jr->bij", self.U, k, self.U)
+        H = self.H0[None] - (self.U[None] * k[:, None, :]) @ self.U.T
         bv = self.b0[None] - (k * self.w[None]) @ self.U.T                   # (B, n)
         quad = self.quad0 - np.sum(k * self.w ** 2, axis=1)
         logdet = self.logdet0 + np.sum(np.log1p(s2[:, None] * self.q[None]), axis=1)
         Lh = np.linalg.cholesky(H)
         z = np.linalg.solve(Lh, bv[..., None])[..., 0]
         ll = -0.5 * (logdet + quad - np.sum(z * z, axis=1)) - np.sum(np.log(np.diagonal(Lh, axis1=1, axis2=2)), axis=1)
+        if not want_mean:
+            return ll, Lh, None
         mean = np.linalg.solve(np.swapaxes(Lh, 1, 2), z[..., None])[..., 0]
         return ll, Lh, mean
 
@@ -337,7 +339,7 @@ class _Stage2:
         ok = (x > -20.0) & (x < 2.0)
         if np.any(ok):
             s = np.exp(x[ok])
-            out[ok] = self.conditional(s)[0] - 0.5 * (s / prior_sd) ** 2 + x[ok]
+            out[ok] = self.conditional(s, want_mean=False)[0] - 0.5 * (s / prior_sd) ** 2 + x[ok]
         return out
 
 
@@ -401,7 +403,7 @@ class PooledResult:
                 for i, n in enumerate(self.names)]
 
 
-def pool_rounds(inputs, rng=None, n_draws=4000, nwalkers=16, n_steps=800, prior_sd=SCATTER_PRIOR_SD,
+def pool_rounds(inputs, rng=None, n_draws=4000, nwalkers=16, n_steps=600, prior_sd=SCATTER_PRIOR_SD,
                 rel_floor=REL_FLOOR):
     """Pool rounds into the campaign Cd(M) and the round-to-round scatter (module docstring).
 
