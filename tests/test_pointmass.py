@@ -78,6 +78,19 @@ def test_vacuum_parabola():
     assert np.allclose(tk.state[:, 2], s0[5] * t - 0.5 * 9.80665 * t**2, atol=1e-9)
 
 
+@pytest.mark.parametrize("lift_factor", [0.0, 1.0])
+def test_released_at_rest_falls_and_stays_finite(m101, lift_factor):
+    """Zero airspeed at the start (a drop in still air): no 0/0 anywhere, the fall starts like
+    free fall (drag ~ V^2 is negligible for the first second) and stays vertical."""
+    model = PointMassModel(MASS, DIAM, m101, lift_factor=lift_factor, lift_v0=800.0)
+    t = np.linspace(0.0, 1.0, 11)
+    for backend in ("kernel", "scipy"):
+        tr = model.simulate((), np.zeros(6), t, backend=backend)
+        assert np.all(np.isfinite(tr.state)), backend
+        assert tr.state[-1, 2] == pytest.approx(-0.5 * 9.80665, rel=1e-3)
+        assert np.max(np.abs(tr.state[:, :2])) < 1e-9
+
+
 def test_headwind_shortens_range_tailwind_lengthens(m101):
     s0 = initial_state(818.0, 15.0)
     ranges = {}

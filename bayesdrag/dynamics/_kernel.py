@@ -90,6 +90,8 @@ LANE_WIDTH = 8
 MAX_LANES = 32
 
 _OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
+#: smallest airspeed^2 [m^2/s^2] in the lift term's denominator
+V2_FLOOR = 1e-12
 
 
 def lanes_per_block(B, n_threads):
@@ -131,8 +133,9 @@ def _acc(z, vx, vy, vz, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     kc = CDO[blk, l] + 4 * k
     cd = cdf[kc] + u * (cdf[kc + 1] + u * (cdf[kc + 2] + u * cdf[kc + 3]))
     kd = LP[blk, _L_KREF, l] * fac * rho * cd * V
-    # yaw-of-repose lift L g / |u|^2 (-u_y, u_x, 0) (pointmass.lift_parameter)
-    kl = LP[blk, _L_LIFT, l] * g / V2
+    # yaw-of-repose lift L g / |u|^2 (-u_y, u_x, 0) (pointmass.lift_parameter); the floor on
+    # |u|^2 keeps a shell at rest in still air finite (0 * g / 0 would poison the trajectory)
+    kl = LP[blk, _L_LIFT, l] * g / max(V2, V2_FLOOR)
     c = _L_COR
     ax = -kd * ux - kl * uy + LP[blk, c, l] * vx + LP[blk, c + 1, l] * vy + LP[blk, c + 2, l] * vz
     ay = -kd * uy + kl * ux + LP[blk, c + 3, l] * vx + LP[blk, c + 4, l] * vy + LP[blk, c + 5, l] * vz

@@ -389,7 +389,7 @@ class PointMassModel:
             kd = kref * rho * cd * V
             acc = [-kd * ax_, -kd * ay_, -kd * az_ - g]
             if lift:
-                kl = lift * g / (V * V)
+                kl = lift * g / max(V * V, K.V2_FLOOR)
                 acc[0] -= kl * ay_
                 acc[1] += kl * ax_
             if C is not None:
