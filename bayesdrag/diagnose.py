@@ -283,6 +283,9 @@ def make_setup(track, rnd, sigma=None, channels=None):
     if outl.any():
         notes.append(f"{int(outl.any(axis=1).sum())} samples have gross outliers (> {OUTLIER_K:g} robust sd "
                      f"from a local smoother) and are left out")
+    if "y" not in chans:
+        notes.append("no y channel: the cross wind wy is held at 0 (not identifiable) and lift/Coriolis "
+                     "drift cannot be seen")
     launch_known = L.velocity is not None and L.elevation_deg is not None
     if launch_known:
         t_ic = 0.0
@@ -317,6 +320,18 @@ def make_setup(track, rnd, sigma=None, channels=None):
                  ctx, ref is not None, launch_known, notes)
 
 
+def _extra_free(setup, name):
+    """Is an effect parameter estimable from the channels? Without a ``y`` channel the cross
+    wind has no lateral signature left (only its small share of the airspeed), so ``wind.wy``
+    is held at 0 and wind is judged by its along-range component."""
+    return not (name == "wind.wy" and "y" not in setup.channels)
+
+
+def k_free(setup, e):
+    """Number of parameters of effect ``e`` fitted on this track."""
+    return sum(_extra_free(setup, f"{e.name}.{p.name}") for p in e.params)
+
+
 def _fit_starts(e):
     """Starting values of an effect's parameters: its null value, except the yaw amplitude,
     started slightly positive so that the decay rate has a gradient (at zero amplitude the
@@ -331,7 +346,7 @@ def _problem(setup, effects, theta_start):
     ex = extra_params(eff)
     theta0 = np.concatenate([theta_start, [s for e in eff for s in _fit_starts(e)]]) \
         if len(theta_start) == setup.theta0.size else np.asarray(theta_start, float)
-    free = np.concatenate([setup.free, np.ones(len(ex), bool)])
+    free = np.concatenate([setup.free, [_extra_free(setup, p.name) for p in ex]])
     fn = effect_fn(eff, setup.ctx, setup.theta0[setup.P:]) if eff else None
     return OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
                               priors=setup.priors, channels=setup.channels, extras=ex, effect_fn=fn,
@@ -380,7 +395,8 @@ def signatures(setup, base_theta, effects):
             if e.name == "yaw_drag":
                 th[-2] = 0.05  # the decay column is flat at zero amplitude: evaluate at a small one
             _, _, S = prob.sensitivities(th)
-            cols = (S[:, :, -e.k:] * sw[:, :, None]).reshape(-1, e.k)
+            kf = k_free(setup, e)
+            cols = (S[:, :, -kf:] * sw[:, :, None]).reshape(-1, kf)
         cols = np.vstack([cols, np.zeros((n_pr, cols.shape[1]))]) if n_pr else cols
         norms = np.linalg.norm(cols, axis=0)
         keep = norms > 0
@@ -705,7 +721,7 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
                      mach, setup.weights, best_name)
 
 
-def threshold(e, a):
+def threshold(e, a, k=None):
     """Critical value of the colored chi2-drop statistic of effect ``e`` at level ``a``.
 
     chi2 quantile with the effect's number of parameters; for ``yaw_drag`` the decay rate is
@@ -714,7 +730,7 @@ def threshold(e, a):
     at ``a / YAW_DECAY_MULTIPLICITY`` (as if that many separate decay rates were tried)."""
     if e.name == "yaw_drag":
         return float(_chi2.ppf(1 - a / YAW_DECAY_MULTIPLICITY, 1))
-    return float(_chi2.ppf(1 - a, max(e.k, 1)))
+    return float(_chi2.ppf(1 - a, max(e.k if k is None else k, 1)))
 
 
 def _better(setup, new, old, sig_vec, alpha, gap, K):
@@ -727,8 +743,8 @@ def _better(setup, new, old, sig_vec, alpha, gap, K):
     set, removes at least ``MIN_SECOND_SHARE`` of the gap (the forward-selection rule); equal
     sizes: the lower cost."""
     (vn, fn), (vo, fo) = new, old
-    kn = sum(EFFECTS[n].k for n in vn) + len(vn)
-    ko = sum(EFFECTS[n].k for n in vo) + len(vo)
+    kn = sum(k_free(setup, EFFECTS[n]) for n in vn) + len(vn)
+    ko = sum(k_free(setup, EFFECTS[n]) for n in vo) + len(vo)
     if kn == ko:
         return fn[0].cost < fo[0].cost
     big, small = (fn, fo) if kn > ko else (fo, fn)
@@ -774,7 +790,7 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
             d = float(sel_res.cost - res.cost)
             resid = np.stack([res.residuals[c] for c in chans], axis=-1)
             infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-            ok = (d / infl > threshold(e, alpha / Kr) and d >= MIN_SECOND_SHARE * gap)
+            ok = (d / infl > threshold(e, alpha / Kr, k_free(setup, e)) and d >= MIN_SECOND_SHARE * gap)
             if ok and (best_add is None or d > best_add[1]):
                 best_add = (r["name"], d, (res, prob, y))
         if best_add is None:
@@ -794,7 +810,7 @@ def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
     acov = autocovariance(resid, setup.weights)
     infl = colored_inflation(y - y_base, acov, sig_vec, setup.weights)
     stat = d / infl
-    thr = threshold(e, alpha / K)
+    thr = threshold(e, alpha / K, k_free(setup, e))
     n_obs = _n_obs(setup)
     vals = res.theta[-e.k:] if e.k else np.zeros(0)
     idx = slice(res.theta.size - e.k, res.theta.size)
@@ -814,7 +830,7 @@ def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
         "sd_white": e.report_sd(vals, cov) if e.k else {},
         "delta_loglik": d / 2.0,
         "delta_chi2": d,
-        "delta_bic": -d + e.k * math.log(max(n_obs, 1)),
+        "delta_bic": -d + k_free(setup, e) * math.log(max(n_obs, 1)),
         "shrink": float(np.clip(d / gap, 0.0, 1.0)) if gap > 0 else 0.0,
         "remaining_gap": remaining,
         "remaining_gap_fraction": float(remaining / gap) if gap > 0 else 0.0,
