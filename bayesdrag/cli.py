@@ -85,8 +85,9 @@ def build_parser():
     f.add_argument("track", help="radar track (CSV), or a campaign file (TOML) without ROUND")
     f.add_argument("round", nargs="?", default=None, help="round file (TOML); omitted for a campaign")
     f.add_argument("-o", "--output", required=True, help="output folder")
-    f.add_argument("--scheme", type=int, choices=(1,), default=1,
-                   help="1 = Cd model over the whole flight (Scheme 2 is being built)")
+    f.add_argument("--scheme", type=int, choices=(1, 2), default=1,
+                   help="1 = Cd model over the whole flight (default); 2 = a constant Cd per window")
+    f.add_argument("--window", type=_walkers, default=50, help="Scheme 2: samples per window (default 50)")
     f.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline",
                    help="drag model (default spline: the only one that follows a transonic rise)")
     f.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")

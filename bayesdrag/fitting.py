@@ -64,6 +64,8 @@ def run_fit(args, echo=print, on_fit=None):
     if mcmc and (out / PARTIAL).exists() and not resume:
         raise InputError(f"{out / PARTIAL}: an unfinished chain from an earlier run is there; rerun with "
                          f"--resume to continue it, or delete it to start afresh")
+    if getattr(args, "scheme", 1) == 2:
+        return _run_scheme2(args, track, rnd, chans, out, echo, quiet)
     res, prob = fit_scheme1(track, rnd, drag=args.drag, channels=chans, free_ic=not args.fix_ic)
     if not res.success:
         raise FitError(f"{args.track}: {res.message}")
@@ -175,8 +177,8 @@ def _fit_figures(out, res, prob, dm, rows, rnd, track, bayes, post):
     matplotlib.use("Agg")
     import numpy as np
 
-    from .plots import (plot_cd_ml, plot_cd_posterior, plot_cd_relative, plot_corner, plot_residuals,
-                        plot_residuals_acf, plot_traces)
+    from .plots import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
+                        plot_corner, plot_residuals, plot_residuals_acf, plot_traces)
 
     figs = []
     if bayes is None:
@@ -191,6 +193,11 @@ def _fit_figures(out, res, prob, dm, rows, rnd, track, bayes, post):
     _write_figure(out / "cd.png", ax.figure)
     figs.append(("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
                  "Cramér-Rao band (dotted) and the reference firing table (dashed)."))
+    if all(r.get("reference") for r in rows):
+        ax = plot_cd_posterior_relative(rows)
+        _write_figure(out / "cd_relative.png", ax.figure)
+        figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
+                     "reference curve, where their widths are visible."))
     ax = plot_cd_relative(rows)
     _write_figure(out / "cd_sd_ratio.png", ax.figure)
     figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the "
@@ -288,4 +295,130 @@ def _report(out, args, track, rnd, res, prob, rows, bayes, post, figs, warnings,
            "figures": [{"title": t, "caption": c, "png": b64(f)} for f, t, c in figs],
            "ml": {"message": res.message, "iterations": res.iterations, "cost": res.cost, "rows": mlrows},
            "posterior": post_ctx, "cd_rows": rows[::2], "windows": None, "versions": versions()}
+    render_report(out / "report.html", ctx)
+
+
+def _run_scheme2(args, track, rnd, chans, out, echo, quiet):
+    """Scheme 2: ML per window (estimate/scheme2.py), then the same posterior sampling in each
+    window (Cd, initial state, noise). Windows are sampled one after the other: each window's
+    batch already runs on both cores (numba threads), a process pool would only add start-up
+    and contention on a 2-core machine. Scheme 2 chains are kept in memory (no --resume: one
+    window takes a few seconds)."""
+    import numpy as np
+
+    from .estimate.bayes import LogPosterior, sample_posterior
+    from .estimate.scheme2 import fit_scheme2, windows_table
+
+    t_start = time.perf_counter()
+    window = getattr(args, "window", 50) or 50
+    r2 = fit_scheme2(track, rnd, window=window, channels=chans, free_ic=not args.fix_ic)
+    ok = [k for k, r in enumerate(r2.results) if r.success]
+    if not ok:
+        raise FitError(f"{args.track}: no Scheme 2 window converged ({r2.results[0].message})")
+    out.mkdir(parents=True, exist_ok=True)
+    rows = windows_table(r2)
+    warnings = [f"window {k} ({rows[k]['t_start']:.2f}-{rows[k]['t_end']:.2f} s): {r2.results[k].message}"
+                for k in range(len(rows)) if k not in ok]
+    draws = {}
+    seed = getattr(args, "seed", None)
+    log = None if quiet else _echo_err
+    if not args.no_mcmc:
+        for k in ok:
+            post = LogPosterior(r2.problems[k], r2.results[k])
+            b = sample_posterior(post, nwalkers=getattr(args, "walkers", None), seed=None if seed is None else seed + k,
+                                 max_steps=getattr(args, "max_steps", 20000))
+            cd = b.draws[..., 0]
+            flat = cd.reshape(-1)
+            q = np.quantile(flat, [0.05, 0.5, 0.95])
+            rows[k].update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
+                           q95=float(q[2]), sd_over_crb=float(flat.std(ddof=1) / rows[k]["crb_sd"]) if rows[k]["crb_sd"] else None,
+                           r_hat_max=float(b.summary["r_hat"].max()), ess_bulk_min=float(b.summary["ess_bulk"].min()),
+                           mcmc_converged=b.converged, steps=b.steps)
+            draws[k] = cd
+            if not b.converged:
+                warnings.append(f"window {k}: {b.message}")
+            if log:
+                log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
+    mach = np.array([w["mach"] for w in rows])
+    lo, hi = float(min(w["mach_min"] for w in rows)), float(max(w["mach_max"] for w in rows))
+    grid = np.round(np.linspace(lo, hi, 81), 4)
+    order = np.argsort(mach[ok])
+    mk = mach[ok][order]
+
+    def interp(key):
+        v = np.array([rows[k][key] for k in ok], float)[order]
+        return np.interp(grid, mk, v)
+
+    cd_rows = []
+    cols = {key: interp(key) for key in ("ml", "crb_sd") + (("mean", "q05", "q95") if draws else ())}
+    for i, m in enumerate(grid):
+        r = {key: float(v[i]) for key, v in cols.items()}
+        r["mach"] = float(m)
+        r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
+        cd_rows.append(r)
+    result = {"scheme": 2, "drag_model": "constant per window", "window": window,
+              "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
+                     "windows": len(rows), "notes": list(r2.notes)},
+              "cd": cd_rows, "windows": rows}
+    if draws:
+        result["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
+                          "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
+    _write_json(out / "result.json", result)
+    if draws:
+        import arviz as az
+
+        S = min(d.shape[1] for d in draws.values())
+        W = min(d.shape[0] for d in draws.values())
+        cd = np.stack([draws[k][:W, :S] for k in ok], axis=-1)
+        idata = az.from_dict(
+            posterior={"cd": cd},
+            observed_data={c: track.channels[c] for c in (chans or track.names)},
+            constant_data={"mach": mach[ok], "crb_sd": np.array([rows[k]["crb_sd"] for k in ok]),
+                           "t_start": np.array([rows[k]["t_start"] for k in ok]),
+                           "t_end": np.array([rows[k]["t_end"] for k in ok]), "t": track.t},
+            coords={"window": np.array(ok), "time": track.t},
+            dims={"cd": ["window"], "mach": ["window"], "crb_sd": ["window"], "t_start": ["window"],
+                  "t_end": ["window"], "t": ["time"], **{c: ["time"] for c in (chans or track.names)}})
+        _atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .plots import plot_windows
+
+    ax = plot_windows([rows[k] for k in ok], reference=rnd.reference_drag.value if rnd.reference_drag else None)
+    _write_figure(out / "windows.png", ax.figure)
+    _report_scheme2(out, args, track, rnd, rows, cd_rows, warnings, result, time.perf_counter() - t_start)
+    if not quiet:
+        for w in warnings:
+            _echo_err(f"bayesdrag: warning: {w}")
+    echo(f"fit (Scheme 2): {len(ok)}/{len(rows)} windows of {window} samples converged, Mach {lo:.2f}-{hi:.2f}")
+    echo(f"  wrote {out / 'result.json'}" + (", posterior.nc" if draws else "") + ", windows.png, report.html")
+    return 0
+
+
+def _report_scheme2(out, args, track, rnd, rows, cd_rows, warnings, result, seconds):
+    import base64
+    import datetime
+
+    from .report import render_report, versions
+
+    png = base64.b64encode((out / "windows.png").read_bytes()).decode("ascii")
+    inputs = [("track", f"{args.track} ({track.n} samples)"), ("round", str(args.round)),
+              ("windows", f"{len(rows)} of {result['window']} samples"), ("wall-clock time", f"{seconds:.1f} s")]
+    conv = None
+    if "mcmc" in result:
+        m = result["mcmc"]
+        conv = {"converged": m["windows_converged"] == result["ml"]["windows_converged"],
+                "message": f"{m['windows_converged']} of {result['ml']['windows_converged']} windows converged "
+                           f"(max r_hat {m['r_hat_max']:.4f})", "rows": []}
+    ctx = {"title": f"bayesdrag fit (Scheme 2): {Path(args.track).name}",
+           "created": datetime.datetime.now().isoformat(timespec="seconds"),
+           "headline": "Scheme 2: a constant Cd per window, ML with Cramér-Rao bounds"
+                       + (" and a posterior per window." if conv else "."),
+           "inputs": inputs, "warnings": warnings, "convergence": conv,
+           "figures": [{"title": "Cd per window", "caption": "Each window's Cd at its mean Mach number with "
+                        "its 90 % interval; the reference curve dashed.", "png": png}],
+           "ml": {"message": f"{result['ml']['windows_converged']} windows converged", "iterations": "—",
+                  "cost": None, "rows": []},
+           "posterior": None, "cd_rows": cd_rows[::2], "windows": rows, "versions": versions()}
     render_report(out / "report.html", ctx)
