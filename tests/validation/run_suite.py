@@ -63,6 +63,11 @@ def main(argv=None):
         if r["params"] and r["true_params"]:
             errs = {k: round(r["params"][k] - v, 4) for k, v in r["true_params"].items() if k in r["params"]}
             print(f"  {r['id']:<26} fitted {({k: round(v, 4) for k, v in r['params'].items()})} error {errs}")
+    print("\nwinds that change along the path (fitted constant wind, gap it leaves):")
+    for r in results:
+        if "shear" in (r["true_params"] or {}):
+            print(f"  {r['id']:<26} truth {r['true_params']} fitted {r['params']} "
+                  f"remaining gap fraction {r['remaining_gap_fraction']:.4f}")
     s = summarise(results)
     s["total_time_s"] = round(time.time() - t0, 1)
     if a.out:
