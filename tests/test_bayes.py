@@ -251,3 +251,27 @@ def test_student_t_likelihood_resists_outliers(quick):
     res_clean = res
     ux = b.draws[..., b.names.index("Ux0")]
     assert abs(ux.mean() - res_clean.params["Ux0"]) < 3 * ux.std() + 0.05
+
+
+@pytest.mark.slow
+def test_coverage_study_posterior_and_crb_intervals():
+    """benchmarks/bayes_coverage.py: 200 replicates; the 90 % intervals (posterior and CRB)
+    cover the true Cd at three Mach numbers 85-95 % of the time (binomial se ~2.1 %)."""
+    import importlib.util
+    import json as _json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bayes_coverage.py"
+    spec = importlib.util.spec_from_file_location("bayes_coverage", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        mod.main(["--replicates", "200"])
+    s = _json.loads(buf.getvalue().strip().splitlines()[-1])
+    assert s["replicates"] >= 195
+    for p in s["coverage_posterior_90"] + s["coverage_crb_90"]:
+        assert 0.85 <= p <= 0.95, s
