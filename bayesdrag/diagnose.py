@@ -516,12 +516,18 @@ def cd_shift(setup, theta_eff, effects, y_eff, base_theta, n_mach=9):
     model = PointMassModel(setup.model.mass, setup.model.diameter, spl, setup.model.atmosphere)
     th = np.concatenate([beta, s0])
     free = np.concatenate([np.ones(spl.n_params, bool), setup.free[P:P + 6]])
-    prob = OutputErrorProblem(model, setup.track, th, free=free, sigma=setup.sigma,
+    pri = _launch_priors(setup.rnd.launch, spl.n_params) if setup.launch_known else ()
+    prob = OutputErrorProblem(model, setup.track, th, free=free, sigma=setup.sigma, priors=pri,
                               channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
     _, _, S = prob.sensitivities(th)
     sw = np.sqrt(setup.weights) / np.array([setup.sigma[c] for c in setup.channels])[None, :]
     A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
     b = (dy * sw).reshape(-1)
+    # the Scheme 1 fit keeps its launch priors: the effect cannot hide in the initial state
+    _, pJ = prob._prior_terms(th)
+    if pJ.shape[0]:
+        A = np.vstack([A, pJ])
+        b = np.concatenate([b, np.zeros(pJ.shape[0])])
     d, *_ = np.linalg.lstsq(A, b, rcond=None)
     grid = np.linspace(lo, hi, n_mach)
     cd0 = spl.cd(beta, grid)
