@@ -98,6 +98,26 @@ APEX_FRACTION = 0.1
 
 # ----------------------------------------------------------------------------------------------
 # noise, outliers, autocorrelation
+def hf_residual_t(t, z, window=HF_WINDOW, order=HF_ORDER):
+    """:func:`hf_residual` applied per run of regular sampling: the track is split where a
+    sample interval exceeds 1.5 times the median (dropouts, gaps), so the smoother never
+    bridges a gap. Runs shorter than the window get residual 0 and ``valid`` False."""
+    dtt = np.diff(t)
+    med = np.median(dtt) if dtt.size else 1.0
+    cuts = np.flatnonzero(dtt > 1.5 * med) + 1
+    e = np.zeros_like(z)
+    valid = np.zeros(z.size, bool)
+    fac = 1.0
+    for seg in np.split(np.arange(z.size), cuts):
+        if seg.size >= window:
+            e[seg], fac = hf_residual(z[seg], window, order)
+            valid[seg] = True
+    if not valid.any():
+        e, fac = hf_residual(z, window, order)
+        valid[:] = True
+    return e, fac, valid
+
+
 def hf_residual(z, window=HF_WINDOW, order=HF_ORDER):
     """Residual of a channel about a local polynomial smoother and its variance factor.
 
@@ -150,16 +170,17 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
     for j, c in enumerate(channels):
         z = np.asarray(track.channels[c], float)
         flagged = np.zeros(z.size, bool)
-        e, fac = hf_residual(z)
+        e, fac, valid = hf_residual_t(track.t, z)
         for _ in range(3):  # re-smooth with the flagged samples interpolated over
             zz = z.copy()
             if flagged.any() and (~flagged).sum() > 2:
                 zz[flagged] = np.interp(track.t[flagged], track.t[~flagged], z[~flagged])
-            e, fac = hf_residual(zz)
-            s = _robust_sd(e[~flagged]) if (~flagged).sum() > 10 else _robust_sd(e)
+            e, fac, valid = hf_residual_t(track.t, zz)
+            use = valid & ~flagged
+            s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
             if s <= 0:
                 break
-            new = np.abs(z - (zz - e)) > k * s
+            new = valid & (np.abs(z - (zz - e)) > k * s)
             if np.array_equal(new, flagged):
                 break
             flagged = new
@@ -167,7 +188,8 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
         if sigma_given and c in sigma_given:
             sigma[c], source[c] = float(sigma_given[c]), "round"
         else:
-            s = _robust_sd(e[~flagged]) if (~flagged).sum() > 10 else _robust_sd(e)
+            use = valid & ~flagged
+            s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
             sigma[c] = max(s / math.sqrt(fac), 1e-6)
             source[c] = "estimated"
     return sigma, source, out
