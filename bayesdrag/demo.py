@@ -83,7 +83,7 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
                            max_steps=20000,
                            likelihood="gaussian", nu="4")
     kept = {}
-    run_fit(args, echo=lambda *a: None, keep=kept)
+    run_fit(args, echo=lambda *a: None, on_fit=lambda **kw: kept.update(kw))
     with open(outdir / "result.json") as fh:
         result = json.load(fh)
     det = result["ml"]["mach_range_determined"]
@@ -94,7 +94,7 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     # the ML figures of the earlier demo (kept: users and tests know them)
     from .plots import plot_cd_ml, plot_residuals
 
-    res = kept["ml"]
+    res = kept["res"]
     ax = plot_cd_ml(rows, label="ML, spline (from the 6-DOF track)")
     ax.set_title("Cd from the shipped 6-DOF track vs the M101 firing table (ML)")
     ax.figure.savefig(outdir / "cd_ml.png", dpi=110)

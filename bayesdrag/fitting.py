@@ -103,8 +103,6 @@ def run_fit(args, echo=print, on_fit=None):
         ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
         if ratios:
             result["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
-    if keep is not None:
-        keep.update(ml=res, problem=prob, bayes=bayes, posterior=post)
     _write_json(out / "result.json", result)
     if idata is not None:
         _atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
