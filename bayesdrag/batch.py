@@ -101,6 +101,9 @@ def _fit_namespace(track, round_path, outdir, options):
     for k, v in options.items():
         setattr(ns, k, v)
     ns.track, ns.round, ns.output, ns.quiet = str(track), str(round_path), str(outdir), True
+    # a round killed while sampling left its chain: continue it (run_fit refuses to start over it;
+    # the sampler checks the chain belongs to the same problem, walkers, moves and seed)
+    ns.resume = (Path(outdir) / "chain.partial.h5").exists()
     return ns
 
 
@@ -158,7 +161,8 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
     Returns
     -------
     dict
-        ``name``, ``jobs``: {job: {"status": "done" | "skipped" | "failed", "seconds", "message"}},
+        ``name``, ``jobs``: {job: {"status": "done" | "skipped" | "failed", "seconds", "message"}}
+        (done jobs also ``cpu_seconds``: CPU time of the worker process, to tell contention apart),
         ``pid`` (the worker process).
     """
     import matplotlib
@@ -175,7 +179,7 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
             report["jobs"][job] = {"status": "failed", "seconds": 0.0, "message": f"{type(exc).__name__}: {exc}"}
         return report
     for job in jobs:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             fp = fingerprint(track, round_path, job, options)
             if job_done(out, job, fp):
@@ -190,7 +194,8 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
                 raise InputError(f"unknown job {job!r}; allowed: {', '.join(JOBS)}")
             secs = time.perf_counter() - t0
             write_json(marker_path(out, job), {"fingerprint": fp, "seconds": round(secs, 3), "message": msg})
-            report["jobs"][job] = {"status": "done", "seconds": secs, "message": msg}
+            report["jobs"][job] = {"status": "done", "seconds": secs, "message": msg,
+                                   "cpu_seconds": time.process_time() - c0}
         except BaseException as exc:  # noqa: BLE001 - reported, the batch goes on
             if isinstance(exc, (KeyboardInterrupt, SystemExit)):
                 raise

@@ -9,7 +9,8 @@ v; the default penalised-spline fit and the full diagnosis run on each). Each co
 writes into a fresh folder (nothing skipped); the numba kernel is compiled and cached on disk
 before timing so each worker only loads it. Reported per configuration: wall-clock seconds
 from the first submitted task to the last result (cluster start-up apart), rounds per minute,
-and the mean task time inside the workers; the speed-up is the 1-worker wall time over the
+and the mean task wall and CPU time inside the workers (their ratio is the CPU share a worker
+got: below 1 when other processes compete for the cores); the speed-up is the 1-worker wall time over the
 2-worker one. Other processes sharing the CPUs slow the 2-worker run most, so the load average
 is printed too. The last line printed is one JSON object.
 """
@@ -64,16 +65,20 @@ def main(argv=None):
         t_end = time.perf_counter()
         failed = [r["name"] for r in reports if any(v["status"] != "done" for v in r["jobs"].values())]
         task = [sum(v["seconds"] for v in r["jobs"].values()) for r in reports]
+        cpu = [sum(v.get("cpu_seconds", 0.0) for v in r["jobs"].values()) for r in reports]
         # the cluster start-up is inside ex.run before the first submit; estimate it as the time
         # to the first result minus one mean task time
         startup = max(0.0, (first - t_start) - float(np.mean(task)))
         wall = t_end - t_start - startup
         out["configs"][str(w)] = {"workers": w, "wall_s": round(wall, 2), "startup_s": round(startup, 2),
                                   "rounds_per_minute": round(60.0 * n / wall, 2),
-                                  "mean_task_s": round(float(np.mean(task)), 3), "failed": failed,
+                                  "mean_task_s": round(float(np.mean(task)), 3),
+                                  "mean_task_cpu_s": round(float(np.mean(cpu)), 3),
+                                  "cpu_share_per_worker": round(float(np.sum(cpu) / np.sum(task)), 3), "failed": failed,
                                   "loadavg_before": round(load0, 2), "loadavg_after": round(os.getloadavg()[0], 2)}
         print(f"{w} worker(s): {n} rounds in {wall:.1f} s ({60 * n / wall:.1f} rounds/min; start-up "
-              f"{startup:.1f} s apart; mean task {np.mean(task):.2f} s; load {load0:.1f}); failed: {failed or 'none'}",
+              f"{startup:.1f} s apart; mean task {np.mean(task):.2f} s wall, {np.mean(cpu):.2f} s CPU; load {load0:.1f}); "
+              f"failed: {failed or 'none'}",
               file=sys.stderr, flush=True)
     if "1" in out["configs"] and "2" in out["configs"]:
         out["speedup_2_vs_1"] = round(out["configs"]["1"]["wall_s"] / out["configs"]["2"]["wall_s"], 3)
