@@ -63,6 +63,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 from scipy.stats import chi2 as _chi2
 
 from .effects import EFFECTS, EffectContext, effect_fn, extra_params, static_model
+from .errors import FitError
 from .estimate.ml import OutputErrorProblem, Prior
 
 #: overall false-alarm rate of the verdict on a track the nominal model explains
@@ -606,7 +607,6 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     W = setup.weights / sig_vec[None, :] ** 2
     base, base_prob, y_base = _fit(setup, [], setup.theta0)
     if not np.all(np.isfinite(y_base)):
-        from .errors import FitError
 
         raise FitError("the nominal simulation of the round does not reach the track's times")
     base_theta = base.theta.copy()
@@ -641,7 +641,14 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     rows = []
     fits = {}
     for e in effs:
-        res, prob, y = _fit(setup, [e], base_theta)
+        try:
+            res, prob, y = _fit(setup, [e], base_theta)
+            if not np.all(np.isfinite(y)):
+                raise FloatingPointError("non-finite trajectory at the estimate")
+        except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError) as exc:
+            # one candidate failing is a finding about that candidate, not the end of the diagnosis
+            skipped[e.name] = f"its fit failed ({type(exc).__name__}: {exc})"
+            continue
         fits[e.name] = (res, prob, y)
         rows.append(_candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K))
     rows.sort(key=lambda r: (-round(r["delta_chi2"], 6 if r["delta_chi2"] < 1e3 else 3), _effect_order(r["name"])))
