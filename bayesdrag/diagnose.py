@@ -607,7 +607,6 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     W = setup.weights / sig_vec[None, :] ** 2
     base, base_prob, y_base = _fit(setup, [], setup.theta0)
     if not np.all(np.isfinite(y_base)):
-
         raise FitError("the nominal simulation of the round does not reach the track's times")
     base_theta = base.theta.copy()
     n_obs = _n_obs(setup)
