@@ -6,7 +6,8 @@ have done to a fitted Cd (issue 6, DESIGN.md ``diagnosis.json``). Pure functions
 Method (each decision with its reason; docs/diagnosis.md has the long form):
 
 1. **Noise and outliers from the data, not from the fit.** Per channel the residual about a
-   local cubic (Savitzky-Golay, 11 samples) measures the high-frequency content. Samples further
+   local cubic (Savitzky-Golay, 11 samples, never across a dropout or gap) measures the
+   high-frequency content. Samples further
    than ``OUTLIER_K`` robust sd from it are flagged as gross outliers and get weight 0 in every
    fit (listed in the output). The noise sd is the round's ``[radar] sigma`` when given;
    otherwise the robust sd of that local residual corrected for the smoother. The baseline
@@ -45,7 +46,12 @@ Method (each decision with its reason; docs/diagnosis.md has the long form):
    together with the selected ones and enter when their conditional chi2 drop is significant
    (same rule, K = remaining candidates) and removes at least ``MIN_SECOND_SHARE`` of the
    baseline gap (a practical-size rule: a model mismatch that no effect describes leaves
-   correlated residuals that a second effect would always nibble at).
+   correlated residuals that a second effect would always nibble at). Forward selection is also
+   started from up to two runners-up that explain most of the gap alone; between the resulting
+   explanations parsimony wins unless the larger is significantly better (:func:`_better`).
+   The verdict is ordered by what each member explains alone. Without a ``y`` channel the cross
+   wind is held at 0 (:func:`_extra_free`); a candidate whose fit fails is skipped with the
+   reason.
 7. **Where**: normalised baseline residuals smoothed over ~1 % of the flight; segments where the
    smoothed residual exceeds the noise sd (merged over short breaks), by channel, with time,
    Mach range, phase (ascent, apex = within 10 % of the flight time of the summit, descent) and
