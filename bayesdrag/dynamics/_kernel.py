@@ -27,8 +27,8 @@ Integration: classic RK4 on a uniform step h (``pointmass.output_schedule``; ~0.
 the next step's first stage (4 evaluations per step), and a cubic Hermite interpolant through
 the states and accelerations at both ends of a step for every output time inside it.
 
-Layout and speed (issue 3). Trajectories are processed in blocks of ``nl`` lanes (a multiple
-of 8, at most 32, :func:`lanes_per_block`), one block per ``prange`` iteration; inside a block
+Layout and speed (issue 3). Trajectories are processed in blocks of ``nl`` lanes (8, fewer
+for tiny batches, :func:`lanes_per_block`), one block per ``prange`` iteration; inside a block
 every RK stage is one loop over the lanes with the lane index innermost and contiguous, so
 LLVM vectorises it into AVX-512 code (8 doubles, gathers for the table reads). What it took,
 and what was measured (one thread, CPU time, B = 64, 1482 samples, on the shared 2-core AMD
@@ -42,15 +42,15 @@ EPYC (Zen 4) dev box; the original kernel: 136-175 us/trajectory under the same 
   stores and nothing vectorises. ``_acc`` must be ``forceinline`` (LLVM would not inline 5
   copies, and a call in the loop blocks vectorisation).
 * One loop per RK stage rather than the whole step per lane: the whole step in one loop did
-  vectorise but ran no faster than the scalar code (1.1x) -- a single chain of ~500 dependent
-  instructions per iteration leaves the out-of-order core idle; stage loops with 2-4
-  independent vectors per stage ran 1.5x faster than the scalar kernel at the same step.
+  vectorise but ran no faster than the scalar code (1.1x); stage loops ran 1.5x faster than
+  the scalar kernel at the same step (blocks of 32 lanes at the time; 8 lanes, one vector per
+  stage loop, then measured another 15 % faster).
 * Steps decoupled from the samples (~0.074 s instead of 0.027 s) with Hermite output: 2.7x
   fewer evaluations; the kernel-vs-scipy error stays ~1e-4 m (it is dominated by the
   atmosphere tabulation, not the step: 0.027 s and 0.009 s steps gave the same 7.7e-5 m).
-* Result: ~21 us/trajectory integrating, ~28 us writing the 1482 outputs (Hermite ~4, Mach ~9,
-  the lane-to-trajectory transposition into ``out`` ~15); ~50 us in all on one thread vs
-  136-175 before, i.e. ~3x. The output transposition is memory-bound: a staging buffer
+* Result (32-lane blocks): ~21 us/trajectory integrating, ~28 us writing the 1482 outputs
+  (Hermite ~4, Mach ~9, the lane-to-trajectory transposition into ``out`` ~15); ~50 us in all
+  on one thread vs 136-175 before, i.e. ~3x; 8-lane blocks: ~46 us. The output transposition is memory-bound: a staging buffer
   flushed per trajectory in chunks of 16-128 rows measured the same (a plain numpy transpose
   of the same data costs 8-10 us/trajectory here), so it was not kept.
 * Not worth it: skipping the Coriolis and lift terms when zero (< 2 %); avoiding the gathers
@@ -85,9 +85,10 @@ _N_L = 22
 
 #: lanes per block are a multiple of this (8 doubles = one AVX-512 register)
 LANE_WIDTH = 8
-#: largest lanes per block: 32 keeps four independent vectors in flight per stage loop; more
-#: only starves the second thread for the ML (B ~ 21) and emcee (B ~ 64) batch sizes
-MAX_LANES = 32
+#: largest lanes per block. One vector per block measured best (B = 64, one thread: 8 lanes
+#: 46 us/trajectory, 16 lanes 52, 32 lanes 54, 64 lanes 54): the block's scratch stays in L1
+#: and fewer output rows are open at once; it also splits B = 21 into 3 blocks for 2 threads
+MAX_LANES = 8
 
 _OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
 #: smallest airspeed^2 [m^2/s^2] in the lift term's denominator
