@@ -21,6 +21,8 @@ from bayesdrag.errors import InputError
 BAND = (0.05, 0.95)
 #: agreement of emcee quantiles of the scatter with quadrature (relative; ~4000 draws, tau ~5)
 QUANTILE_REL_TOL = 0.08
+#: cubic interpolation of result.json's ~0.02-Mach rows at the drag-rise knee (test-side error)
+KNEE_INTERP_REL_TOL = 0.01
 
 
 # ------------------------------------------------------------------------------------------------
@@ -174,7 +176,7 @@ def test_no_scatter_gives_an_interval_near_zero(m101):
 @pytest.fixture(scope="module")
 def small_campaign(tmp_path_factory):
     d = tmp_path_factory.mktemp("campaign")
-    path, truth = simulate_campaign(d, n_rounds=3, scatter=0.01, rng=np.random.default_rng(3), dt=0.1)
+    path, truth = simulate_campaign(d, n_rounds=2, scatter=0.01, rng=np.random.default_rng(3), dt=0.1)
     out = d / "out"
     code = main(["fit", str(path), "-o", str(out), "--no-mcmc", "--quiet"])
     return path, truth, out, code
@@ -184,7 +186,7 @@ def test_fit_campaign_writes_rounds_and_the_campaign(small_campaign):
     path, truth, out, code = small_campaign
     assert code == 0
     doc = json.loads((out / "campaign.json").read_text())
-    assert doc["rounds"] == ["r1", "r2", "r3"]
+    assert doc["rounds"] == ["r1", "r2"]
     assert set(doc["scatter"]) >= {"mean", "q05", "q95"}
     assert doc["scatter"]["q05"] < doc["scatter"]["mean"] < doc["scatter"]["q95"]
     for r in doc["cd"]:
@@ -210,7 +212,8 @@ def test_pooling_input_agrees_with_the_rounds_own_cd_table(small_campaign):
     sd = CubicSpline(grid, [rows[k]["crb_sd"] for k in grid])(m)
     smooth = (m < 0.9) | (m > 1.15)  # away from the drag rise a cubic through the table is exact enough
     np.testing.assert_allclose(np.array(pin["cd"])[smooth], cd[smooth], rtol=2e-4)
-    np.testing.assert_allclose(np.array(pin["cd"]), cd, rtol=3e-3)
+    # at the knee the cubic through a 0.02-Mach table is itself off by up to ~0.6 %
+    np.testing.assert_allclose(np.array(pin["cd"]), cd, rtol=KNEE_INTERP_REL_TOL)
     np.testing.assert_allclose(np.array(pin["cd_crb_sd"])[smooth], sd[smooth], rtol=0.05)
     cov = np.array(pin["cov"])
     assert np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() > -1e-12 * np.trace(cov)
@@ -218,11 +221,11 @@ def test_pooling_input_agrees_with_the_rounds_own_cd_table(small_campaign):
 
 def test_refit_of_a_finished_campaign_skips_its_rounds(small_campaign, capsys):
     path, _, out, _ = small_campaign
-    before = {n: (out / n / "result.json").stat().st_mtime_ns for n in ("r1", "r2", "r3")}
+    before = {n: (out / n / "result.json").stat().st_mtime_ns for n in ("r1", "r2")}
     doc = (out / "campaign.json").read_text()
     assert main(["fit", str(path), "-o", str(out), "--no-mcmc", "--quiet"]) == 0
-    assert "0 jobs run, 3 skipped" in capsys.readouterr().out
-    assert before == {n: (out / n / "result.json").stat().st_mtime_ns for n in ("r1", "r2", "r3")}
+    assert "0 jobs run, 2 skipped" in capsys.readouterr().out
+    assert before == {n: (out / n / "result.json").stat().st_mtime_ns for n in ("r1", "r2")}
     assert (out / "campaign.json").read_text() == doc  # pooling is seeded: identical outputs
 
 
