@@ -135,8 +135,10 @@ def run_diagnose_job(track, round_path, outdir):
 
     tr = read_track(track)
     rnd = read_round(round_path)
-    if tr.n < 20:
-        raise InputError(f"{track}: {tr.n} samples are too few for a diagnosis (need >= 20)")
+    from .diagnose import MIN_DIAGNOSIS_SAMPLES
+
+    if tr.n < MIN_DIAGNOSIS_SAMPLES:
+        raise InputError(f"{track}: {tr.n} samples are too few for a diagnosis (need >= {MIN_DIAGNOSIS_SAMPLES})")
     d = diagnose(tr, rnd)
     write_diagnosis(outdir, d, track_name=str(track), round_name=str(round_path))
     return f"verdict {d.summary['verdict'] or 'none'}"

@@ -74,6 +74,11 @@ from .estimate.ml import OutputErrorProblem, Prior
 
 #: overall false-alarm rate of the verdict on a track the nominal model explains
 ALPHA = 0.05
+#: fewest samples a diagnosis accepts: the initial state (6) and an effect (<= 2 parameters)
+#: need more data values than that with room for a test; a Doppler report every 100 yd (16
+#: samples of x and v) qualifies. Without [radar] sigma the noise estimate needs more (see
+#: :func:`estimate_noise`), which is checked there.
+MIN_DIAGNOSIS_SAMPLES = 12
 #: gross-outlier threshold in robust sd of the high-frequency residual
 OUTLIER_K = 5.0
 #: Savitzky-Golay window (samples) and order of the local smoother for noise and outliers
@@ -185,6 +190,11 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
             e, fac, valid = hf_residual_t(track.t, zz)
             use = valid & ~flagged
             s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
+            if sigma_given and c in sigma_given:
+                # never call a sample an outlier for deviating by less than k stated sd: on a
+                # short or coarsely quantised track the smoother follows the data too closely
+                # and its residual sd is far below the noise (Warner's 16-sample reports)
+                s = max(s, float(sigma_given[c]))
             if s <= 0:
                 break
             new = valid & (np.abs(z - (zz - e)) > k * s)
@@ -656,7 +666,11 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             continue
         fits[e.name] = (res, prob, y)
         rows.append(_candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K))
-    rows.sort(key=lambda r: (-round(r["delta_chi2"], 6 if r["delta_chi2"] < 1e3 else 3), _effect_order(r["name"])))
+    # best first: significant effects before the rest (a non-physical or non-converged fit, e.g. a
+    # yaw_drag at a negative amplitude, may drop chi2 the most yet cannot be the answer), then by
+    # chi2 drop
+    rows.sort(key=lambda r: (not r["significant"], -round(r["delta_chi2"], 6 if r["delta_chi2"] < 1e3 else 3),
+                             _effect_order(r["name"])))
     # confounding
     for a in rows:
         a["confounded_with"] = []

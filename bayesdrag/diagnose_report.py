@@ -187,8 +187,10 @@ def run_diagnose(args):
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output path exists and is not a folder")
-    if track.n < 20:
-        raise InputError(f"{args.track}: {track.n} samples are too few for a diagnosis (need >= 20)")
+    from .diagnose import MIN_DIAGNOSIS_SAMPLES
+
+    if track.n < MIN_DIAGNOSIS_SAMPLES:
+        raise InputError(f"{args.track}: {track.n} samples are too few for a diagnosis (need >= {MIN_DIAGNOSIS_SAMPLES})")
     d = diagnose(track, rnd)
     paragraph = write_diagnosis(out, d, track_name=str(args.track), round_name=str(args.round))
     print(f"bayesdrag: diagnosis: {paragraph}", file=sys.stderr)

@@ -56,3 +56,17 @@ def test_density_and_published_cd(bullet):
         assert f["converged"], f
         assert len(f["published_mach"]) >= 3, f
         assert f["max_abs_error_percent"] < CD_RTOL_PERCENT, f
+
+
+@pytest.mark.parametrize("bullet", ["338_flatline", "65_flatline"])
+def test_diagnose_finds_thin_air(bullet):
+    """Issue 7: with the published Cd as reference and a standard atmosphere, the diagnosis finds
+    the air thinner than standard (density ratio 0.72-0.86), names density and states that it
+    cannot be told from a drag scale on this track."""
+    from bayesdrag.diagnose import diagnose
+
+    d = diagnose(read_track(WARNER / bullet / "track.csv"), read_round(WARNER / bullet / "round.toml"))
+    assert d.summary["verdict"][0] == "density"
+    eff = {e["name"]: e for e in d.summary["effects"]}["density"]
+    assert DENSITY_RATIO_RANGE[0] < eff["params"]["ratio"] < DENSITY_RATIO_RANGE[1]
+    assert "drag_scale" in eff["confounded_with"]
