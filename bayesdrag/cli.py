@@ -100,6 +100,10 @@ def build_parser():
     f.add_argument("--walkers", type=_walkers, default=None, help="emcee walkers (default 16)")
     f.add_argument("--max-steps", type=_walkers, default=20000,
                    help="hard limit of sampler steps (default 20000; the run stops earlier at convergence)")
+    f.add_argument("--moves", choices=("auto", "de", "stretch"), default="auto",
+                   help="emcee moves: auto (independence proposal from the ML fit + local move, default), "
+                        "de (differential evolution, for posteriors far from Gaussian; needs >= 2 x parameters "
+                        "walkers), stretch")
     f.add_argument("--likelihood", choices=("gaussian", "student-t"), default="gaussian",
                    help="noise model: gaussian (default) or student-t (robust to outliers)")
     f.add_argument("--nu", type=_nu, default="4",

@@ -138,7 +138,11 @@ def _sample(args, prob, res, rows, dm, grid, rnd, out, quiet):
     resume = getattr(args, "resume", False)
     if resume and not partial.exists() and not quiet:
         _echo_err(f"bayesdrag: note: --resume: no unfinished chain in {out}; starting afresh")
-    bayes = sample_posterior(post, nwalkers=getattr(args, "walkers", None),
+    moves = getattr(args, "moves", "auto") or "auto"
+    walkers = getattr(args, "walkers", None)
+    if moves != "auto" and walkers is None:
+        walkers = 2 * post.ndim + 2
+    bayes = sample_posterior(post, nwalkers=walkers, moves=moves,
                              max_steps=getattr(args, "max_steps", 20000), seed=getattr(args, "seed", None),
                              backend_path=partial, resume=resume and partial.exists(),
                              progress=progress, log=log)

@@ -178,3 +178,14 @@ def test_scheme2_samples_every_window(inputs, tmp_path):
     assert len(p.imgs) == 1 and p.imgs[0].startswith("data:image/png;base64,")
     idata = az.from_netcdf(str(out / "posterior.nc"))
     assert idata.posterior["cd"].sizes["window"] == len(r["windows"])
+
+
+def test_moves_de_option(inputs, tmp_path):
+    """--moves de (for posteriors far from Gaussian) samples with emcee's DE mix and 2 D + 2
+    walkers and converges on the same problem."""
+    track, rnd = inputs
+    out = tmp_path / "de"
+    assert main(["fit", str(track), str(rnd), "-o", str(out), "--drag", "reference-scale", "--moves", "de",
+                 "--seed", "3", "--quiet"]) == 0
+    m = json.loads((out / "result.json").read_text())["mcmc"]
+    assert m["converged"] and "DEMove" in m["moves"] and m["walkers"] == 2 * 7 + 2

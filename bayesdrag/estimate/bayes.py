@@ -92,17 +92,12 @@ ESS_MIN = 400
 #: independence proposal: scale of the Laplace covariance and Student-t dof
 PROPOSAL_SCALE = 1.1
 PROPOSAL_DOF = 10.0
-#: default weight of the independence move in the move mix (rest: DEMove)
+#: default weight of the independence move in the move mix (rest: DEMove or random-walk)
 INDEPENDENCE_WEIGHT = 0.9
 #: default number of walkers
 DEFAULT_WALKERS = 16
 #: bounds of log nu when the Student-t dof is sampled
 LOG_NU_RANGE = (0.0, math.log(100.0))
-
-
-def _logsumexp_rows(a):
-    m = np.max(a, axis=1, keepdims=True)
-    return (m + np.log(np.sum(np.exp(a - m), axis=1, keepdims=True)))[:, 0]
 
 
 def _student_t_mode(problem, theta, sigma, nu, cov, iterations=30):
@@ -932,8 +927,10 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, nwalkers, s
     if bad_r:
         warns.append(f"r_hat >= {RHAT_MAX} for {', '.join(bad_r[:6])}")
     acc = float(np.mean(sampler.acceptance_fraction))
-    if acc < 0.05:
-        warns.append(f"mean acceptance {acc:.3f} is very low: the chain barely moves")
+    if acc < 0.1:
+        warns.append(f"mean acceptance {acc:.3f} is very low: the chain barely moves"
+                     + (" (the posterior is far from its Gaussian approximation, e.g. a poorly "
+                        "identified drag model; try --moves de)" if moves == "auto" else ""))
     return BayesResult(names, full, lp, thetas, np.asarray(tau), int(sampler.iteration), burn, thin, W,
                        acc, converged, message, summary, elapsed, _moves_text(moves), post.likelihood,
                        tuple(warns), resumed, tau_hist, sampler.get_chain())
