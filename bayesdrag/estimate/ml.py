@@ -465,13 +465,28 @@ class OutputErrorProblem:
         pr, pJ = self._prior_terms(theta)
         M = A.T @ A + (pJ.T @ pJ if pr.size else 0.0)
         warnings = []
-        cond = np.linalg.cond(M * np.outer(1 / np.sqrt(np.diag(M)), 1 / np.sqrt(np.diag(M))))
+        dg = np.diag(M).copy()
+        blind = [self.names[j] for j, d in zip(idx, dg) if not d > 0]
+        if blind:
+            warnings.append(f"the track carries no information on {', '.join(blind)} (zero sensitivity): "
+                            f"fix {'it' if len(blind) == 1 else 'them'} or add the channel that sees "
+                            f"{'it' if len(blind) == 1 else 'them'}")
+        if not np.all(np.isfinite(M)):
+            cond = np.inf
+        else:
+            sc = 1.0 / np.sqrt(np.where(dg > 0, dg, 1.0))
+            try:
+                cond = float(np.linalg.cond(M * np.outer(sc, sc)))
+            except np.linalg.LinAlgError:
+                cond = np.inf
         if not np.isfinite(cond) or cond > 1e12:
             warnings.append(f"information matrix is ill-conditioned (condition number of the scaled "
                             f"matrix {cond:.2g}): some parameters are not identifiable from this track")
         try:
-            Minv = np.linalg.inv(M)
+            Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) and not blind else np.full_like(M, np.nan)
         except np.linalg.LinAlgError:
+            Minv = np.full_like(M, np.nan)
+        if not np.all(np.isfinite(Minv)):
             Minv = np.full_like(M, np.nan)
             warnings.append("information matrix is singular: no Cramér-Rao bounds")
         # colored-residual correction (Morelli & Klein 1997)
