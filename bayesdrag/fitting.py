@@ -23,6 +23,8 @@ from .outputs import write_json as _write_json
 from .outputs import write_figure as _write_figure
 
 PARTIAL = "chain.partial.h5"
+#: lag-1 residual autocorrelation above which the fit warns of model error (white noise: ~0 +- 2/sqrt(N))
+RESIDUAL_ACF_WARN = 0.5
 CHAIN = "chain.h5"
 
 
@@ -92,6 +94,14 @@ def run_fit(args, echo=print, on_fit=None):
     if smoothing:
         result["ml"]["smoothing"] = {k: v for k, v in smoothing.items() if isinstance(v, (int, float, str))}
     warnings = list(res.warnings)
+    from .plots import residual_acf
+
+    for c, r in res.residuals.items():
+        r1 = float(residual_acf(r, 1)[1])
+        if r1 > RESIDUAL_ACF_WARN:
+            warnings.append(f"residuals of channel {c} are strongly autocorrelated (lag-1 {r1:.2f}): model "
+                            f"error, not noise; the Cramér-Rao and posterior bands are too narrow (see the "
+                            f"colored CRB and residuals.png)")
     bayes = post = idata = None
     if mcmc:
         bayes, post, idata, rows = _sample(args, prob, res, rows, dm, grid, rnd, out, quiet)
