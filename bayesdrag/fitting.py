@@ -32,6 +32,16 @@ def _echo_err(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
+def _ml_nu(args):
+    """Degrees of freedom for the robust ML fit: --nu when a number, else the default."""
+    from .estimate.scheme1 import ROBUST_NU
+
+    try:
+        return float(getattr(args, "nu", None))
+    except (TypeError, ValueError):
+        return ROBUST_NU
+
+
 def run_fit(args, echo=print, on_fit=None):
     """Run the ``fit`` command; returns the exit status. ``args`` as parsed by the CLI.
 
@@ -68,7 +78,9 @@ def run_fit(args, echo=print, on_fit=None):
                          f"--resume to continue it, or delete it to start afresh")
     if getattr(args, "scheme", 1) == 2:
         return _run_scheme2(args, track, rnd, chans, out, echo, quiet)
-    res, prob = fit_scheme1(track, rnd, drag=args.drag, channels=chans, free_ic=not args.fix_ic)
+    lik = getattr(args, "likelihood", "gaussian")
+    res, prob = fit_scheme1(track, rnd, drag=args.drag, channels=chans, free_ic=not args.fix_ic,
+                            likelihood=lik, nu=_ml_nu(args))
     if not res.success:
         raise FitError(f"{args.track}: {res.message}")
     out.mkdir(parents=True, exist_ok=True)
@@ -87,7 +99,11 @@ def run_fit(args, echo=print, on_fit=None):
                "message": res.message, "sigma": res.sigma,
                "rms": {c: float(np.sqrt(np.mean(r**2))) for c, r in res.residuals.items()},
                "warnings": list(res.warnings),
-               "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None},
+               "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None,
+               "likelihood": lik,
+               "rejected_samples": getattr(prob, "rejected", None),
+               "smoothing": ({k: v for k, v in prob.smoothing.items() if k != "grid"}
+                             if getattr(prob, "smoothing", None) else None)},
         "cd": rows,
     }
     smoothing = getattr(prob, "smoothing", None)

@@ -42,6 +42,12 @@ from .ml import OutputErrorProblem
 
 #: relative CRB sd of Cd below which Cd counts as determined by the data
 DETERMINED_REL_SD = 0.01
+#: Student-t degrees of freedom of the robust fit (4: heavy tails, finite variance)
+ROBUST_NU = 4.0
+#: reweighting passes of the robust fit
+ROBUST_ITERATIONS = 6
+#: a sample more than this many noise scales off the robust curve is listed as rejected
+REJECT_K = 5.0
 #: knot spacing of the penalised spline [Mach]: fine enough for the transonic rise of M101/G7-like
 #: curves (rise width ~0.1 Mach), coarse enough to keep the batch small (~40 coefficients)
 PSPLINE_SPACING = 0.04
@@ -112,7 +118,7 @@ def launch_priors(track, rnd, P):
 
 
 def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
-                penalise=True):
+                penalise=True, likelihood="gaussian", nu=ROBUST_NU):
     """Scheme 1 ML fit of one track.
 
     Parameters
@@ -132,6 +138,10 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
         spline on :func:`pspline_knots` over the Mach span.
     penalise : bool
         ``False`` with ``knots=None``: a plain spline on :func:`bayesdrag.drag.default_spline_knots`.
+    likelihood : {"gaussian", "student-t"}
+        ``student-t``: a robust fit for tracks with gross outliers, see :func:`robust_refit`.
+    nu : float
+        Degrees of freedom of the Student-t likelihood.
 
     Returns
     -------
@@ -174,10 +184,71 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
     sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
     pri = launch_priors(track, rnd, P)
     prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans, priors=pri)
+    if likelihood not in ("gaussian", "student-t"):
+        raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
+    if likelihood == "student-t":
+        # start from a fit whose noise sd is estimated (relaxation inflates it over the
+        # outliers instead of bending the curve to them), then reweight
+        prob.sigma_fixed = {}
     if penalised:
-        return _fit_penalised(prob, pri, P)
-    prob.smoothing = None
-    return prob.fit(), prob
+        res, prob = _fit_penalised(prob, pri, P)
+    else:
+        prob.smoothing = None
+        res = prob.fit()
+    if likelihood == "student-t":
+        res = robust_refit(prob, res, sigma=sig, nu=nu)
+        if penalised:
+            res = _drop_coefficient_correlations(res, P)
+    return res, prob
+
+
+def _drop_coefficient_correlations(res, P):
+    """Neighbouring coefficients of a penalised spline are strongly correlated by design; only
+    correlations that involve an initial condition (e.g. Cd at the top Mach vs Ux0) are news."""
+    drag_names = set(res.names[:P])
+    kept = tuple(w for w in res.warnings
+                 if not (w.startswith("parameters ") and "strongly correlated" in w
+                         and set(w.split()[1:4:2]) <= drag_names))
+    return replace(res, warnings=kept)
+
+
+def robust_refit(prob, res, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERATIONS):
+    """Student-t maximum likelihood by iteratively reweighted least squares.
+
+    The t likelihood's EM weights ``w = (nu + 1) / (nu + r^2 / s^2)`` (``s`` the noise scale:
+    the round's sigma when given, else a robust estimate, 1.4826 x the median absolute residual)
+    are divided by their maximum ``(nu + 1) / nu`` so they lie in [0, 1] (the problem's per-sample
+    weights; this rescales the noise by a constant) and the fit is repeated from the previous
+    estimate with the same priors (and smoothing weight) a few times. Samples more than
+    :data:`REJECT_K` scales from the curve end with a weight below 0.15: they are listed as
+    rejected in ``prob.rejected`` (channel -> sample indices).
+
+    Returns the final MLResult; ``prob.weights`` keeps the weights.
+    """
+    chans = prob.channels
+    for _ in range(iterations):
+        r = np.stack([res.residuals[c] for c in chans], axis=-1)
+        scale = np.empty(len(chans))
+        for j, c in enumerate(chans):
+            if sigma and c in sigma:
+                scale[j] = float(sigma[c])
+            else:
+                scale[j] = max(1.4826 * float(np.median(np.abs(r[:, j] - np.median(r[:, j])))), 1e-9)
+        w = (nu + 1.0) / (nu + (r / scale) ** 2) * nu / (nu + 1.0)
+        prob.weights = np.clip(w, 0.0, 1.0)
+        prob.sigma_fixed = {c: float(scale[j] * np.sqrt(nu / (nu + 1.0))) for j, c in enumerate(chans)}
+        prob.theta0 = res.theta.copy()
+        new = prob.fit()
+        if not np.all(np.isfinite(new.theta)):
+            break
+        step = np.abs(new.theta - res.theta)[res.free]
+        res = new
+        if np.all(step <= 1e-3 * np.where(res.crb[res.free] > 0, res.crb[res.free], np.inf)):
+            break
+    r = np.stack([res.residuals[c] for c in chans], axis=-1)
+    prob.rejected = {c: [int(i) for i in np.flatnonzero(np.abs(r[:, j]) > REJECT_K * scale[j])]
+                     for j, c in enumerate(chans)}
+    return res
 
 
 def pspline_knots(mach_min, mach_max, spacing=PSPLINE_SPACING, fine=PSPLINE_FINE, dm=0.01):
@@ -290,13 +361,7 @@ def _fit_penalised(prob, base_priors, P):
 
         raise FitError("the penalised spline fit failed for every smoothing weight tried")
     prob.priors = pri
-    # neighbouring coefficients of a penalised spline are strongly correlated by design; only
-    # correlations that involve an initial condition (e.g. Cd at the top Mach vs Ux0) are news
-    drag_names = set(res.names[:P])
-    kept = tuple(w for w in res.warnings
-                 if not (w.startswith("parameters ") and "strongly correlated" in w
-                         and set(w.split()[1:4:2]) <= drag_names))
-    res = replace(res, warnings=kept)
+    res = _drop_coefficient_correlations(res, P)
     table = [{"sd": float(grid[k]), "log_evidence": v[0], "edf": v[3], "converged": v[1].converged}
              for k, v in sorted(cache.items())]
     n_ic = int(res.free[P:].sum())
