@@ -182,7 +182,10 @@ class DragModel:
         """
         params = np.asarray(params, dtype=float)
         kb = self.kernel_basis(grid)
-        return np.ascontiguousarray(np.einsum("kcp,...p->...kc", kb, params))
+        K, C, P = kb.shape
+        # one matrix product (BLAS) instead of einsum's loops: the sampler calls this per step
+        flat = params.reshape(-1, P) @ kb.reshape(K * C, P).T
+        return np.ascontiguousarray(flat.reshape(params.shape[:-1] + (K, C)))
 
     def initial_params(self, reference=None):
         """A reasonable starting point: least squares to ``reference`` (a DragModel with no

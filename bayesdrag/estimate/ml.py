@@ -102,13 +102,17 @@ class SimInputs:
 class Prior:
     """Gaussian prior on a function of the parameters, ``f(theta) ~ N(mean, sd^2)``.
 
-    ``fn`` maps the full parameter vector (P + 6,) to a float; ``name`` labels it.
+    ``fn`` maps the full parameter vector (P + 6,) to a float; ``name`` labels it. ``row``, when
+    given, says the prior is linear: ``fn(theta) = row @ theta`` with ``row`` of the full
+    parameter length, so its Jacobian needs no finite differences (the spline smoothness penalty
+    has ~45 such priors).
     """
 
     name: str
     fn: object
     mean: float
     sd: float
+    row: object = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -350,11 +354,19 @@ class OutputErrorProblem:
         idx = np.flatnonzero(self.free)
         r = np.array([(p.mean - p.fn(theta)) / p.sd for p in self.priors])
         J = np.zeros((len(self.priors), idx.size))
-        for k, j in enumerate(idx):
-            tp, tm = theta.copy(), theta.copy()
-            tp[j] += self.steps[j]
-            tm[j] -= self.steps[j]
-            J[:, k] = [(p.fn(tp) - p.fn(tm)) / (2 * self.steps[j] * p.sd) for p in self.priors]
+        lin = np.array([p.row is not None for p in self.priors])
+        if lin.any():
+            rows = np.array([np.asarray(p.row, float) for p in self.priors if p.row is not None])
+            sds = np.array([p.sd for p in self.priors if p.row is not None])
+            J[lin] = rows[:, idx] / sds[:, None]
+        other = [k for k, p in enumerate(self.priors) if p.row is None]
+        if other:
+            for k, j in enumerate(idx):
+                tp, tm = theta.copy(), theta.copy()
+                tp[j] += self.steps[j]
+                tm[j] -= self.steps[j]
+                J[other, k] = [(self.priors[i].fn(tp) - self.priors[i].fn(tm)) / (2 * self.steps[j] * self.priors[i].sd)
+                               for i in other]
         return r, J
 
     # ----------------------------------------------------------------------------------------

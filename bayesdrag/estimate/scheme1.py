@@ -42,6 +42,8 @@ from .ml import OutputErrorProblem
 
 #: relative CRB sd of Cd below which Cd counts as determined by the data
 DETERMINED_REL_SD = 0.01
+#: initial-condition parameters after the drag coefficients (X0, Y0, Z0, Ux0, Uy0, Uz0)
+_N_IC = 6
 #: Student-t degrees of freedom of the robust fit (4: heavy tails, finite variance)
 ROBUST_NU = 4.0
 #: reweighting passes of the robust fit
@@ -298,7 +300,8 @@ def difference_priors(P, sd, scale=None, order=2):
     scale = np.ones(P) if scale is None else np.asarray(scale, dtype=float)
     D = np.diff(np.eye(P), n=order, axis=0) / scale[None, :]
     sds = np.broadcast_to(np.asarray(sd, dtype=float), (len(D),)).copy()
-    pri = tuple(Prior(f"smooth{i}", (lambda th, d=d: float(d @ th[:P])), 0.0, float(sds[i]))
+    pri = tuple(Prior(f"smooth{i}", (lambda th, d=d: float(d @ th[:P])), 0.0, float(sds[i]),
+                      row=np.concatenate([d, np.zeros(_N_IC)]))
                 for i, d in enumerate(D))
     return pri, D, sds
 
