@@ -44,6 +44,16 @@ def _positive_float(value):
     return v
 
 
+def _non_negative_int(value):
+    try:
+        v = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value!r}")
+    return v
+
+
 def _walkers(value):
     try:
         v = int(value)
@@ -88,6 +98,8 @@ def build_parser():
     f.add_argument("--scheme", type=int, choices=(1, 2), default=1,
                    help="1 = Cd model over the whole flight (default); 2 = a constant Cd per window")
     f.add_argument("--window", type=_walkers, default=50, help="Scheme 2: samples per window (default 50)")
+    f.add_argument("--overlap", type=_non_negative_int, default=0,
+                   help="Scheme 2: samples shared by consecutive windows (default 0)")
     f.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline",
                    help="drag model (default spline: the only one that follows a transonic rise)")
     f.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")

@@ -341,7 +341,8 @@ def _run_scheme2(args, track, rnd, chans, out, echo, quiet):
 
     t_start = time.perf_counter()
     window = getattr(args, "window", 50) or 50
-    r2 = fit_scheme2(track, rnd, window=window, channels=chans, free_ic=not args.fix_ic)
+    r2 = fit_scheme2(track, rnd, window=window, overlap=getattr(args, "overlap", 0) or 0, channels=chans,
+                     free_ic=not args.fix_ic)
     ok = [k for k, r in enumerate(r2.results) if r.success]
     if not ok:
         raise FitError(f"{args.track}: no Scheme 2 window converged ({r2.results[0].message})")

@@ -108,3 +108,33 @@ def test_speed_only_track_is_refused(clean_track, round_):
     v_only = RadarTrack(clean_track.t, {"v": clean_track.v}, {}, source="doppler.csv")
     with pytest.raises(InputError, match="Scheme 2 needs x and z"):
         fit_scheme2(v_only, round_)
+
+
+def test_cli_scheme2_windows_and_bad_window(clean_track, round_, tmp_path, capsys):
+    """`fit --scheme 2 --no-mcmc` writes the windows into result.json (overlap honoured); a
+    window longer than the track is bad input: exit 2 with one line."""
+    import json
+    from importlib.resources import files
+
+    from bayesdrag.cli import main
+    from bayesdrag.track import write_track
+
+    tf = tmp_path / "t.csv"
+    write_track(tf, add_noise(clean_track, SIGMA, np.random.default_rng(3)).subset(np.arange(400)))
+    ref = files("bayesdrag") / "data" / "cd_m101.csv"
+    rf = tmp_path / "r.toml"
+    rf.write_text(f'[projectile]\nmass = 42.6\ndiameter = 0.155\nreference_drag = "{ref}"\n'
+                  f'[launch]\nelevation = 15.0\nvelocity = 818.0\n'
+                  f'[radar]\nsigma = {{x = 1.0, y = 1.0, z = 1.0, v = 0.3}}\n')
+    out = tmp_path / "o"
+    assert main(["fit", str(tf), str(rf), "-o", str(out), "--no-mcmc", "--scheme", "2", "--window", "100",
+                 "--overlap", "50"]) == 0
+    r = json.loads((out / "result.json").read_text())
+    w = r["windows"]
+    assert r["scheme"] == 2 and len(w) == 7
+    assert all(abs(a["t_end"] - b["t_start"] - 49 * 0.027) < 1e-6 for a, b in zip(w, w[1:]))
+    capsys.readouterr()
+    assert main(["fit", str(tf), str(rf), "-o", str(tmp_path / "o2"), "--no-mcmc", "--scheme", "2",
+                 "--window", "500"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "longer than the track" in err[0]
