@@ -199,13 +199,14 @@ class MLResult:
 
 def _outputs(traj_state, channels):
     """Model outputs (B, N, C) for channels from states (B, N, 6)."""
-    cols = []
-    for c in channels:
+    out = np.empty(traj_state.shape[:-1] + (len(channels),))
+    for j, c in enumerate(channels):
         if c == "v":
-            cols.append(np.linalg.norm(traj_state[..., 3:], axis=-1))
+            vx, vy, vz = traj_state[..., 3], traj_state[..., 4], traj_state[..., 5]
+            out[..., j] = np.sqrt(vx * vx + vy * vy + vz * vz)
         else:
-            cols.append(traj_state[..., _CH_INDEX[c]])
-    return np.stack(cols, axis=-1)
+            out[..., j] = traj_state[..., _CH_INDEX[c]]
+    return out
 
 
 class OutputErrorProblem:

@@ -111,10 +111,13 @@ def launch_priors(track, rnd, P):
     L = rnd.launch
     if abs(float(track.t[0])) > 1e-9 or L.velocity is None or L.elevation_deg is None:
         return ()
-    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[P + k]), 0.0, L.position_sd)
+    # written for one parameter vector (n,) or many (W, n): the sampler evaluates all walkers at once
+    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., P + k]), 0.0, L.position_sd)
            for k, n in enumerate(("X0", "Y0", "Z0"))]
-    pri.append(Prior("launch_speed", lambda th: float(np.linalg.norm(th[P + 3:P + 6])), L.velocity, L.velocity_sd))
-    pri.append(Prior("elevation", lambda th: float(np.degrees(np.arctan2(th[P + 5], np.hypot(th[P + 3], th[P + 4])))),
+    pri.append(Prior("launch_speed", lambda th: np.sqrt(th[..., P + 3] ** 2 + th[..., P + 4] ** 2
+                                                        + th[..., P + 5] ** 2), L.velocity, L.velocity_sd))
+    pri.append(Prior("elevation", lambda th: np.degrees(np.arctan2(th[..., P + 5], np.hypot(th[..., P + 3],
+                                                                                           th[..., P + 4]))),
                      L.elevation_deg, L.elevation_sd_deg))
     return tuple(pri)
 
