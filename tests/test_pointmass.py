@@ -289,3 +289,14 @@ def test_lift_parameter_and_overrides(m101):
     assert m.par_row(s0[0])[K.P_LIFT] == pytest.approx(0.02 * 818.0)
     with pytest.raises(ValueError, match="needs the initial states"):
         m.kernel_inputs(np.zeros((1, 0)))
+
+
+def test_serial_and_threaded_kernels_have_separate_disk_caches():
+    """numba keys its on-disk cache by the function's qualified name and line, not by
+    ``parallel``: the serial copy of the kernel must carry its own name, or whichever variant is
+    compiled first is loaded for both (the threaded kernel then ran on one thread)."""
+    from bayesdrag.dynamics import _kernel as K
+
+    assert K.integrate_batch_serial.py_func.__qualname__ == "integrate_batch_serial"
+    assert K.integrate_batch.py_func.__qualname__ == "integrate_batch"
+    assert K.integrate_batch.targetoptions.get("parallel") and not K.integrate_batch_serial.targetoptions.get("parallel")

@@ -321,4 +321,18 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
 #: the same kernel without threads, for batches of fewer than LANE_WIDTH trajectories (one
 #: scalar block): waking the thread pool costs more than such a batch, and on a loaded machine
 #: waiting for the second core to be scheduled can cost milliseconds
-integrate_batch_serial = njit(cache=True, **_OPTS)(integrate_batch.py_func)
+#: (a copy of the Python function under its own name: numba's on-disk cache is keyed by the
+#: function's qualified name and line, not by ``parallel``, so compiling the same ``py_func``
+#: twice with ``cache=True`` let the serial machine code be loaded for the threaded kernel too --
+#: measured: 2 threads gave no speed-up until they had separate cache entries)
+def _renamed(fn, name):
+    import types
+
+    g = types.FunctionType(fn.__code__.replace(co_name=name), fn.__globals__, name, fn.__defaults__,
+                           fn.__closure__)
+    g.__qualname__ = name
+    g.__doc__ = fn.__doc__
+    return g
+
+
+integrate_batch_serial = njit(cache=True, **_OPTS)(_renamed(integrate_batch.py_func, "integrate_batch_serial"))
