@@ -344,9 +344,17 @@ class OutputErrorProblem:
         for k, j in enumerate(idx):
             batch[1 + 2 * k, j] += h[k]
             batch[2 + 2 * k, j] -= h[k]
-        y, mach = self.predict(batch)
-        S = (y[1::2] - y[2::2]) / (2 * h[:, None, None])  # (n_free, N, C)
-        return y[0], mach[0], np.moveaxis(S, 0, -1)
+        if idx.size:
+            y, _ = self.predict(batch[1:])
+            S = (y[0::2] - y[1::2]) / (2 * h[:, None, None])  # (n_free, N, C)
+        else:
+            S = np.zeros((0, self.z.shape[0], self.z.shape[1]))
+        # the outputs at theta itself come from a one-trajectory call, the same code path as the
+        # trial steps of the fit (a batch runs the SIMD lanes, a single trajectory the scalar
+        # code; they agree to ~1e-9 m, but at the optimum that is the whole cost change and a
+        # mixed comparison would make every step look uphill)
+        y0, mach0 = self.predict(theta[None])
+        return y0[0], mach0[0], np.moveaxis(S, 0, -1)
 
     def _prior_terms(self, theta):
         """Weighted prior residuals (K,) and their Jacobian (K, n_free)."""
