@@ -24,14 +24,26 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(f"command line: {message} (see `{self.prog} --help`)")
 
 
-def _seed(value):
-    try:
-        s = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {value!r}") from None
-    if s < 0:
-        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {value!r}")
-    return s
+def _integer(minimum, label=None):
+    """An argparse type: an integer >= ``minimum`` (0 or 1), with a message naming the option."""
+    kind = "non-negative" if minimum == 0 else "positive"
+    head = f"{label} must be" if label else "expected"
+
+    def parse(value):
+        try:
+            v = int(value)
+        except ValueError:
+            v = None
+        if v is None or v < minimum:
+            raise argparse.ArgumentTypeError(f"{head} a {kind} integer, got {value!r}")
+        return v
+
+    return parse
+
+
+_seed = _integer(0, "--seed")
+_non_negative_int = _integer(0)
+_walkers = _integer(1)
 
 
 def _positive_float(value):
@@ -41,26 +53,6 @@ def _positive_float(value):
         raise argparse.ArgumentTypeError(f"expected a number, got {value!r}") from None
     if not v > 0 or v != v or v == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {value!r}")
-    return v
-
-
-def _non_negative_int(value):
-    try:
-        v = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value!r}")
-    return v
-
-
-def _walkers(value):
-    try:
-        v = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value!r}")
     return v
 
 
