@@ -70,7 +70,7 @@ from scipy.stats import chi2 as _chi2
 
 from .effects import EFFECTS, EffectContext, effect_fn, extra_params, static_model
 from .errors import FitError
-from .estimate.ml import OutputErrorProblem, Prior
+from .estimate.ml import OutputErrorProblem
 
 #: overall false-alarm rate of the verdict on a track the nominal model explains
 ALPHA = 0.05
@@ -293,14 +293,9 @@ class Setup:
 
 def _launch_priors(L, P):
     """Priors on the state at launch (t = 0): muzzle at the origin, speed, elevation, heading."""
-    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[P + k]), 0.0, L.position_sd)
-           for k, n in enumerate(("X0", "Y0", "Z0"))]
-    pri.append(Prior("launch_speed", lambda th: float(np.linalg.norm(th[P + 3:P + 6])), L.velocity, L.velocity_sd))
-    pri.append(Prior("elevation", lambda th: float(np.degrees(np.arctan2(th[P + 5], np.hypot(th[P + 3], th[P + 4])))),
-                     L.elevation_deg, L.elevation_sd_deg))
-    pri.append(Prior("heading", lambda th: float(np.degrees(np.arctan2(th[P + 4], th[P + 3]))),
-                     0.0, L.elevation_sd_deg))
-    return tuple(pri)
+    from .estimate.scheme1 import launch_state_priors
+
+    return launch_state_priors(L, P, heading=True)
 
 
 def make_setup(track, rnd, sigma=None, channels=None):
@@ -631,7 +626,6 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     chi2_base = float(base.cost)
     gap = max(chi2_base - floor0, 0.0)
     resid_base = np.stack([base.residuals[c] for c in chans], axis=-1)
-    acov_base = autocovariance(resid_base, setup.weights)
     prior_terms = {p.name: float((p.mean - p.fn(base_theta)) / p.sd) for p in setup.priors}
     prior_chi2 = float(sum(v * v for v in prior_terms.values()))
 

@@ -181,7 +181,6 @@ def _shifted_atmosphere(a, dT):
 
 
 def _make_effects():
-    inf = math.inf
     E = [
         Effect("wind", (ExtraParam("wx", 0.0, -60.0, 60.0, 0.02), ExtraParam("wy", 0.0, -60.0, 60.0, 0.02)),
                ("m/s", "m/s"),

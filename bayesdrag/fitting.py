@@ -151,8 +151,6 @@ def run_fit(args, echo=print, on_fit=None):
 
 
 def _sample(args, prob, res, rows, dm, grid, rnd, out, quiet):
-    import numpy as np
-
     from .estimate.bayes import LogPosterior, cd_draws, cd_posterior_rows, sample_posterior, to_inference_data
 
     nu = getattr(args, "nu", "4")

@@ -101,17 +101,17 @@ def mach_span(track, rnd, state0):
     return float(m.min()), float(m.max())
 
 
-def launch_priors(track, rnd, P):
-    """Gaussian priors from the round's ``[launch]`` on the initial state, when the track
-    starts at the muzzle (t = 0): muzzle position (``position_sd`` per axis), launch speed
-    (``velocity_sd``) and elevation (``elevation_sd``). They are weak against a full x, y, z, v
-    track but keep a speed-only (Doppler) track's elevation where the gun put it."""
+def launch_state_priors(L, P, heading=False):
+    """Gaussian priors on the state at launch (t = 0) from a round's ``[launch]`` ``L``, for a
+    parameter vector whose initial state starts at index ``P``: muzzle at the origin
+    (``position_sd`` per axis), launch speed (``velocity_sd``), elevation (``elevation_sd``) and,
+    with ``heading``, a heading along +x with the elevation's sd (the diagnosis).
+
+    The functions take one parameter vector (n,) or many (W, n): the sampler evaluates all
+    walkers at once.
+    """
     from .ml import Prior
 
-    L = rnd.launch
-    if abs(float(track.t[0])) > 1e-9 or L.velocity is None or L.elevation_deg is None:
-        return ()
-    # written for one parameter vector (n,) or many (W, n): the sampler evaluates all walkers at once
     pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., P + k]), 0.0, L.position_sd)
            for k, n in enumerate(("X0", "Y0", "Z0"))]
     pri.append(Prior("launch_speed", lambda th: np.sqrt(th[..., P + 3] ** 2 + th[..., P + 4] ** 2
@@ -119,7 +119,20 @@ def launch_priors(track, rnd, P):
     pri.append(Prior("elevation", lambda th: np.degrees(np.arctan2(th[..., P + 5], np.hypot(th[..., P + 3],
                                                                                            th[..., P + 4]))),
                      L.elevation_deg, L.elevation_sd_deg))
+    if heading:
+        pri.append(Prior("heading", lambda th: np.degrees(np.arctan2(th[..., P + 4], th[..., P + 3])),
+                         0.0, L.elevation_sd_deg))
     return tuple(pri)
+
+
+def launch_priors(track, rnd, P):
+    """The round's launch priors (:func:`launch_state_priors`) when the track starts at the
+    muzzle (t = 0) and the launch is known, else none. They are weak against a full x, y, z, v
+    track but keep a speed-only (Doppler) track's elevation where the gun put it."""
+    L = rnd.launch
+    if abs(float(track.t[0])) > 1e-9 or L.velocity is None or L.elevation_deg is None:
+        return ()
+    return launch_state_priors(L, P)
 
 
 def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
