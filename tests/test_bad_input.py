@@ -7,12 +7,10 @@ case folder ``d`` (starting from a good round ``round.toml``, its reference tabl
 and a good track ``track.csv``) and returns the argument list; ``match`` is a regular
 expression the stderr line must contain.
 """
-import os
 import re
 import shutil
 from importlib.resources import files
 
-import numpy as np
 import pytest
 
 from bayesdrag.cli import main

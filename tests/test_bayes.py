@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from bayesdrag.drag import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.bayes import (LogPosterior, cd_draws, cd_posterior_rows, independence_move,
                                       sample_posterior, split_rank_rhat, to_inference_data)

@@ -6,14 +6,13 @@ simulated campaign; the 7-round acceptance run is ``@slow``.
 """
 import json
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
 from bayesdrag.campaign import (NODE_FINE, NODE_SPACING, is_campaign_file, mach_nodes, pool_rounds,
-                                pooling_input, read_campaign, scatter_log_posterior, simulate_campaign)
+                                read_campaign, scatter_log_posterior, simulate_campaign)
 from bayesdrag.cli import main
 from bayesdrag.errors import InputError
 

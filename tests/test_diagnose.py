@@ -5,7 +5,6 @@ import json
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.cli import main
 from bayesdrag.diagnose import (autocovariance, colored_inflation, diagnose, hf_residual,
                                 noise_and_outliers, where_segments)

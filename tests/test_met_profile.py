@@ -3,7 +3,6 @@
 Reference: the ICAO standard atmosphere of :mod:`bayesdrag.atmosphere` (itself checked against
 US76 tables in test_atmosphere.py): a profile sampled from it must reproduce it.
 """
-import math
 
 import numpy as np
 import pytest

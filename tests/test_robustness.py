@@ -8,7 +8,7 @@ from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.errors import FitError, InputError
 from bayesdrag.estimate.ml import OutputErrorProblem
 from bayesdrag.simulate import add_noise, simulate_round
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.track import Launch, Projectile, RadarTrack, Round
 
 SIGMA = {"x": 1.0, "z": 1.0, "v": 0.3}
 

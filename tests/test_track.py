@@ -483,7 +483,7 @@ def test_reference_drag_relative_to_toml(tmp_path):
     assert r.reference_drag.cd_values[2] == 0.38
 
 
-def test_write_read_round_trip(tmp_path):
+def test_write_read_round_file_round_trip(tmp_path):
     r = read_round(write_round_text(tmp_path, FULL_ROUND))
     out = tmp_path / "copy" / "r2.toml"
     out.parent.mkdir()

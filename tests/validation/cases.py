@@ -27,7 +27,7 @@ import numpy as np
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.drag import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-from bayesdrag.simulate import add_noise, add_outliers, simulate_round
+from bayesdrag.simulate import add_noise, add_outliers
 from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
