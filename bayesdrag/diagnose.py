@@ -85,8 +85,16 @@ OUTLIER_K = 5.0
 HF_WINDOW, HF_ORDER = 11, 3
 #: canonical correlation of two effects' signatures above which the data cannot separate them
 CONFOUND_CORR = 0.995
-#: a second (third) effect must remove at least this fraction of the baseline gap
+#: a second (third) effect must remove at least this fraction of the baseline gap ...
 MIN_SECOND_SHARE = 0.02
+#: ... or at least this fraction of what the effects already selected leave: a mismatch no
+#: effect describes leaves residuals a wrong effect only nibbles at (removing a small part),
+#: while a second real effect explains most of what is left -- e.g. the spin drift (lift) of
+#: a shell fired into a head wind, 0.2 % of that gap (6-DOF validation case)
+MIN_LEFT_SHARE = 0.5
+#: ... which counts only when what is left stands out of the noise: above this many sd of the
+#: noise-only chi2 (with the residuals' own autocorrelation, :func:`chi2_noise_sd`)
+LEFT_NOISE_K = 3.0
 #: projected-signature norm fraction below which an effect is unidentifiable (absorbed by the
 #: initial state and, without reference drag, the fitted Cd)
 IDENTIFIABLE_FRACTION = 0.02
@@ -237,6 +245,30 @@ def autocovariance(resid, weights, max_lag=None):
         kmax = min(kmax, N // 4, max_lag or N)
         out.append(r[:kmax + 1])
     return out
+
+
+def chi2_noise_sd(acov, sigma_vec, weights):
+    """Standard deviation of the noise-only chi2 of a fit whose residuals have the
+    autocovariance ``acov``: ``sqrt(sum_c 2 n_c sum_k (r_c(k) / sigma_c^2)^2)`` over lags
+    -L..L (Gaussian noise; sqrt(2 n) when white at the assumed sigma, ~4.4 times that for
+    AR(1) noise with rho = 0.95)."""
+    v = 0.0
+    for j, r in enumerate(acov):
+        n = float(np.count_nonzero(weights[:, j]))
+        rr = np.asarray(r, dtype=float) / sigma_vec[j] ** 2
+        v += 2.0 * n * (rr[0] ** 2 + 2.0 * float(np.sum(rr[1:] ** 2)))
+    return math.sqrt(max(v, 0.0))
+
+
+def _left_share_ok(setup, res, d, left, sig_vec):
+    """The what-is-left rule of forward selection: the addition removes ``MIN_LEFT_SHARE`` of
+    what the smaller set leaves, and that is ``LEFT_NOISE_K`` noise sd above the noise floor.
+    ``res`` is the fit *with* the addition: its residuals measure the noise's correlation (those
+    of the smaller set would count the very misfit in question as correlated noise)."""
+    if d < MIN_LEFT_SHARE * left:
+        return False
+    resid = np.stack([res.residuals[c] for c in setup.channels], axis=-1)
+    return left > LEFT_NOISE_K * chi2_noise_sd(autocovariance(resid, setup.weights), sig_vec, setup.weights)
 
 
 def colored_inflation(g, acov, sigma_vec, weights):
@@ -717,7 +749,8 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     if len(verdict) > 1:
         res, _, y = selected_fit
         joint = {"effects": list(verdict), "params": {k: float(v) for k, v in res.extras.items()},
-                 "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0}
+                 "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
+                 "shrink_given_others": _conditional_shrinks(setup, verdict, res, fits, base_theta)}
     best_name = rows[0]["name"] if rows else None
     y_best = fits[best_name][2] if best_name else None
     resid_best = (np.stack([track.channels[c] for c in chans], axis=-1) - y_best) if y_best is not None else None
@@ -802,7 +835,8 @@ def _better(setup, new, old, sig_vec, alpha, gap, K):
     nested = set(vn) <= set(vo) or set(vo) <= set(vn)
     big_wins = d / infl > _chi2.ppf(1 - alpha / K, abs(kn - ko))
     if nested:  # the bigger set adds effects to the smaller: the forward-selection rule applies
-        big_wins = big_wins and d >= MIN_SECOND_SHARE * gap
+        left = float(small[0].cost) - (_n_obs(setup) + len(setup.priors) - int(small[0].free.sum()))
+        big_wins = big_wins and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, big[0], d, left, sig_vec))
     return big_wins if kn > ko else not big_wins
 
 
@@ -824,9 +858,9 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     floor_n = _n_obs(setup) + len(setup.priors)
     while remaining and len(verdict) < MAX_VERDICT:
         sel_res, _, sel_y = selected_fit
-        # an addition must remove MIN_SECOND_SHARE of the gap: pointless when less is left
+        # what is left above the noise floor (an addition must remove a share of the gap or of this)
         left = float(sel_res.cost) - (floor_n - int(sel_res.free.sum()))
-        if left < MIN_SECOND_SHARE * gap:
+        if left <= 0:
             break
         sel_effs = [EFFECTS[n] for n in verdict]
         best_add = None
@@ -838,7 +872,8 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
             d = float(sel_res.cost - res.cost)
             resid = np.stack([res.residuals[c] for c in chans], axis=-1)
             infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-            ok = (d / infl > threshold(e, alpha / Kr, k_free(setup, e)) and d >= MIN_SECOND_SHARE * gap)
+            ok = (d / infl > threshold(e, alpha / Kr, k_free(setup, e))
+                  and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, res, d, left, sig_vec)))
             if ok and (best_add is None or d > best_add[1]):
                 best_add = (r["name"], d, (res, prob, y))
         if best_add is None:
@@ -848,6 +883,29 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
         remaining = [r for r in remaining if r["name"] != best_add[0]
                      and not set(r["confounded_with"]) & set(verdict)]
     return verdict, selected_fit
+
+
+def _conditional_shrinks(setup, verdict, joint_res, fits, base_theta):
+    """For each member of a multi-effect verdict, the fraction of the gap left by the *other*
+    members that it removes: ``(cost(others) - cost(all)) / (cost(others) - noise floor)``.
+    This is "how far the gap shrinks once that effect is added" when the track carries more
+    than one effect (e.g. a 6-DOF shell's spin drift besides a withheld clock offset)."""
+    floor_n = _n_obs(setup) + len(setup.priors)
+    out = {}
+    for n in verdict:
+        others = [m for m in verdict if m != n]
+        if len(others) == 1 and others[0] in fits:
+            res_o = fits[others[0]][0]
+        else:
+            effs = [EFFECTS[m] for m in others]
+            start = np.concatenate([base_theta] + [_fit_starts(e) for e in effs])
+            try:
+                res_o = _fit(setup, effs, start)[0]
+            except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+                continue
+        left = float(res_o.cost) - (floor_n - int(res_o.free.sum()))
+        out[n] = float(np.clip((res_o.cost - joint_res.cost) / left, 0.0, 1.0)) if left > 0 else 0.0
+    return out
 
 
 def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):

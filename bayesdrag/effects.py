@@ -53,7 +53,7 @@ import numpy as np
 
 from .atmosphere import Atmosphere
 from .dynamics import _kernel as K
-from .dynamics.pointmass import coriolis_matrix, lift_parameter
+from .dynamics.pointmass import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from .estimate.ml import ExtraParam, SimInputs
 
 #: induced-drag factor k in Cd (1 + k delta^2) [1/rad^2] (C_D_delta2 / C_D0 of a typical shell)
@@ -143,7 +143,9 @@ class Effect:
         if n == "lift":
             v0 = ctx.v0 if ctx.v0 is not None else (
                 np.linalg.norm(np.asarray(state0)[:, 3:], axis=1) if state0 is not None else 800.0)
-            return {"overrides": {K.P_LIFT: lift_parameter(values[:, 0], np.broadcast_to(v0, (B,)))}}
+            v0 = np.broadcast_to(np.asarray(v0, dtype=float), (B,))
+            return {"overrides": {K.P_LIFT: lift_parameter(values[:, 0], v0),
+                                  K.P_LIFT_VERT: LIFT_VERTICAL_FRACTION * v0}}
         if n == "coriolis":
             if ctx.latitude_deg is None:
                 raise ValueError("the coriolis effect needs [launch] latitude")

@@ -6,7 +6,7 @@ import pytest
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.drag import make_drag_model
 from bayesdrag.dynamics import _kernel as K
-from bayesdrag.dynamics.pointmass import (LIFT_REF_FRACTION, PointMassModel, coriolis_matrix,
+from bayesdrag.dynamics.pointmass import (LIFT_REF_FRACTION, LIFT_VERTICAL_FRACTION, PointMassModel, coriolis_matrix,
                                           initial_state, lift_parameter, output_schedule,
                                           step_schedule)
 
@@ -242,7 +242,8 @@ def test_lift_kernel_matches_scipy(m101):
 
 def test_lift_drifts_right_growing_and_mirrors(m101):
     """factor > 0 (right-hand spin), no wind: y > 0 and growing with time of flight; factor < 0
-    mirrors it exactly (the lift is horizontal and does not change x or z)."""
+    mirrors it exactly. The vertical part (Magnus force and lift on the vertical yaw of repose)
+    is up for either spin direction, so x and z are the same for both."""
     s0 = initial_state(818.0, 15.0)
     t = np.arange(0.0, 32.0, 0.027)
     right = PointMassModel(MASS, DIAM, m101, lift_factor=1.0).simulate((), s0, t)
@@ -254,8 +255,13 @@ def test_lift_drifts_right_growing_and_mirrors(m101):
     assert y[-1] > 50.0
     assert np.allclose(left.state[:, 1], -y, rtol=1e-9, atol=1e-9)
     assert np.max(np.abs(none.state[:, 1])) == 0.0
-    # the lift keeps x, z to second order in the drift angle (1 - cos ~ (y / x)^2 / 2)
-    assert np.max(np.abs(right.state[:, 2] - none.state[:, 2])) < 0.5
+    assert np.allclose(left.state[:, [0, 2]], right.state[:, [0, 2]], rtol=1e-9, atol=1e-9)
+    # the vertical force lifts the shell: ~11 % of the drift after 32 s (6-DOF: test below)
+    dz = right.state[:, 2] - none.state[:, 2]
+    assert 0.05 * y[-1] < dz[-1] < 0.2 * y[-1]
+    flat = PointMassModel(MASS, DIAM, m101, lift_factor=1.0, lift_vertical_fraction=0.0).simulate((), s0, t)
+    # without it the lift keeps x, z to second order in the drift angle (1 - cos ~ (y / x)^2 / 2)
+    assert np.max(np.abs(flat.state[:, 2] - none.state[:, 2])) < 0.5
 
 
 def test_lift_matches_6dof_drift_order():
@@ -271,8 +277,45 @@ def test_lift_matches_6dof_drift_order():
         f"point-mass lift drift {pm.state[-1, 1]:.1f} m vs 6-DOF {six.impact_drift:.1f} m: ratio {ratio:.3f}")
 
 
+#: the modified-point-mass lift vs the 6-DOF's drift and rise (Table 1 shell, QE 15 deg, 32 s)
+LIFT_6DOF_Y_REL, LIFT_6DOF_DZ_REL = 0.03, 0.10
+
+
+def test_lift_shape_follows_the_6dof_drift_and_rise():
+    """The lift factor and a lateral aerodynamic jump (a heading change of the launch, as the
+    diagnosis fits it with the initial state) reproduce the 6-DOF's whole drift history y(t)
+    to within LIFT_6DOF_Y_REL of its size at every time after 8 s, and the rise z(t) over the
+    point mass (Magnus force and lift on the vertical yaw of repose) to LIFT_6DOF_DZ_REL, with
+    the factor near 1 (Table 1 shell, 818 m/s, QE 15 deg). The constant-L model of session 2
+    (no Mach shape, no spin decay, no vertical part) misses the drift shape by more."""
+    from bayesdrag.dynamics.sixdof import simulate_6dof, table1_shell
+    shell = table1_shell()
+    t = np.arange(0.0, 32.01, 2.0)
+    six = simulate_6dof(shell, 818.0, 15.0, t_out=t, stop_at_impact=False)
+    s0 = initial_state(818.0, 15.0)
+    model = PointMassModel(shell.mass, shell.diameter, shell.cd0)
+    none = model.simulate((), s0, t).state
+    late = t >= 8.0
+    y6, dz6 = six.position[late, 1], six.position[late, 2] - none[late, 2]
+
+    def fit(m):
+        st = m.with_(lift_factor=1.0).simulate((), s0, t).state
+        A = np.column_stack([st[:, 1], t])  # drift per unit factor, jump
+        coef, *_ = np.linalg.lstsq(A, six.position[:, 1], rcond=None)
+        return coef[0], np.max(np.abs((A @ coef)[late] - y6) / y6), st
+
+    f, err, st = fit(model)
+    assert 0.9 < f < 1.1 and err < LIFT_6DOF_Y_REL
+    dz = f * (st[late, 2] - none[late, 2])  # linear in the factor to first order
+    assert np.max(np.abs(dz - dz6) / dz6) < LIFT_6DOF_DZ_REL
+    _, err_const, _ = fit(model.with_(lift_mach_rise=0.0, lift_mach_sat=0.0, spin_decay=0.0,
+                                      lift_vertical_fraction=0.0))
+    assert err_const > 3 * err
+
+
 def test_lift_parameter_and_overrides(m101):
-    """L = factor * 0.02 * V0; per-trajectory overrides of P_LIFT equal models with lift_v0."""
+    """L = factor * 0.02 * V0; per-trajectory overrides of P_LIFT (and the vertical-force
+    speed P_LIFT_VERT = LIFT_VERTICAL_FRACTION * V0) equal models with lift_v0."""
     assert lift_parameter(1.0, 818.0) == pytest.approx(LIFT_REF_FRACTION * 818.0)
     assert np.allclose(lift_parameter([0.5, -1.0], [800.0, 700.0]), [8.0, -14.0])
     s0 = np.stack([initial_state(818.0, 15.0)] * 3)
@@ -280,13 +323,15 @@ def test_lift_parameter_and_overrides(m101):
     factors = np.array([0.0, 0.7, 1.3])
     base = PointMassModel(MASS, DIAM, m101)
     batch = base.simulate_batch(np.zeros((3, 0)), s0, t,
-                                overrides={K.P_LIFT: lift_parameter(factors, 818.0)})
+                                overrides={K.P_LIFT: lift_parameter(factors, 818.0),
+                                           K.P_LIFT_VERT: np.full(3, LIFT_VERTICAL_FRACTION * 818.0)})
     for i, f in enumerate(factors):
         single = base.with_(lift_factor=f, lift_v0=818.0).simulate((), s0[i], t)
         assert np.array_equal(batch.state[i], single.state)
     # default V0 is the initial state's speed
     m = base.with_(lift_factor=1.0)
     assert m.par_row(s0[0])[K.P_LIFT] == pytest.approx(0.02 * 818.0)
+    assert m.par_row(s0[0])[K.P_LIFT_VERT] == pytest.approx(LIFT_VERTICAL_FRACTION * 818.0)
     with pytest.raises(ValueError, match="needs the initial states"):
         m.kernel_inputs(np.zeros((1, 0)))
 

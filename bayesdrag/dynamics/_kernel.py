@@ -9,7 +9,9 @@ State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in th
 frame (x downrange, y right, z up). Acceleration (paper Eqs. 20-22 in 3-D, plus effects):
 
     a = -k_ref * rho_scale * rho(z) * Cd_eff * |u| u + (0, 0, -g) + C_cor @ v
-        + L g / |u|^2 * (-u_y, u_x, 0)
+        + L q s(M) g / |u|^2 * (-u_y, u_x, 0)
+        + L q s(M) g / |u|^2 * m q / (|u|^2 (1 + C x_m)) * (-u_x u_z, -u_y u_z, u_x^2 + u_y^2)
+    dq/dt = -kappa k_ref rho_scale rho(z) |u| q,     q(t_start) = 1
 
 with ``u = v - w`` the airspeed vector, ``k_ref = pi d^2 / (8 m)``,
 ``Cd_eff = cd_scale * Cd(M) * (1 + yaw_amp * exp(-2 decay t))``, ``M = |u| / a(z)``,
@@ -17,7 +19,14 @@ with ``u = v - w`` the airspeed vector, ``k_ref = pi d^2 / (8 m)``,
 (``-2 Omega x``, in the local frame) and ``L`` [m/s] the lift-on-yaw-of-repose constant
 (effect ``lift``, see :func:`bayesdrag.dynamics.pointmass.lift_parameter`): a horizontal
 acceleration of size ``L g cos(theta) / |u|`` to the right of the airspeed (+y for a shell
-flying downrange), i.e. McCoy's modified-point-mass drift of a right-hand spinning shell.
+flying downrange), i.e. McCoy's modified-point-mass drift of a right-hand spinning shell,
+scaled by the Mach shape ``s(M) = 1 + A x / (1 + B x)``, ``x = max(M - 1, 0)`` of the
+lift-to-overturning ratio and by the spin fraction ``q = p / p0``, a seventh state integrated
+with the others (spin damping kappa = -C_lp / k_a^2). The next term is the vertical force on
+the same yaw of repose (Magnus force and lift on the yaw's vertical part), normal to u in its
+vertical plane (up for a right-hand spin), with the speed ``m = nu p0 d`` and a Mach fall-off
+``1 / (1 + C x_m)``, ``x_m = max(M - 0.8, 0)``. ``A = B = kappa = m = 0`` is the constant-L
+model.
 
 Per-trajectory parameters live in the rows of ``par`` with the column layout ``P_*`` below
 (``P_HAS_COR`` is no longer read: the Coriolis terms are always evaluated, branch-free).
@@ -74,14 +83,20 @@ P_YAW_DECAY = 16  # decay rate of the yaw amplitude [1/s]
 P_RHO_SCALE = 17  # density multiplier [-]
 P_HAS_COR = 18   # 1.0 when the Coriolis matrix is non-zero
 P_T0 = 19        # time since launch at the initial state [s] (yaw decay clock)
-P_LIFT = 20      # lift constant L = Ix p C_La / (m d C_Ma) [m/s] (> 0: right-hand spin, drift to +y)
-N_PAR = 21
+P_LIFT = 20      # lift constant L = Ix p0 C_La / (m d C_Ma) at subsonic speed [m/s] (> 0: drift to +y)
+P_LIFT_RISE = 21  # supersonic rise A of the lift shape s(M) = 1 + A x / (1 + B x), x = max(M - 1, 0) [-]
+P_LIFT_SAT = 22   # its saturation B [-]
+P_SPIN_DECAY = 23  # spin damping kappa = -C_lp / k_a^2 [-]: dq/dt = -kappa k_ref rho |u| q
+P_LIFT_VERT = 24     # vertical-force speed m = nu p0 d [m/s]: vertical / lift = m q / (|u| (1 + C x_m))
+P_LIFT_VERT_SAT = 25  # its Mach fall-off C [-], x_m = max(M - 0.8, 0)
+N_PAR = 26
 
 #: rows of the per-block lane parameter array (``_L_*``): copies of the ``par`` columns laid out
 #: lane-contiguous so every RK stage loop reads them with plain vector loads
 _L_KREF, _L_WX, _L_WY, _L_WZ, _L_G, _L_LIFT, _L_COR = 0, 1, 2, 3, 4, 5, 6   # _L_COR: 9 rows
 _L_SCALE, _L_YAW_AMP, _L_YAW_RATE, _L_T0, _L_F0, _L_FH2, _L_FH = 15, 16, 17, 18, 19, 20, 21
-_N_L = 22
+_L_LRISE, _L_LSAT, _L_SPIN, _L_LVERT, _L_LVSAT = 22, 23, 24, 25, 26
+_N_L = 27
 
 #: lanes per block are a multiple of this (8 doubles = one AVX-512 register)
 LANE_WIDTH = 8
@@ -108,10 +123,11 @@ def lanes_per_block(B, n_threads):
 
 
 @njit(forceinline=True, **_OPTS)
-def _acc(z, vx, vy, vz, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
-    """Acceleration (ax, ay, az) [m/s^2] of lane ``l`` of block ``blk`` at height z [m] and
-    ground velocity (vx, vy, vz) [m/s], drag multiplier ``fac``. Branch-free so that the lane
-    loops around it vectorise (the table reads become gathers)."""
+def _acc(z, vx, vy, vz, q, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
+    """Acceleration (ax, ay, az) [m/s^2] and spin-fraction rate dq/dt [1/s] of lane ``l`` of
+    block ``blk`` at height z [m], ground velocity (vx, vy, vz) [m/s] and spin fraction q [-],
+    drag multiplier ``fac``. Branch-free so that the lane loops around it vectorise (the table
+    reads become gathers)."""
     m0, inv_dm, dm, kmax, z0, inv_dz, zmax = tab
     wx = LP[blk, _L_WX, l]
     wy = LP[blk, _L_WY, l]
@@ -134,14 +150,25 @@ def _acc(z, vx, vy, vz, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     kc = CDO[blk, l] + 4 * k
     cd = cdf[kc] + u * (cdf[kc + 1] + u * (cdf[kc + 2] + u * cdf[kc + 3]))
     kd = LP[blk, _L_KREF, l] * fac * rho * cd * V
-    # yaw-of-repose lift L g / |u|^2 (-u_y, u_x, 0) (pointmass.lift_parameter); the floor on
-    # |u|^2 keeps a shell at rest in still air finite (0 * g / 0 would poison the trajectory)
-    kl = LP[blk, _L_LIFT, l] * g / max(V2, V2_FLOOR)
+    # yaw-of-repose lift L q s(M) g / |u|^2 (-u_y, u_x, 0) (pointmass.lift_parameter); the floor
+    # on |u|^2 keeps a shell at rest in still air finite (0 * g / 0 would poison the trajectory)
+    xs = max(mach - 1.0, 0.0)
+    shape = 1.0 + LP[blk, _L_LRISE, l] * xs / (1.0 + LP[blk, _L_LSAT, l] * xs)
+    inv_v2 = 1.0 / max(V2, V2_FLOOR)
+    kl = LP[blk, _L_LIFT, l] * q * shape * g * inv_v2
+    # Magnus force on the same yaw plus lift on its vertical part: up-normal to u,
+    # (-u_x u_z, -u_y u_z, u_h^2) / |u| times |lift| (p d / |u|) nu (pointmass.LIFT_VERTICAL_FRACTION)
+    # (even in the spin: Magnus force and vertical yaw both flip with it, so |kl|)
+    km = abs(kl) * LP[blk, _L_LVERT, l] * q * inv_v2 / (1.0 + LP[blk, _L_LVSAT, l] * max(mach - 0.8, 0.0))
+    dq = -LP[blk, _L_SPIN, l] * rho * V * q
     c = _L_COR
-    ax = -kd * ux - kl * uy + LP[blk, c, l] * vx + LP[blk, c + 1, l] * vy + LP[blk, c + 2, l] * vz
-    ay = -kd * uy + kl * ux + LP[blk, c + 3, l] * vx + LP[blk, c + 4, l] * vy + LP[blk, c + 5, l] * vz
-    az = -kd * uz - g + LP[blk, c + 6, l] * vx + LP[blk, c + 7, l] * vy + LP[blk, c + 8, l] * vz
-    return ax, ay, az
+    ax = (-kd * ux - kl * uy - km * ux * uz
+          + LP[blk, c, l] * vx + LP[blk, c + 1, l] * vy + LP[blk, c + 2, l] * vz)
+    ay = (-kd * uy + kl * ux - km * uy * uz
+          + LP[blk, c + 3, l] * vx + LP[blk, c + 4, l] * vy + LP[blk, c + 5, l] * vz)
+    az = (-kd * uz - g + km * (ux * ux + uy * uy)
+          + LP[blk, c + 6, l] * vx + LP[blk, c + 7, l] * vy + LP[blk, c + 8, l] * vz)
+    return ax, ay, az, dq
 
 
 @njit(parallel=True, cache=True, **_OPTS)
@@ -202,13 +229,13 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     LP = np.empty((n_blk, _N_L, nl))
     CDO = np.empty((n_blk, nl), dtype=np.int64)
     ATO = np.empty((n_blk, nl), dtype=np.int64)
-    ST = np.empty((n_blk, 6, nl))    # state at t_s
-    AC = np.empty((n_blk, 3, nl))    # acceleration at t_s (first RK stage)
-    K2 = np.empty((n_blk, 3, nl))
-    K3 = np.empty((n_blk, 3, nl))
-    K4 = np.empty((n_blk, 3, nl))
-    ST1 = np.empty((n_blk, 6, nl))   # state at t_s + h
-    AC1 = np.empty((n_blk, 3, nl))   # acceleration there (= next step's first stage)
+    ST = np.empty((n_blk, 7, nl))    # state at t_s (row 6: spin fraction q for the lift)
+    AC = np.empty((n_blk, 4, nl))    # acceleration and dq/dt at t_s (first RK stage)
+    K2 = np.empty((n_blk, 4, nl))
+    K3 = np.empty((n_blk, 4, nl))
+    K4 = np.empty((n_blk, 4, nl))
+    ST1 = np.empty((n_blk, 7, nl))   # state at t_s + h
+    AC1 = np.empty((n_blk, 4, nl))   # acceleration there (= next step's first stage)
     OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
     for blk in prange(n_blk):
         # lanes past B repeat the last trajectory and are not stored
@@ -218,12 +245,18 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
             BL[blk, l] = b
             for c in range(6):
                 ST[blk, c, l] = y0[b, c]
+            ST[blk, 6, l] = 1.0
             LP[blk, _L_KREF, l] = par[b, P_KREF]
             LP[blk, _L_WX, l] = par[b, P_WX]
             LP[blk, _L_WY, l] = par[b, P_WY]
             LP[blk, _L_WZ, l] = par[b, P_WZ]
             LP[blk, _L_G, l] = par[b, P_G]
             LP[blk, _L_LIFT, l] = par[b, P_LIFT]
+            LP[blk, _L_LRISE, l] = par[b, P_LIFT_RISE]
+            LP[blk, _L_LSAT, l] = par[b, P_LIFT_SAT]
+            LP[blk, _L_SPIN, l] = par[b, P_SPIN_DECAY] * par[b, P_KREF] * par[b, P_RHO_SCALE]
+            LP[blk, _L_LVERT, l] = par[b, P_LIFT_VERT]
+            LP[blk, _L_LVSAT, l] = par[b, P_LIFT_VERT_SAT]
             for c in range(9):
                 LP[blk, _L_COR + c, l] = par[b, P_COR + c]
             scale = par[b, P_CD_SCALE] * par[b, P_RHO_SCALE]
@@ -241,8 +274,9 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
                 LP[blk, _L_F0, l] = LP[blk, _L_SCALE, l] * (
                     1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
         for l in range(nl):
-            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l] = _acc(
-                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], LP[blk, _L_F0, l],
+            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
+                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l],
+                LP[blk, _L_F0, l],
                 blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
         o = 0
         for s in range(n_steps):
@@ -255,21 +289,22 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
                         1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h)))
             # one loop per RK stage, lanes innermost: independent vectors in flight
             for l in range(nl):
-                K2[blk, 0, l], K2[blk, 1, l], K2[blk, 2, l] = _acc(
+                K2[blk, 0, l], K2[blk, 1, l], K2[blk, 2, l], K2[blk, 3, l] = _acc(
                     ST[blk, 2, l] + h2 * ST[blk, 5, l], ST[blk, 3, l] + h2 * AC[blk, 0, l],
                     ST[blk, 4, l] + h2 * AC[blk, 1, l], ST[blk, 5, l] + h2 * AC[blk, 2, l],
+                    ST[blk, 6, l] + h2 * AC[blk, 3, l],
                     LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
             for l in range(nl):
-                K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l] = _acc(
+                K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
                     ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
                     ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
-                    ST[blk, 5, l] + h2 * K2[blk, 2, l],
+                    ST[blk, 5, l] + h2 * K2[blk, 2, l], ST[blk, 6, l] + h2 * K2[blk, 3, l],
                     LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
             for l in range(nl):
-                K4[blk, 0, l], K4[blk, 1, l], K4[blk, 2, l] = _acc(
+                K4[blk, 0, l], K4[blk, 1, l], K4[blk, 2, l], K4[blk, 3, l] = _acc(
                     ST[blk, 2, l] + h * (ST[blk, 5, l] + h2 * K2[blk, 2, l]),
                     ST[blk, 3, l] + h * K3[blk, 0, l], ST[blk, 4, l] + h * K3[blk, 1, l],
-                    ST[blk, 5, l] + h * K3[blk, 2, l],
+                    ST[blk, 5, l] + h * K3[blk, 2, l], ST[blk, 6, l] + h * K3[blk, 3, l],
                     LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
             for l in range(nl):
                 for c in range(3):
@@ -278,8 +313,10 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
                     # RK4 with the stage velocities v + h/2 a1, v + h/2 a2, v + h a3 folded in
                     ST1[blk, c, l] = ST[blk, c, l] + h * v + h * h6 * (a1 + K2[blk, c, l] + K3[blk, c, l])
                     ST1[blk, 3 + c, l] = v + h6 * (a1 + 2.0 * K2[blk, c, l] + 2.0 * K3[blk, c, l] + K4[blk, c, l])
-                AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l] = _acc(
-                    ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l],
+                ST1[blk, 6, l] = ST[blk, 6, l] + h6 * (AC[blk, 3, l] + 2.0 * K2[blk, 3, l]
+                                                       + 2.0 * K3[blk, 3, l] + K4[blk, 3, l])
+                AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l], AC1[blk, 3, l] = _acc(
+                    ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l],
                     LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
             while o < N and out_step[o] == s:
                 # cubic Hermite on [t_s, t_s + h] from the states and accelerations at both ends
@@ -311,9 +348,9 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
                     mach_out[b, o] = OB[blk, 6, l]
                 o += 1
             for l in range(nl):
-                for c in range(6):
+                for c in range(7):
                     ST[blk, c, l] = ST1[blk, c, l]
-                for c in range(3):
+                for c in range(4):
                     AC[blk, c, l] = AC1[blk, c, l]
     return out
 

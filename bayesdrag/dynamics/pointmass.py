@@ -2,11 +2,15 @@
 
 Equations of motion (DESIGN.md frame: x downrange, y right, z up; ground-relative velocity v)::
 
-    dv/dt = -(pi d^2 / 8m) rho(z) Cd(M) |u| u  +  (0, 0, -g)  +  C_cor v  +  L g / |u|^2 (-u_y, u_x, 0)
+    dv/dt = -(pi d^2 / 8m) rho(z) Cd(M) |u| u  +  (0, 0, -g)  +  C_cor v
+            +  q s(M) g / |u|^2 [L (-u_y, u_x, 0) + |L| m q / (|u|^2 (1 + C x_m)) (-u_x u_z, -u_y u_z, u_h^2)]
+    dq/dt = -kappa (pi d^2 / 8m) rho(z) |u| q,     q = 1 at the initial state
     u     = v - w,   M = |u| / a(z)
 
 The last term is the lift on the yaw of repose (effect ``lift``, modified point mass; see
-:func:`lift_parameter`), zero unless ``lift_factor`` is set.
+:func:`lift_parameter` and :func:`lift_mach_shape`), zero unless ``lift_factor`` is set; q is
+the fraction of the initial spin left and the second bracket term the Magnus force on the same
+yaw and the lift on its vertical part (:data:`LIFT_VERTICAL_FRACTION`).
 
 The paper writes ``V (dx/dt - Wx)`` with V the total velocity; physically (and in every
 point-mass model in use, e.g. STANAG 4355, McCoy ch. 5) the speed in the drag term and in the
@@ -51,10 +55,42 @@ OMEGA_EARTH = 7.292115e-5
 #: Lift constant L = Ix p C_La / (m d C_Ma) of a typical spin-stabilised shell as a fraction of
 #: its muzzle velocity [-] (effect ``lift`` with ``factor = 1``); see :func:`lift_parameter`.
 LIFT_REF_FRACTION = 0.02
+#: Mach shape of the lift-to-overturning ratio C_La / C_Ma of a spin-stabilised shell,
+#: ``s(M) = 1 + A x / (1 + B x)`` with ``x = max(M - 1, 0)`` (1 subsonic): A, B fitted to the
+#: representative 155 mm M107 coefficients (:func:`bayesdrag.dynamics.sixdof.m107_aero`: C_La /
+#: C_Ma = 0.42 subsonic, 0.72 at Mach 1.5, 0.88 at 2, 0.98 at 2.5; this formula gives 0.42,
+#: 0.71, 0.89, 1.01). The rise is general for spinning shells and bullets -- C_La grows and C_Ma
+#: falls with supersonic Mach (McCoy 1999, ch. 2 and 10) -- its size is not: see the lift notes.
+LIFT_MACH_RISE = 1.79
+LIFT_MACH_SAT = 0.6
+#: spin damping kappa = -C_lp / k_a^2 [-] of a typical shell (C_lp = -0.010 to -0.016, axial
+#: radius of gyration squared k_a^2 = Ix / (m d^2) ~ 0.12-0.15): the spin fraction q = p / p0
+#: obeys dq/dt = -kappa k_ref rho |u| q, i.e. it decays over the path in air; 155 mm at 818 m/s:
+#: q = 0.76 / 0.70 / 0.65 at impact at QE 10 / 20 / 45 deg (6-DOF: 0.78 / 0.70 / 0.64), and the
+#: drift with factor 1 is 93 / 253 / 863 m (6-DOF 89 / 245 / 832 m).
+SPIN_DECAY = 0.09
+#: Vertical force on the yaw of repose as a fraction of its horizontal lift, ``(p d / |u|) nu``.
+#: Two parts, both up for a right-hand spin (McCoy 1999, ch. 10: the yaw of repose
+#: ``xi_R = i P G / (M + i P T)`` is not purely horizontal):
+#:
+#: * the Magnus force, ``|C_Npa| / C_La`` of the lift: 0.18 subsonic, 0.05 at Mach 2 (M107
+#:   representative values, :func:`bayesdrag.dynamics.sixdof.m107_aero`);
+#: * lift on the vertical part of the yaw of repose, ``P T / M = (p d / V) (k_a^2 C_La +
+#:   C_npa) / C_Ma`` of the horizontal yaw: 0.14 subsonic, 0.17 at Mach 2.4.
+#:
+#: Their sum nu = 0.21-0.33 over Mach 0.6-2.4 is nearly flat, so nu = 0.25 is taken constant
+#: (``LIFT_VERTICAL_MACH_SAT = 0``; a fall-off ``1 / (1 + C max(M - 0.8, 0))`` is available).
+#: With p0 = 2 pi v0 / (n d) the fraction is ``m q / |u|`` with the speed
+#: ``m = LIFT_VERTICAL_FRACTION * v0``, ``LIFT_VERTICAL_FRACTION = nu 2 pi / n`` = 0.0785 for a
+#: 1-in-20-calibre twist. The force is normal to the airspeed in its vertical plane; 5-10 % of
+#: the lift, it raises a 155 mm shell by ~15 m at QE 20 deg, which a fit without it puts into a
+#: muzzle 4-8 m below the gun (6-DOF: docs/diagnosis.md).
+LIFT_VERTICAL_FRACTION = 0.25 * 2.0 * math.pi / 20.0
+LIFT_VERTICAL_MACH_SAT = 0.0
 
 
 def lift_parameter(factor, v0):
-    """Kernel column ``P_LIFT`` (the constant L [m/s]) for the ``lift`` effect.
+    """Kernel column ``P_LIFT`` (the subsonic lift constant L [m/s]) for the ``lift`` effect.
 
     Physics (McCoy, *Modern Exterior Ballistics*, 1999, ch. 9 and 11, modified point mass): a
     spinning shell flies with its yaw of repose
@@ -65,16 +101,25 @@ def lift_parameter(factor, v0):
     (x downrange, y right, z up -- left-handed, so the cross product is taken with y flipped
     and flipped back)::
 
-        a_L = L g / |u|^2 * (-u_y, u_x, 0),      |a_L| = L g cos(theta) / |u|,
+        a_L = L(t) g / |u|^2 * (-u_y, u_x, 0),      |a_L| = L(t) g cos(theta) / |u|,
 
-    horizontal and to the right of the airspeed for L > 0 (right-hand spin drifts right).
-    ``L = Ix p C_La / (m d C_Ma)`` needs the axial inertia, spin, lift and overturning slopes,
-    none of which a round file gives, so it is parametrised as
-    ``L = factor * LIFT_REF_FRACTION * v0``: for a spin-stabilised shell Ix ~ 0.1-0.125 m d^2,
-    spin p = 2 pi v0 / (n d) with a twist of n ~ 20-35 calibres and C_La / C_Ma ~ 0.5 give
-    L ~ 0.02 v0 whatever the calibre; ``factor`` absorbs the shell's actual values. Neglected:
-    spin decay along the flight (it decays far slower than the speed, a few %/10 s for a
-    155 mm shell), the Mach dependence of C_La / C_Ma, and the Coriolis and lift parts of dv/dt.
+    horizontal and to the right of the airspeed for L > 0 (right-hand spin drifts right), with
+    ``L(t) = Ix p(t) C_La(M) / (m d C_Ma(M))``. Neither factor of L is constant: the ratio
+    C_La / C_Ma more than doubles from subsonic speed to Mach 2.5 and the spin decays by a
+    quarter to a third over a long flight, so L falls by a factor ~3 between muzzle and
+    impact (155 mm, 818 m/s). A constant L fitted to such a drift leaves a misfit of metres,
+    which a cross wind (2 parameters) then explains better than the lift itself (measured on
+    the 6-DOF: docs/diagnosis.md). So ``L(t) = L q(t) s(M)``: q the spin fraction (its own
+    state, damping ``kappa``, :data:`SPIN_DECAY`), s(M) the Mach shape of C_La / C_Ma
+    (:func:`lift_mach_shape`, 1 subsonic), and L, the *subsonic* constant at the initial spin,
+    ``Ix p0 (C_La / C_Ma)_sub / (m d)``. None of Ix, p0, C_La, C_Ma comes with a round file,
+    so it is parametrised as ``L = factor * LIFT_REF_FRACTION * v0``: for a spin-stabilised
+    shell Ix = k_a^2 m d^2 with k_a^2 ~ 0.12-0.15, spin p0 = 2 pi v0 / (n d) with a twist of
+    n ~ 20-35 calibres, and (C_La / C_Ma)_sub ~ 0.4-0.5 give L ~ 0.01-0.02 v0 whatever the
+    calibre; ``factor`` absorbs the shell's actual values (the paper's Table 1 shell: 0.94).
+    This is the modified point mass's "lift factor" (STANAG 4355 fits one to firing data the
+    same way). Neglected: the Coriolis and lift parts of dv/dt in alpha_R, and a shell whose
+    Mach shape differs from the generic one (what is left then shows in the remaining gap).
 
     Parameters
     ----------
@@ -90,6 +135,25 @@ def lift_parameter(factor, v0):
         L [m/s], for ``simulate_batch(..., overrides={_kernel.P_LIFT: L})``.
     """
     return np.asarray(factor, dtype=float) * LIFT_REF_FRACTION * np.asarray(v0, dtype=float)
+
+
+def lift_mach_shape(mach, rise=LIFT_MACH_RISE, sat=LIFT_MACH_SAT):
+    """Mach shape s(M) of the yaw-of-repose lift, ``1 + rise x / (1 + sat x)``, ``x = max(M - 1, 0)``.
+
+    Parameters
+    ----------
+    mach : float or array_like
+        Mach number [-].
+    rise, sat : float
+        Shape constants (defaults :data:`LIFT_MACH_RISE`, :data:`LIFT_MACH_SAT`; 0, 0 = constant).
+
+    Returns
+    -------
+    float or ndarray
+        s(M) [-], 1 at and below Mach 1.
+    """
+    x = np.maximum(np.asarray(mach, dtype=float) - 1.0, 0.0)
+    return 1.0 + rise * x / (1.0 + sat * x)
 
 
 def coriolis_matrix(latitude_deg, azimuth_deg, omega=OMEGA_EARTH):
@@ -282,6 +346,13 @@ class PointMassModel:
     lift_v0 : float or None, m/s
         Muzzle velocity that sets the spin for the lift; None: the speed of each trajectory's
         initial state (right for a track that starts at the muzzle).
+    lift_mach_rise, lift_mach_sat : float
+        Mach shape of the lift (:func:`lift_mach_shape`); 0, 0: no Mach dependence.
+    spin_decay : float
+        Spin damping kappa of the lift [-] (:data:`SPIN_DECAY`); 0: constant spin.
+    lift_vertical_fraction, lift_vertical_mach_sat : float
+        Vertical (Magnus and vertical-yaw lift) force on the yaw of repose
+        (:data:`LIFT_VERTICAL_FRACTION`); 0: none.
     mach_grid : MachGrid or None
         Kernel Mach grid; by default one covering Mach 0-6 at 0.01.
     max_step : float or None, s
@@ -301,6 +372,11 @@ class PointMassModel:
     yaw_decay: float = 0.0
     lift_factor: float = 0.0
     lift_v0: float | None = None
+    lift_mach_rise: float = LIFT_MACH_RISE
+    lift_mach_sat: float = LIFT_MACH_SAT
+    spin_decay: float = SPIN_DECAY
+    lift_vertical_fraction: float = LIFT_VERTICAL_FRACTION
+    lift_vertical_mach_sat: float = LIFT_VERTICAL_MACH_SAT
     mach_grid: MachGrid | None = None
     max_step: float | None = None
 
@@ -344,6 +420,12 @@ class PointMassModel:
         v0 = self.lift_v0 if self.lift_v0 is not None else np.linalg.norm(state0[..., 3:], axis=-1)
         return lift_parameter(self.lift_factor, np.broadcast_to(v0, state0.shape[:-1]))
 
+    def lift_vertical_speed(self, state0):
+        """Vertical-force speed m = LIFT_VERTICAL_FRACTION v0 [m/s] for initial states (..., 6)."""
+        state0 = np.asarray(state0, dtype=float)
+        v0 = self.lift_v0 if self.lift_v0 is not None else np.linalg.norm(state0[..., 3:], axis=-1)
+        return self.lift_vertical_fraction * np.broadcast_to(np.asarray(v0, dtype=float), state0.shape[:-1])
+
     def par_row(self, state0=None):
         """Kernel parameter row (N_PAR,) for this model.
 
@@ -361,15 +443,21 @@ class PointMassModel:
         p[K.P_YAW_AMP] = self.yaw_amp
         p[K.P_YAW_DECAY] = self.yaw_decay
         p[K.P_RHO_SCALE] = 1.0
+        p[K.P_LIFT_RISE] = self.lift_mach_rise
+        p[K.P_LIFT_SAT] = self.lift_mach_sat
+        p[K.P_SPIN_DECAY] = self.spin_decay
+        p[K.P_LIFT_VERT_SAT] = self.lift_vertical_mach_sat
         if state0 is not None:
             p[K.P_LIFT] = self.lift_constant(state0)
+            p[K.P_LIFT_VERT] = self.lift_vertical_speed(state0)
         elif self.lift_v0 is not None:
             p[K.P_LIFT] = lift_parameter(self.lift_factor, self.lift_v0)
+            p[K.P_LIFT_VERT] = self.lift_vertical_fraction * self.lift_v0
         return p
 
-    def _rhs(self, drag_params, t0, lift=0.0):
+    def _rhs(self, drag_params, t0, lift=0.0, magnus=0.0):
         """Right-hand side for solve_ivp with the exact drag curve and atmosphere; ``lift`` is
-        the constant L [m/s] of :func:`lift_parameter`."""
+        the constant L [m/s] of :func:`lift_parameter`, ``magnus`` the vertical-force speed m [m/s]."""
         curve = self.drag.curve(drag_params)
         atm = self.atmosphere.density_and_sound_speed
         kref = self.k_ref
@@ -377,24 +465,36 @@ class PointMassModel:
         g = self.gravity
         C = coriolis_matrix(*self.coriolis) if self.coriolis is not None else None
         cd_scale, yaw_amp, yaw_decay = self.cd_scale, self.yaw_amp, self.yaw_decay
+        rise, sat, kspin = self.lift_mach_rise, self.lift_mach_sat, self.spin_decay * kref
+        msat = self.lift_vertical_mach_sat
 
         def rhs(t, s):
+            # s[6]: spin fraction q of the lift (integrated whether or not the lift is on); a
+            # 6-element state is taken at full spin and gets a 6-element derivative
             vx, vy, vz = s[3], s[4], s[5]
+            q = s[6] if len(s) > 6 else 1.0
             ax_, ay_, az_ = vx - wx, vy - wy, vz - wz
             V = math.sqrt(ax_ * ax_ + ay_ * ay_ + az_ * az_)
             rho, a = atm(s[2])
-            cd = cd_scale * curve(V / a)
+            mach = V / a
+            cd = cd_scale * curve(mach)
             if yaw_amp:
                 cd *= 1.0 + yaw_amp * math.exp(-2.0 * yaw_decay * (t + t0))
             kd = kref * rho * cd * V
             acc = [-kd * ax_, -kd * ay_, -kd * az_ - g]
             if lift:
-                kl = lift * g / max(V * V, K.V2_FLOOR)
-                acc[0] -= kl * ay_
-                acc[1] += kl * ax_
+                xs = max(mach - 1.0, 0.0)
+                inv_v2 = 1.0 / max(V * V, K.V2_FLOOR)
+                kl = lift * q * (1.0 + rise * xs / (1.0 + sat * xs)) * g * inv_v2
+                km = abs(kl) * magnus * q * inv_v2 / (1.0 + msat * max(mach - 0.8, 0.0))
+                acc[0] -= kl * ay_ + km * ax_ * az_
+                acc[1] += kl * ax_ - km * ay_ * az_
+                acc[2] += km * (ax_ * ax_ + ay_ * ay_)
             if C is not None:
                 acc = [acc[i] + C[i, 0] * vx + C[i, 1] * vy + C[i, 2] * vz for i in range(3)]
-            return [vx, vy, vz, acc[0], acc[1], acc[2]]
+            if len(s) == 6:
+                return [vx, vy, vz, acc[0], acc[1], acc[2]]
+            return [vx, vy, vz, acc[0], acc[1], acc[2], -kspin * rho * V * q]
 
         return rhs
 
@@ -438,7 +538,8 @@ class PointMassModel:
             return replace(tr, state=tr.state[0], mach=tr.mach[0])
         if backend != "scipy":
             raise ValueError(f"unknown backend {backend!r}; allowed: 'kernel', 'scipy'")
-        rhs = self._rhs(np.asarray(drag_params, dtype=float), t_start, float(self.lift_constant(state0)))
+        rhs = self._rhs(np.asarray(drag_params, dtype=float), t_start, float(self.lift_constant(state0)),
+                        float(self.lift_vertical_speed(state0)) if self.lift_factor != 0.0 else 0.0)
         t_end = t_start + max_time if t_out is None else float(np.max(t_out))
 
         def impact(t, s):
@@ -446,8 +547,8 @@ class PointMassModel:
         impact.terminal = True
         impact.direction = -1
         events = [impact] if stop_at_impact else None
-        sol = solve_ivp(rhs, (t_start, t_end), state0, method="DOP853", rtol=rtol, atol=atol,
-                        dense_output=True, events=events)
+        sol = solve_ivp(rhs, (t_start, t_end), np.append(state0, 1.0), method="DOP853", rtol=rtol,
+                        atol=atol, dense_output=True, events=events)
         if sol.status < 0:
             return Trajectory(np.empty(0), np.empty((0, 6)), np.empty(0), False, sol.message)
         t_imp = None
@@ -465,7 +566,7 @@ class PointMassModel:
         t_out = np.asarray(t_out, dtype=float)
         if t_imp is not None:
             t_out = t_out[t_out <= t_imp + 1e-12]
-        state = sol.sol(t_out).T
+        state = sol.sol(t_out).T[:, :6]
         msg = "impact" if t_imp is not None else sol.message
         return Trajectory(t_out, state, self.mach_of(state), True, msg, t_imp)
 
@@ -490,6 +591,9 @@ class PointMassModel:
             if state0 is None:
                 raise ValueError("lift_factor needs the initial states (state0) or lift_v0 to set the spin")
             par[:, K.P_LIFT] = self.lift_constant(state0)
+        if self.lift_factor != 0.0 and self.lift_v0 is None and K.P_LIFT_VERT not in (overrides or {}) \
+                and state0 is not None:
+            par[:, K.P_LIFT_VERT] = self.lift_vertical_speed(state0)
         for col, val in (overrides or {}).items():
             par[:, col] = val
         grid = self.mach_grid

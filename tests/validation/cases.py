@@ -55,6 +55,13 @@ class Case:
     azimuth: float = 90.0
     expect: str | None = None  # expected top-1 when it differs from ``effect`` (6-DOF null)
 
+    @property
+    def inherent(self):
+        """Effects the simulator itself carries beyond the point mass: a 6-DOF shell drifts
+        (``lift``: yaw-of-repose lift, Magnus) and yaws (``yaw_drag``). In a 6-DOF case these may
+        stand in the verdict beside the withheld effect; they are not counted as its top-1."""
+        return {"lift", "yaw_drag"} if self.sim == "6dof" and self.effect else set()
+
     def accepted(self):
         e = self.expect or self.effect
         return ACCEPT.get(e, {e})
@@ -245,18 +252,32 @@ def magnitude_ok(case, row):
 def run_case(case):
     """Diagnose one case; returns a dict of what the acceptance checks."""
     from bayesdrag.diagnose import diagnose
+    from bayesdrag.effects import EFFECTS
 
     d = diagnose(make_track(case), diagnosis_round(case))
     s = d.summary
     rows = {r["name"]: r for r in s["effects"]}
-    top = s["effects"][0]["name"] if s["effects"] else None
-    true_row = rows.get(case.effect) if case.effect else None
-    top_row = rows.get(top)
+    verdict = s["verdict"]
+    # top-1: the first verdict member the simulator does not carry by itself (6-DOF drift)
+    own = [n for n in verdict if n not in case.inherent]
+    top = own[0] if own else (verdict[0] if verdict else (s["effects"][0]["name"] if s["effects"] else None))
+    true_row = dict(rows[case.effect]) if case.effect in rows else None
+    joint = s.get("joint") or {}
+    if true_row is not None and case.effect in joint.get("effects", ()):
+        # the effect shares the verdict with another: its parameters from the joint fit, its
+        # shrink as the share of what the others leave that it removes
+        e = EFFECTS[case.effect]
+        true_row["params"] = e.report_params([joint["params"][f"{case.effect}.{p.name}"] for p in e.params]) \
+            if e.k else {}
+        true_row["shrink"] = joint["shrink_given_others"].get(case.effect, true_row["shrink"])
+        true_row["remaining_gap_fraction"] = 1.0 - joint["shrink"]
+    extra = [n for n in own if n not in case.accepted()]
     return {"id": case.id, "truth": case.expect or case.effect or "none", "top": top,
-            "verdict": s["verdict"], "correct": (top in case.accepted() and bool(s["verdict"]))
-            if (case.effect or case.expect) else (not s["verdict"]),
-            "magnitude_ok": magnitude_ok(case, top_row if top_row and top_row["name"] == case.effect else true_row),
+            "verdict": verdict, "correct": (top in case.accepted() and bool(verdict))
+            if (case.effect or case.expect) else (not verdict),
+            "extra_effects": extra,
+            "magnitude_ok": magnitude_ok(case, true_row if true_row else None),
             "params": (true_row or {}).get("params"), "true_params": case.params,
-            "shrink": (true_row or {}).get("shrink"), "shrink_top": (top_row or {}).get("shrink"),
+            "shrink": (true_row or {}).get("shrink"), "shrink_top": rows.get(top, {}).get("shrink"),
             "gap": s["baseline"]["gap"],
             "remaining_gap_fraction": (true_row or {}).get("remaining_gap_fraction")}

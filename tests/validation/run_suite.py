@@ -26,11 +26,12 @@ def summarise(results):
     shr = [r["shrink"] for r in eff if r["shrink"] is not None and r["truth"] != "coriolis" or
            (r["truth"] == "coriolis" and r["shrink"] is not None)]
     fa = sum(bool(r["verdict"]) for r in nul) / max(len(nul), 1)
+    extra = sum(bool(r.get("extra_effects")) for r in eff)
     return {"n_effect": len(eff), "n_null": len(nul), "top1_rate": top1,
             "magnitude_rate": sum(mags) / max(len(mags), 1), "n_magnitude": len(mags),
             "shrink_min": min(shr) if shr else None,
             "shrink_ge_0.9_rate": sum(s >= 0.9 for s in shr) / max(len(shr), 1),
-            "false_alarm_rate": fa}
+            "false_alarm_rate": fa, "cases_with_extra_effects": extra}
 
 
 def main(argv=None):
