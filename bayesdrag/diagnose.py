@@ -91,13 +91,15 @@ MIN_SECOND_SHARE = 0.02
 #: effect describes leaves residuals a wrong effect only nibbles at (removing a small part),
 #: while a second real effect explains most of what is left -- e.g. the spin drift (lift) of
 #: a shell fired into a head wind, 0.2 % of that gap (6-DOF validation case)
-MIN_LEFT_SHARE = 0.5
+MIN_LEFT_SHARE = 0.8
 #: ... which counts only when what is left stands out of the noise: above this many sd of the
 #: noise-only chi2 (with the residuals' own autocorrelation, :func:`chi2_noise_sd`)
-LEFT_NOISE_K = 3.0
+LEFT_NOISE_K = 5.0
 #: projected-signature norm fraction below which an effect is unidentifiable (absorbed by the
 #: initial state and, without reference drag, the fitted Cd)
 IDENTIFIABLE_FRACTION = 0.02
+#: parameters of two verdict effects correlated beyond this in the joint fit are reported
+JOINT_CORR_WARN = 0.9
 #: largest number of effects forward selection puts in the verdict
 MAX_VERDICT = 3
 #: the runner-up starts a second forward selection when it removes this much of the gap alone
@@ -460,6 +462,10 @@ def signatures(setup, base_theta, effects):
             th = prob.theta0.copy()
             if e.name == "yaw_drag":
                 th[-2] = 0.05  # the decay column is flat at zero amplitude: evaluate at a small one
+            if e.name == "lift":
+                # the vertical part of the lift is even in the factor (flat at 0): the signature
+                # of a typical right-hand-spin shell's lift, at factor 1
+                th[-1] = 1.0
             _, _, S = prob.sensitivities(th)
             kf = k_free(setup, e)
             cols = (S[:, :, -kf:] * sw[:, :, None]).reshape(-1, kf)
@@ -728,8 +734,7 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             v, f = _forward(setup, rows, r0, fits[r0["name"]], gap, sig_vec, alpha)
             if best is None or _better(setup, (v, f), best, sig_vec, alpha, gap, K):
                 best = (v, f)
-        best = (None,) + best
-        verdict, selected_fit = best[1], best[2]
+        verdict, selected_fit = _backward(setup, best[0], best[1], fits, gap, sig_vec, alpha, K)
         # the verdict is ordered by what each effect explains alone (its single chi2 drop), and
         # the effects list is "best first": the verdict, then the rest
         rank = {r["name"]: i for i, r in enumerate(rows)}
@@ -751,6 +756,18 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         joint = {"effects": list(verdict), "params": {k: float(v) for k, v in res.extras.items()},
                  "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
                  "shrink_given_others": _conditional_shrinks(setup, verdict, res, fits, base_theta)}
+        # parameters of different effects that the joint fit can hardly tell apart: their values
+        # then rest on the shapes of the models (e.g. a cross wind against the spin drift of a
+        # shell whose lift differs from the generic Mach shape) more than on the data
+        k0 = res.theta.size - len(joint["params"])
+        names = list(joint["params"])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = res.correlation()[k0:, k0:]
+        joint["sd"] = {n: float(v) for n, v in zip(names, np.sqrt(np.clip(np.diag(res.cov_colored)[k0:], 0, None)))}
+        joint["strongly_correlated"] = [
+            {"params": [names[i], names[j]], "corr": float(corr[i, j])}
+            for i in range(len(names)) for j in range(i + 1, len(names))
+            if names[i].split(".")[0] != names[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
     best_name = rows[0]["name"] if rows else None
     y_best = fits[best_name][2] if best_name else None
     resid_best = (np.stack([track.channels[c] for c in chans], axis=-1) - y_best) if y_best is not None else None
@@ -908,6 +925,42 @@ def _conditional_shrinks(setup, verdict, joint_res, fits, base_theta):
     return out
 
 
+def _backward(setup, verdict, fit, fits, gap, sig_vec, alpha, K):
+    """Backward elimination after forward selection: drop a member that would not be admitted
+    to the verdict without it (same rule as :func:`_forward`), the least useful first, and refit.
+    A flexible effect chosen first because it mimics two real ones at once (a head wind for a
+    density change, its cross wind for the spin drift) is thus removed once both have entered."""
+    verdict = list(verdict)
+    chans = setup.channels
+    while len(verdict) > 1:
+        worst = None
+        res, _, y = fit
+        for n in verdict:
+            others = [m for m in verdict if m != n]
+            if len(others) == 1 and others[0] in fits:
+                sub = fits[others[0]]
+            else:
+                effs = [EFFECTS[m] for m in others]
+                try:
+                    sub = _fit(setup, effs, np.concatenate([res.theta[:setup.P + 6]]
+                                                           + [_fit_starts(e) for e in effs]))
+                except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+                    continue
+            d = float(sub[0].cost - res.cost)
+            resid = np.stack([res.residuals[c] for c in chans], axis=-1)
+            infl = colored_inflation(y - sub[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
+            left = float(sub[0].cost) - (_n_obs(setup) + len(setup.priors) - int(sub[0].free.sum()))
+            e = EFFECTS[n]
+            keep = (d / infl > threshold(e, alpha / K, k_free(setup, e))
+                    and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, res, d, left, sig_vec)))
+            if not keep and (worst is None or d < worst[1]):
+                worst = (n, d, sub, others)
+        if worst is None:
+            break
+        verdict, fit = worst[3], worst[2]
+    return verdict, fit
+
+
 def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
     chans = setup.channels
     sig_vec = np.array([setup.sigma[c] for c in chans])
@@ -924,6 +977,7 @@ def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
     covc = res.cov_colored[idx, idx] if e.k else np.zeros((0, 0))
     floor_e = n_obs + len(setup.priors) - int(res.free.sum())
     remaining = max(float(res.cost) - floor_e, 0.0)
+    noise_sd = chi2_noise_sd(acov, sig_vec, setup.weights)
     physical = True
     if e.name == "yaw_drag" and vals[0] < 0:
         physical = False
@@ -940,6 +994,10 @@ def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
         "shrink": float(np.clip(d / gap, 0.0, 1.0)) if gap > 0 else 0.0,
         "remaining_gap": remaining,
         "remaining_gap_fraction": float(remaining / gap) if gap > 0 else 0.0,
+        # the noise-only chi2 fluctuates by this much (with the residuals' own correlation): a
+        # remaining gap of this order is noise, and shrink is resolved to about shrink_sd
+        "remaining_gap_noise_sd": noise_sd,
+        "shrink_sd": float(noise_sd / gap) if gap > 0 else None,
         "inflation": float(infl),
         "test_statistic": float(stat),
         "threshold": thr,

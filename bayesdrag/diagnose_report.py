@@ -37,6 +37,10 @@ def summary_paragraph(s):
             parts.append(txt + ".")
         if s.get("joint"):
             parts.append(f"Together they remove {100 * s['joint']['shrink']:.1f} % of the gap.")
+            for c in s["joint"].get("strongly_correlated", []):
+                a, b = c["params"]
+                parts.append(f"Caution: {a} and {b} are correlated {c['corr']:+.2f} in the joint fit, "
+                             f"so their split rests on the models' shapes more than on the data.")
         top = rows[s["verdict"][0]]
         if top["remaining_gap_fraction"] > 0.05:
             parts.append(f"{100 * top['remaining_gap_fraction']:.0f} % of the gap remains after {top['name']} "

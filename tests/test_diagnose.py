@@ -132,11 +132,15 @@ def test_cli_writes_outputs_and_rejects_bad_input(tmp_path, capsys):
 
 
 def test_speed_only_track_finds_a_headwind_with_the_cross_wind_held():
-    """A Doppler (v-only) track cannot see drift: wy is held at 0, lift is skipped."""
+    """A Doppler (v-only) track cannot see drift: wy is held at 0, lift is not found."""
     rnd = _round(el=10.0)
     tr = _track(rnd, seed=4, wind=(-7.0, 0.0, 0.0)).with_channels(["v"])
     s = diagnose(tr, rnd).summary
     assert s["verdict"][:1] == ["wind"]
     w = s["effects"][0]
     assert w["params"]["wx"] == pytest.approx(-7.0, abs=0.5) and w["params"]["wy"] == 0.0
-    assert "lift" in s["skipped"] and any("no y channel" in n for n in s["notes"])
+    assert any("no y channel" in n for n in s["notes"])
+    # the lift's drift is invisible; only its small vertical part (Magnus, vertical yaw) reaches
+    # the speed, so it is either unidentifiable or not significant
+    lift = [r for r in s["effects"] if r["name"] == "lift"]
+    assert "lift" in s["skipped"] or not lift[0]["significant"]

@@ -108,6 +108,9 @@ MAX_LANES = 8
 _OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
 #: smallest airspeed^2 [m^2/s^2] in the lift term's denominator
 V2_FLOOR = 1e-12
+#: |L| in the vertical lift force is L^2 / sqrt(L^2 + LIFT_EPS^2) [m/s]: smooth at L = 0 and
+#: within 0.5 % of |L| for a typical shell's L ~ 0.02 v0 >= 5 m/s
+LIFT_EPS = 0.5
 
 
 def lanes_per_block(B, n_threads):
@@ -158,8 +161,11 @@ def _acc(z, vx, vy, vz, q, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     kl = LP[blk, _L_LIFT, l] * q * shape * g * inv_v2
     # Magnus force on the same yaw plus lift on its vertical part: up-normal to u,
     # (-u_x u_z, -u_y u_z, u_h^2) / |u| times |lift| (p d / |u|) nu (pointmass.LIFT_VERTICAL_FRACTION)
-    # (even in the spin: Magnus force and vertical yaw both flip with it, so |kl|)
-    km = abs(kl) * LP[blk, _L_LVERT, l] * q * inv_v2 / (1.0 + LP[blk, _L_LVSAT, l] * max(mach - 0.8, 0.0))
+    # (even in the spin: Magnus force and vertical yaw both flip with it, so |L|, taken smooth as
+    # L^2 / sqrt(L^2 + LIFT_EPS^2) so that fits starting at L = 0 see no kink)
+    L = LP[blk, _L_LIFT, l]
+    kabs = q * shape * g * inv_v2 * L * L / np.sqrt(L * L + LIFT_EPS * LIFT_EPS)
+    km = kabs * LP[blk, _L_LVERT, l] * q * inv_v2 / (1.0 + LP[blk, _L_LVSAT, l] * max(mach - 0.8, 0.0))
     dq = -LP[blk, _L_SPIN, l] * rho * V * q
     c = _L_COR
     ax = (-kd * ux - kl * uy - km * ux * uz

@@ -486,7 +486,8 @@ class PointMassModel:
                 xs = max(mach - 1.0, 0.0)
                 inv_v2 = 1.0 / max(V * V, K.V2_FLOOR)
                 kl = lift * q * (1.0 + rise * xs / (1.0 + sat * xs)) * g * inv_v2
-                km = abs(kl) * magnus * q * inv_v2 / (1.0 + msat * max(mach - 0.8, 0.0))
+                kabs = kl * lift / math.sqrt(lift * lift + K.LIFT_EPS ** 2)  # smooth |kl|, as the kernel
+                km = kabs * magnus * q * inv_v2 / (1.0 + msat * max(mach - 0.8, 0.0))
                 acc[0] -= kl * ay_ + km * ax_ * az_
                 acc[1] += kl * ax_ - km * ay_ * az_
                 acc[2] += km * (ax_ * ax_ + ay_ * ay_)
