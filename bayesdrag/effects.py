@@ -21,8 +21,10 @@ coriolis       (none)                 the model's Coriolis matrix from ``[launch
                                       ``azimuth``
 yaw_drag       delta0 [rad],          Cd (1 + k delta0^2 exp(-2 decay t)), kernel columns
                decay [1/s]            ``P_YAW_AMP = k delta0^2``, ``P_YAW_DECAY``; k = K_YAW
-lift           factor [-]             kernel column ``P_LIFT = factor * 0.02 * v0`` (yaw of
-                                      repose lift, :func:`pointmass.lift_parameter`)
+lift           factor [-]             kernel columns ``P_LIFT = factor * 0.02 * v0`` and
+                                      ``P_LIFT_VERT = LIFT_VERTICAL_FRACTION * v0`` (modified
+                                      point mass: lift and vertical force on the yaw of repose,
+                                      Mach shape, spin decay; :func:`pointmass.lift_parameter`)
 radar_time     dt [s]                 the model is evaluated at ``t + dt`` (recorded = true - dt)
 drag_scale     factor [-]             kernel column ``P_CD_SCALE``
 =============  =====================  ========================================================
@@ -203,7 +205,8 @@ def _make_effects():
                "drag Cd k delta^2 early in the flight, a range loss concentrated after launch."),
         Effect("lift", (ExtraParam("factor", 0.0, -10.0, 10.0, 0.01),), ("-",),
                "Lift on the yaw of repose of a spinning shell (modified point mass): a drift to the "
-               "right for a right-hand twist, growing with time of flight; factor 1 is a typical shell."),
+               "right for a right-hand twist, growing with time of flight, and a small rise from the "
+               "Magnus force on the same yaw; factor 1 is a typical shell."),
         Effect("radar_time", (ExtraParam("dt", 0.0, -0.2, 2.0, 1e-4),), ("s",),
                "The radar clock is late by dt: every sample shows the shell where it was dt later, "
                "so the track does not start at the muzzle at t = 0."),
