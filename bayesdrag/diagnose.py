@@ -768,8 +768,21 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             {"params": [names[i], names[j]], "corr": float(corr[i, j])}
             for i in range(len(names)) for j in range(i + 1, len(names))
             if names[i].split(".")[0] != names[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
+        # each verdict member's parameters and sd in the joint fit (its single fit may have
+        # taken up another member's signature, e.g. a cross wind for the spin drift)
+        for r in rows:
+            if r["name"] in verdict:
+                e = EFFECTS[r["name"]]
+                idx = [names.index(f"{e.name}.{p.name}") for p in e.params]
+                vals = np.array([joint["params"][names[i]] for i in idx])
+                cov_e = res.cov_colored[np.ix_([k0 + i for i in idx], [k0 + i for i in idx])]
+                r["params_joint"] = e.report_params(vals) if e.k else {}
+                r["sd_joint"] = e.report_sd(vals, cov_e) if e.k else {}
+                r["shrink_given_others"] = joint["shrink_given_others"].get(r["name"])
     best_name = rows[0]["name"] if rows else None
     y_best = fits[best_name][2] if best_name else None
+    if len(verdict) > 1:  # "after" = the verdict's joint fit
+        best_name, y_best = " + ".join(verdict), selected_fit[2]
     resid_best = (np.stack([track.channels[c] for c in chans], axis=-1) - y_best) if y_best is not None else None
     mach = np.asarray(base.mach, float)
     rn = resid_base / sig_vec[None, :]

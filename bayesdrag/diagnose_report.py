@@ -27,9 +27,13 @@ def summary_paragraph(s):
         rows = {e["name"]: e for e in s["effects"]}
         for i, n in enumerate(s["verdict"]):
             e = rows[n]
-            ps = ", ".join(f"{k} = {v:.4g} ± {e['sd'].get(k, float('nan')):.2g}" for k, v in e["params"].items())
+            # with several effects, their values from the joint fit
+            pv, sd = (e["params_joint"], e["sd_joint"]) if "params_joint" in e else (e["params"], e["sd"])
+            ps = ", ".join(f"{k} = {v:.4g} ± {sd.get(k, float('nan')):.2g}" for k, v in pv.items())
             txt = (f"{'Found' if i == 0 else 'Also'}: {n}" + (f" ({ps})" if ps else "") +
                    f", removing {100 * e['shrink']:.1f} % of the gap")
+            if e.get("shrink_given_others") is not None:
+                txt += f" alone and {100 * e['shrink_given_others']:.1f} % of what the others leave"
             if e["confounded_with"]:
                 txt += f" (the data cannot tell it from {', '.join(e['confounded_with'])})"
             if e.get("cd_shift") and "max_abs_relative" in e["cd_shift"]:

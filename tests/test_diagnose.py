@@ -144,3 +144,41 @@ def test_speed_only_track_finds_a_headwind_with_the_cross_wind_held():
     # the speed, so it is either unidentifiable or not significant
     lift = [r for r in s["effects"] if r["name"] == "lift"]
     assert "lift" in s["skipped"] or not lift[0]["significant"]
+
+
+# --- several effects at once: the 6-DOF's own spin drift beside a withheld one -----------------
+#: a clock offset found beside the drift [s]; share of what the drift leaves that it removes
+CLOCK_TOL_S, CONDITIONAL_SHRINK_MIN = 0.002, 0.9
+
+
+def _sixdof_case(**kw):
+    from validation.cases import Case, diagnosis_round, make_track
+
+    c = Case("t", "6dof", kw.pop("effect"), kw.pop("params"), kw.pop("elevation"), **kw)
+    return make_track(c), diagnosis_round(c)
+
+
+def test_sixdof_clock_offset_is_found_beside_the_spin_drift_with_its_joint_values():
+    """The 6-DOF shell drifts 100 m at 10 deg; a 40 ms clock is 2 % of that gap. Both are named,
+    the joint fit gives dt, and the clock removes nearly all of what the drift leaves."""
+    tr, rnd = _sixdof_case(effect="radar_time", params={"dt": 0.04}, elevation=10.0)
+    s = diagnose(tr, rnd).summary
+    assert set(s["verdict"]) == {"lift", "radar_time"}
+    rt = next(r for r in s["effects"] if r["name"] == "radar_time")
+    assert rt["params_joint"]["dt"] == pytest.approx(0.04, abs=CLOCK_TOL_S)
+    assert s["joint"]["shrink_given_others"]["radar_time"] >= CONDITIONAL_SHRINK_MIN
+    assert rt["shrink_given_others"] == s["joint"]["shrink_given_others"]["radar_time"]
+    from bayesdrag.diagnose_report import summary_paragraph
+    assert "of what the others leave" in summary_paragraph(s)
+
+
+def test_backward_elimination_drops_a_wind_that_stood_in_for_two_effects():
+    """6-DOF at 35 deg, density 0.95: alone, a wind (wx for the drag change, wy for the drift)
+    explains most. Forward selection then adds lift and density; backward elimination must drop
+    the wind, whose joint values are ~0."""
+    tr, rnd = _sixdof_case(effect="density", params={"ratio": 0.95}, elevation=35.0)
+    s = diagnose(tr, rnd).summary
+    assert s["effects"][[r["name"] for r in s["effects"]].index("wind")]["significant"]
+    assert set(s["verdict"]) == {"lift", "density"}
+    d = next(r for r in s["effects"] if r["name"] == "density")
+    assert d["params_joint"]["ratio"] == pytest.approx(0.95, abs=0.15 * 0.05)
