@@ -107,7 +107,7 @@ LOOKAHEAD_SHRINK = 0.5
 #: forward selection is started from at most this many of the best single candidates
 LOOKAHEAD_STARTS = 3
 #: forward selection tries at most this many further candidates per step (best single first)
-FORWARD_MAX_CANDIDATES = 5
+FORWARD_MAX_CANDIDATES = 7
 #: starting yaw amplitude k delta0^2 of a yaw_drag fit (delta0 = 0.045 rad)
 YAW_AMP_START = 0.02
 #: Bonferroni factor for the unidentified yaw decay rate under the null (see :func:`threshold`)
@@ -713,7 +713,13 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             close = (a["significant"] and b["significant"]
                      and abs(a["delta_chi2"] - b["delta_chi2"]) / max(a["inflation"], b["inflation"])
                      < _chi2.ppf(0.95, 1))
-            if cc >= CONFOUND_CORR or close:
+            # near-collinear signatures confound two effects only if the part one does not share
+            # with the other is too small to detect at the size the data give it: (1 - cc^2) of
+            # the smaller chi2 drop, in colored units (a wind and Coriolis share 99.7 % of their
+            # signature, yet with a large gap the rest is plain; density/drag_scale share all)
+            unshared = (1.0 - cc * cc) * max(min(a["delta_chi2"], b["delta_chi2"]), 0.0) / max(
+                a["inflation"], b["inflation"])
+            if (cc >= CONFOUND_CORR and unshared < _chi2.ppf(1 - alpha / K, 1)) or close:
                 a["confounded_with"].append(b["name"])
                 b["confounded_with"].append(a["name"])
     for r in rows:
@@ -879,9 +885,12 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     selected_fit = first_fit
     remaining = []
     for r in rows:  # one of each structural twin (density/drag_scale give the same fit)
-        if r is first or not r["significant"] or set(r["confounded_with"]) & set(verdict):
+        # every candidate, not only those significant alone: a small effect beside a large one
+        # is masked alone (its residuals hold the large one's misfit, which inflates its colored
+        # test), and the conditional test below is the right one -- e.g. Coriolis beside a wind
+        if r is first or set(r["confounded_with"]) & set(verdict):
             continue
-        if any(x["signature_corr"].get(r["name"], 0) >= CONFOUND_CORR for x in remaining):
+        if any(r["name"] in x["confounded_with"] for x in remaining):
             continue
         remaining.append(r)
     remaining = remaining[:FORWARD_MAX_CANDIDATES]
@@ -898,7 +907,12 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
         for r in remaining:
             e = EFFECTS[r["name"]]
             start = np.concatenate([sel_res.theta, _fit_starts(e)])
-            res, prob, y = _fit(setup, sel_effs + [e], start)
+            try:
+                res, prob, y = _fit(setup, sel_effs + [e], start)
+            except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+                continue
+            if not np.all(np.isfinite(y)) or (e.name == "yaw_drag" and res.theta[-2] < 0):
+                continue  # a failed or unphysical (negative yaw amplitude) joint fit
             d = float(sel_res.cost - res.cost)
             resid = np.stack([res.residuals[c] for c in chans], axis=-1)
             infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
