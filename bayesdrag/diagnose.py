@@ -740,7 +740,7 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             v, f = _forward(setup, rows, r0, fits[r0["name"]], gap, sig_vec, alpha)
             if best is None or _better(setup, (v, f), best, sig_vec, alpha, gap, K):
                 best = (v, f)
-        verdict, selected_fit = _backward(setup, best[0], best[1], fits, gap, sig_vec, alpha, K)
+        verdict, selected_fit, drop_one = _backward(setup, best[0], best[1], fits, gap, sig_vec, alpha, K)
         # the verdict is ordered by what each effect explains alone (its single chi2 drop), and
         # the effects list is "best first": the verdict, then the rest
         rank = {r["name"]: i for i, r in enumerate(rows)}
@@ -761,7 +761,7 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         res, _, y = selected_fit
         joint = {"effects": list(verdict), "params": {k: float(v) for k, v in res.extras.items()},
                  "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
-                 "shrink_given_others": _conditional_shrinks(setup, verdict, res, fits, base_theta)}
+                 "shrink_given_others": _conditional_shrinks(setup, res, drop_one)}
         # parameters of different effects that the joint fit can hardly tell apart: their values
         # then rest on the shapes of the models (e.g. a cross wind against the spin drift of a
         # shell whose lift differs from the generic Mach shape) more than on the data
@@ -877,10 +877,9 @@ def _better(setup, new, old, sig_vec, alpha, gap, K):
 
 
 def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
-    """Forward selection starting from ``first``: add the candidate whose conditional chi2
-    drop is significant (colored, Bonferroni over the remaining) and at least
-    ``MIN_SECOND_SHARE`` of the gap, the largest first, up to ``MAX_VERDICT`` effects."""
-    chans = setup.channels
+    """Forward selection starting from ``first``: add the candidate that :func:`_admits`
+    (Bonferroni over the remaining) with the largest conditional chi2 drop, up to
+    ``MAX_VERDICT`` effects."""
     verdict = [first["name"]]
     selected_fit = first_fit
     remaining = []
@@ -896,7 +895,7 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     remaining = remaining[:FORWARD_MAX_CANDIDATES]
     floor_n = _n_obs(setup) + len(setup.priors)
     while remaining and len(verdict) < MAX_VERDICT:
-        sel_res, _, sel_y = selected_fit
+        sel_res = selected_fit[0]
         # what is left above the noise floor (an addition must remove a share of the gap or of this)
         left = float(sel_res.cost) - (floor_n - int(sel_res.free.sum()))
         if left <= 0:
@@ -913,11 +912,7 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
                 continue
             if not np.all(np.isfinite(y)) or (e.name == "yaw_drag" and res.theta[-2] < 0):
                 continue  # a failed or unphysical (negative yaw amplitude) joint fit
-            d = float(sel_res.cost - res.cost)
-            resid = np.stack([res.residuals[c] for c in chans], axis=-1)
-            infl = colored_inflation(y - sel_y, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-            ok = (d / infl > threshold(e, alpha / Kr, k_free(setup, e))
-                  and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, res, d, left, sig_vec)))
+            ok, d = _admits(setup, e, selected_fit, (res, prob, y), gap, sig_vec, alpha / Kr)
             if ok and (best_add is None or d > best_add[1]):
                 best_add = (r["name"], d, (res, prob, y))
         if best_add is None:
@@ -929,24 +924,48 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
     return verdict, selected_fit
 
 
-def _conditional_shrinks(setup, verdict, joint_res, fits, base_theta):
-    """For each member of a multi-effect verdict, the fraction of the gap left by the *other*
-    members that it removes: ``(cost(others) - cost(all)) / (cost(others) - noise floor)``.
-    This is "how far the gap shrinks once that effect is added" when the track carries more
-    than one effect (e.g. a 6-DOF shell's spin drift besides a withheld clock offset)."""
-    floor_n = _n_obs(setup) + len(setup.priors)
+def _admits(setup, e, small, big, gap, sig_vec, a):
+    """Would effect ``e`` be admitted to the explanation ``small`` to give ``big``? (fits as
+    (res, prob, y)). Its conditional chi2 drop ``d`` must be significant at level ``a`` in
+    colored units (inflation from the residuals of ``big``) and remove ``MIN_SECOND_SHARE`` of
+    the gap or, by :func:`_left_share_ok`, most of what ``small`` leaves. Returns (ok, d)."""
+    (sres, _, sy), (bres, _, by) = small, big
+    d = float(sres.cost - bres.cost)
+    resid = np.stack([bres.residuals[c] for c in setup.channels], axis=-1)
+    infl = colored_inflation(by - sy, autocovariance(resid, setup.weights), sig_vec, setup.weights)
+    left = float(sres.cost) - (_n_obs(setup) + len(setup.priors) - int(sres.free.sum()))
+    ok = (d / infl > threshold(e, a, k_free(setup, e))
+          and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, bres, d, left, sig_vec)))
+    return ok, d
+
+
+def _drop_one_fits(setup, verdict, fit, fits):
+    """Fits (res, prob, y) of the verdict without each member, by name (single fits re-used;
+    a member whose reduced fit fails is left out)."""
+    res = fit[0]
     out = {}
     for n in verdict:
         others = [m for m in verdict if m != n]
         if len(others) == 1 and others[0] in fits:
-            res_o = fits[others[0]][0]
-        else:
-            effs = [EFFECTS[m] for m in others]
-            start = np.concatenate([base_theta] + [_fit_starts(e) for e in effs])
-            try:
-                res_o = _fit(setup, effs, start)[0]
-            except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
-                continue
+            out[n] = fits[others[0]]
+            continue
+        effs = [EFFECTS[m] for m in others]
+        try:
+            out[n] = _fit(setup, effs, np.concatenate([res.theta[:setup.P + 6]] + [_fit_starts(e) for e in effs]))
+        except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+            continue
+    return out
+
+
+def _conditional_shrinks(setup, joint_res, subs):
+    """For each member of a multi-effect verdict, the fraction of the gap left by the *other*
+    members that it removes: ``(cost(others) - cost(all)) / (cost(others) - noise floor)``.
+    This is "how far the gap shrinks once that effect is added" when the track carries more
+    than one effect (e.g. a 6-DOF shell's spin drift besides a withheld clock offset).
+    ``subs``: the verdict's drop-one fits (:func:`_drop_one_fits`)."""
+    floor_n = _n_obs(setup) + len(setup.priors)
+    out = {}
+    for n, (res_o, _, _) in subs.items():
         left = float(res_o.cost) - (floor_n - int(res_o.free.sum()))
         out[n] = float(np.clip((res_o.cost - joint_res.cost) / left, 0.0, 1.0)) if left > 0 else 0.0
     return out
@@ -954,38 +973,21 @@ def _conditional_shrinks(setup, verdict, joint_res, fits, base_theta):
 
 def _backward(setup, verdict, fit, fits, gap, sig_vec, alpha, K):
     """Backward elimination after forward selection: drop a member that would not be admitted
-    to the verdict without it (same rule as :func:`_forward`), the least useful first, and refit.
-    A flexible effect chosen first because it mimics two real ones at once (a head wind for a
-    density change, its cross wind for the spin drift) is thus removed once both have entered."""
+    to the verdict without it (:func:`_admits`, as in :func:`_forward`), the least useful first,
+    and refit. A flexible effect chosen first because it mimics two real ones at once (a head
+    wind for a density change, its cross wind for the spin drift) is thus removed once both have
+    entered. Returns (verdict, fit, drop-one fits of that verdict)."""
     verdict = list(verdict)
-    chans = setup.channels
-    while len(verdict) > 1:
+    while True:
+        subs = _drop_one_fits(setup, verdict, fit, fits) if len(verdict) > 1 else {}
         worst = None
-        res, _, y = fit
-        for n in verdict:
-            others = [m for m in verdict if m != n]
-            if len(others) == 1 and others[0] in fits:
-                sub = fits[others[0]]
-            else:
-                effs = [EFFECTS[m] for m in others]
-                try:
-                    sub = _fit(setup, effs, np.concatenate([res.theta[:setup.P + 6]]
-                                                           + [_fit_starts(e) for e in effs]))
-                except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
-                    continue
-            d = float(sub[0].cost - res.cost)
-            resid = np.stack([res.residuals[c] for c in chans], axis=-1)
-            infl = colored_inflation(y - sub[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
-            left = float(sub[0].cost) - (_n_obs(setup) + len(setup.priors) - int(sub[0].free.sum()))
-            e = EFFECTS[n]
-            keep = (d / infl > threshold(e, alpha / K, k_free(setup, e))
-                    and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, res, d, left, sig_vec)))
+        for n, sub in subs.items():
+            keep, d = _admits(setup, EFFECTS[n], sub, fit, gap, sig_vec, alpha / K)
             if not keep and (worst is None or d < worst[1]):
-                worst = (n, d, sub, others)
+                worst = (n, d, sub)
         if worst is None:
-            break
-        verdict, fit = worst[3], worst[2]
-    return verdict, fit
+            return verdict, fit, subs
+        verdict, fit = [m for m in verdict if m != worst[0]], worst[2]
 
 
 def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):

@@ -412,19 +412,21 @@ class PointMassModel:
         """Copy with some attributes changed (e.g. ``model.with_(wind=(3, 0, 0))``)."""
         return replace(self, **changes)
 
+    def _spin_speed(self, state0):
+        """Speed v0 [m/s] that sets the spin: ``lift_v0``, else each initial state's speed."""
+        state0 = np.asarray(state0, dtype=float)
+        v0 = self.lift_v0 if self.lift_v0 is not None else np.linalg.norm(state0[..., 3:], axis=-1)
+        return np.broadcast_to(np.asarray(v0, dtype=float), state0.shape[:-1])
+
     def lift_constant(self, state0):
         """Lift constant L [m/s] for initial states (..., 6) (``lift_parameter``)."""
         if self.lift_factor == 0.0:
             return np.zeros(np.shape(state0)[:-1])
-        state0 = np.asarray(state0, dtype=float)
-        v0 = self.lift_v0 if self.lift_v0 is not None else np.linalg.norm(state0[..., 3:], axis=-1)
-        return lift_parameter(self.lift_factor, np.broadcast_to(v0, state0.shape[:-1]))
+        return lift_parameter(self.lift_factor, self._spin_speed(state0))
 
     def lift_vertical_speed(self, state0):
         """Vertical-force speed m = LIFT_VERTICAL_FRACTION v0 [m/s] for initial states (..., 6)."""
-        state0 = np.asarray(state0, dtype=float)
-        v0 = self.lift_v0 if self.lift_v0 is not None else np.linalg.norm(state0[..., 3:], axis=-1)
-        return self.lift_vertical_fraction * np.broadcast_to(np.asarray(v0, dtype=float), state0.shape[:-1])
+        return self.lift_vertical_fraction * self._spin_speed(state0)
 
     def par_row(self, state0=None):
         """Kernel parameter row (N_PAR,) for this model.
