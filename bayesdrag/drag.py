@@ -36,6 +36,7 @@ from scipy.interpolate import BSpline, PchipInterpolator
 
 __all__ = [
     "MachGrid", "DragModel", "Poly2", "Poly2Split", "Spline", "ReferenceTable", "ReferenceScale",
+    "TableSpline",
     "read_drag_table", "make_drag_model", "default_spline_knots", "DRAG_MODEL_NAMES",
 ]
 
@@ -186,6 +187,26 @@ class DragModel:
         # one matrix product (BLAS) instead of einsum's loops: the sampler calls this per step
         flat = params.reshape(-1, P) @ kb.reshape(K * C, P).T
         return np.ascontiguousarray(flat.reshape(params.shape[:-1] + (K, C)))
+
+    def params_for(self, mach, cd):
+        """Parameters that follow the curve ``cd(mach)`` best in relative error (least squares),
+        clipped to the bounds.
+
+        Parameters
+        ----------
+        mach, cd : (K,) array_like
+            Points of the target curve (Cd > 0).
+
+        Returns
+        -------
+        (P,) ndarray
+        """
+        mach = np.asarray(mach, dtype=float)
+        cd = np.asarray(cd, dtype=float)
+        B = self.basis(mach) / cd[:, None]
+        theta, *_ = np.linalg.lstsq(B, np.ones_like(cd), rcond=None)
+        lb, ub = self.bounds
+        return np.clip(theta, lb, ub)
 
     def initial_params(self, reference=None):
         """A reasonable starting point: least squares to ``reference`` (a DragModel with no
@@ -539,6 +560,69 @@ class ReferenceScale(DragModel):
     @property
     def fit_range(self):
         return self.reference.mach_range
+
+
+@dataclass(frozen=True, eq=False)
+class TableSpline(DragModel):
+    """Cd(M) = table(M) x s(M): a firing table times a smooth correction, a cubic B-spline.
+
+    The table is evaluated exactly (its PCHIP), so a correct table costs nothing however steep
+    its drag rise: the correction is then a constant. The correction's coefficients
+    ``c0..c{P-1}`` are close to ``Cd / table`` near where each basis function peaks; beyond the
+    end knots the correction is held at its end value while the table goes on.
+
+    Attributes
+    ----------
+    reference : ReferenceTable
+    knots : tuple of float
+        Knots of the correction (as :class:`Spline`).
+    """
+
+    reference: ReferenceTable = None
+    knots: tuple = ()
+    name: str = field(default="spline", init=False)
+
+    def __post_init__(self):
+        if not isinstance(self.reference, ReferenceTable):
+            raise ValueError("a table-times-correction drag model needs a reference drag table")
+        spl = Spline(tuple(self.knots))  # validates the knots
+        object.__setattr__(self, "knots", spl.knots)
+        object.__setattr__(self, "_spline", spl)
+
+    @property
+    def param_names(self):
+        return tuple(f"c{i}" for i in range(len(self.knots) + 2))
+
+    @property
+    def correction(self):
+        """The correction s(M) as a :class:`Spline` (same coefficients)."""
+        return self._spline
+
+    def basis(self, mach):
+        m = np.asarray(mach, dtype=float)
+        return self.reference.value(m)[..., None] * self._spline.basis(m)
+
+    def basis_slope(self, mach):
+        m = np.asarray(mach, dtype=float)
+        return (self.reference.slope(m)[..., None] * self._spline.basis(m)
+                + self.reference.value(m)[..., None] * self._spline.basis_slope(m))
+
+    def curve(self, params):
+        s, base = self._spline.curve(params), self.reference.curve()
+        return lambda m: s(m) * base(m)
+
+    @property
+    def bounds(self):
+        P = self.n_params
+        return np.full(P, 0.05), np.full(P, 20.0)
+
+    def initial_params(self, reference=None):
+        return self.params_for(np.linspace(*self.fit_range, 200),
+                               self.reference.value(np.linspace(*self.fit_range, 200)))
+
+    @property
+    def fit_range(self):
+        return (self.knots[0], self.knots[-1])
 
 
 @lru_cache(maxsize=64)

@@ -23,8 +23,6 @@ from .outputs import write_json as _write_json
 from .outputs import write_figure as _write_figure
 
 PARTIAL = "chain.partial.h5"
-#: lag-1 residual autocorrelation above which the fit warns of model error (white noise: ~0 +- 2/sqrt(N))
-RESIDUAL_ACF_WARN = 0.5
 CHAIN = "chain.h5"
 
 
@@ -51,7 +49,8 @@ def run_fit(args, echo=print, on_fit=None):
     """
     import numpy as np
 
-    from .estimate.scheme1 import cd_table, determined_range, fit_scheme1
+    from .estimate.quality import assess, check_against_flexible
+    from .estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1
     from .track import read_round, read_track
 
     t_start = time.perf_counter()
@@ -86,8 +85,17 @@ def run_fit(args, echo=print, on_fit=None):
     out.mkdir(parents=True, exist_ok=True)
     dm = prob.model.drag
     lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
-    grid = np.round(np.linspace(lo, hi, 81), 4)
+    grid = cd_grid(lo, hi)
     rows = cd_table(res, dm, grid, rnd.reference_drag)
+    quality = assess(res, prob, rows, track, rnd.radar.sigma)
+    if dm.name != "spline":
+        # a rigid model's band holds no shape error: check its curve against the flexible fit
+        res_f, prob_f = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not args.fix_ic,
+                                    likelihood=lik, nu=_ml_nu(args), start=prob.start)
+        if res_f.success:
+            rows_f = cd_table(res_f, prob_f.model.drag, grid, rnd.reference_drag)
+            assess(res_f, prob_f, rows_f, track, rnd.radar.sigma)
+            check_against_flexible(rows, rows_f, quality, dm.name)
     det = determined_range(rows)
     free = [n for n, f in zip(res.names, res.free) if f]
     result = {
@@ -103,21 +111,14 @@ def run_fit(args, echo=print, on_fit=None):
                "likelihood": lik,
                "rejected_samples": getattr(prob, "rejected", None),
                "smoothing": ({k: v for k, v in prob.smoothing.items() if k != "grid"}
-                             if getattr(prob, "smoothing", None) else None)},
+                             if getattr(prob, "smoothing", None) else None),
+               "quality": quality},
         "cd": rows,
     }
     smoothing = getattr(prob, "smoothing", None)
     if smoothing:
         result["ml"]["smoothing"] = {k: v for k, v in smoothing.items() if isinstance(v, (int, float, str))}
-    warnings = list(res.warnings)
-    from .plots import residual_acf
-
-    for c, r in res.residuals.items():
-        r1 = float(residual_acf(r, 1)[1])
-        if r1 > RESIDUAL_ACF_WARN:
-            warnings.append(f"residuals of channel {c} are strongly autocorrelated (lag-1 {r1:.2f}): model "
-                            f"error, not noise; the Cramér-Rao and posterior bands are too narrow (see the "
-                            f"colored CRB and residuals.png)")
+    warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
     bayes = post = idata = None
     if mcmc:
         bayes, post, idata, rows = _sample(args, prob, res, rows, dm, grid, rnd, out, quiet)
@@ -138,8 +139,9 @@ def run_fit(args, echo=print, on_fit=None):
     if not quiet:
         for w in warnings:
             _echo_err(f"bayesdrag: warning: {w}")
-    echo(f"fit: {res.message} in {res.iterations} iterations; Cd determined over Mach "
-         f"{det[0]:.2f}-{det[1]:.2f}" if det else f"fit: {res.message}; Cd nowhere determined to 1 %")
+    caveat = "" if quality["ok"] else " -- NOT a clean answer: the model misses the track (warnings above)"
+    echo((f"fit: {res.message} in {res.iterations} iterations; Cd determined over Mach "
+          f"{det[0]:.2f}-{det[1]:.2f}" if det else f"fit: {res.message}; Cd nowhere determined to 1 %") + caveat)
     if bayes is not None:
         echo(f"mcmc: {bayes.message}; {bayes.steps} steps x {bayes.nwalkers} walkers in {bayes.elapsed:.1f} s")
         echo(f"  wrote {out / 'result.json'}, posterior.nc, chain.h5, report.html and figures")

@@ -365,14 +365,23 @@ class RadarTrack:
 
 # (median speed-from-positions / v, explanation) for the unit check
 _UNIT_GUESSES = (
+    (1.0 / 0.9144, "x, y, z look like yards (expected metres)"),
+    (0.9144, "v looks like yd/s (expected m/s)"),
     (1e-3, "x, y, z look like kilometres (expected metres)"),
     (1.0 / 3.6, "v looks like km/h (expected m/s)"),
     (0.3048, "v looks like ft/s (expected m/s)"),
     (1.0 / 0.3048, "x, y, z look like feet (expected metres)"),
     (1e3, "x, y, z look like millimetres (expected metres), or v like km/s (expected m/s)"),
 )
-#: the unit check fires only when the median ratio is off from 1 by more than this factor
+#: the unit check fires when the median ratio is off from 1 by more than this factor, or, with x
+#: and z present (the speed from the positions is then the whole speed: the drift y is tiny), by
+#: more than :data:`UNIT_REL_LIMIT` and :data:`UNIT_SIGNIFICANCE` of its standard errors. A
+#: consistent track's ratio is 1 to ~0.1 %: chords of 0.5 s are shorter than the arc by
+#: (curvature x length)^2 / 24 ~ 1e-6, a missing y channel hides < 0.1 % of the speed, and the
+#: noise averages out in the median. Yards beside m/s give 0.914.
 UNIT_RATIO_LIMIT = 3.0
+UNIT_REL_LIMIT = 0.05
+UNIT_SIGNIFICANCE = 5.0
 
 
 def _speed_ratio(t, channels):
@@ -381,7 +390,7 @@ def _speed_ratio(t, channels):
     v = channels.get("v")
     n = t.size
     if not pos or v is None or n < 2:
-        return None, pos
+        return None, pos, None
     dt_med = float(np.median(np.diff(t)))
     # chords of ~0.5 s average the radar noise down (1 m noise -> ~3 m/s) and bend negligibly
     k = int(min(max(round(0.5 / dt_med), 1), max((n - 1) // 2, 1)))
@@ -392,22 +401,29 @@ def _speed_ratio(t, channels):
     vm = 0.5 * (v[i0] + v[i1])
     ok = vm > 0
     if not ok.any():
-        return None, pos
-    return float(np.median(speed[ok] / vm[ok])), pos
+        return None, pos, None
+    q = speed[ok] / vm[ok]
+    med = float(np.median(q))
+    # standard error of the median from the MAD; chords overlap by k samples, so count only
+    # non-overlapping ones as independent
+    n_ind = max(q.size / k, 1.0)
+    se = 1.2533 * 1.4826 * float(np.median(np.abs(q - med))) / math.sqrt(n_ind)
+    return med, pos, se
 
 
 def _check_units(path, t, channels):
-    r, pos = _speed_ratio(t, channels)
+    r, pos, se = _speed_ratio(t, channels)
     if r is None:
         return
     full = "x" in pos and "z" in pos  # drift y is small: x and z carry nearly all of |dr/dt|
     too_high = r > UNIT_RATIO_LIMIT
     # with missing components the position speed is legitimately below v; only x alone still bounds it
     low_limit = 1.0 / UNIT_RATIO_LIMIT if full else (0.01 if "x" in pos else 0.0)
-    if not (too_high or r < low_limit):
+    near = full and abs(r - 1.0) > UNIT_REL_LIMIT and abs(r - 1.0) > UNIT_SIGNIFICANCE * se
+    if not (too_high or r < low_limit or near):
         return
     guess = min(_UNIT_GUESSES, key=lambda g: abs(math.log(max(r, 1e-300) / g[0])))
-    if abs(math.log(max(r, 1e-300) / guess[0])) < math.log(1.3):
+    if abs(math.log(max(r, 1e-300) / guess[0])) < math.log(1.3 if abs(math.log(guess[0])) > 0.5 else 1.03):
         why = guess[1]
         if guess[0] == 1e-3 and t[-1] - t[0] > 1000.0:
             why = "t looks like milliseconds (expected seconds), or " + why

@@ -25,7 +25,7 @@ SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 RMS_OVER_SIGMA_MAX = 1.3
 #: a table of the *reference* Cd off by 1 % must be visibly worse (the test can fail)
 WRONG_SCALE = 1.01
-#: PCHIP through result.json's ~0.02-Mach rows vs the exact spline (worst at the drag-rise knee)
+#: PCHIP through result.json's <= 0.01-Mach rows vs the exact spline (worst at the drag-rise knee)
 ROW_INTERP_REL_TOL = 0.006
 
 
@@ -112,9 +112,9 @@ def test_pbc_with_the_exported_table_reproduces_the_track_within_noise(fitted):
 
 def test_export_from_a_result_folder_and_csv(fitted, tmp_path):
     d, track, rnd, res, prob = fitted
-    from bayesdrag.estimate.scheme1 import cd_table, determined_range
+    from bayesdrag.estimate.scheme1 import cd_grid, cd_table, determined_range
 
-    grid = np.round(np.linspace(np.min(res.mach), np.max(res.mach), 81), 4)
+    grid = cd_grid(np.min(res.mach), np.max(res.mach))  # the grid result.json carries
     rows = cd_table(res, prob.model.drag, grid, rnd.reference_drag)
     (tmp_path / "result.json").write_text(json.dumps({"drag_model": "spline", "cd": rows,
                                                        "ml": {"mach_range_determined": list(determined_range(rows))}}))

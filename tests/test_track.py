@@ -351,11 +351,32 @@ def test_units_no_false_alarm_partial_positions(tmp_path):
     assert read_track(write_csv(tmp_path, csv_of(t, {"x": ch["x"], "v": ch["v"]}))).names == ("x", "v")
 
 
-def test_units_borderline_not_flagged(tmp_path):
-    # a factor 2 disagreement (e.g. a wrong drag or a poor track) is not a clear unit mistake
+#: positions and speed that disagree by less than this are accepted (track.UNIT_REL_LIMIT is 5 %)
+UNIT_AGREEMENT_OK = 0.02
+
+
+def test_units_small_disagreement_not_flagged(tmp_path):
+    # a 2 % disagreement between the speed channel and the positions is not a unit mistake
+    t, ch = vacuum_track()
+    ch["v"] = ch["v"] * (1.0 + UNIT_AGREEMENT_OK)
+    assert read_track(write_csv(tmp_path, csv_of(t, ch))).n == t.size
+
+
+def test_channels_that_disagree_are_refused(tmp_path):
+    # a factor 2 between the speed from the positions and v matches no unit: the channels
+    # disagree, and a fit of them would be meaningless (exit 2 with the check to make)
     t, ch = vacuum_track()
     ch["v"] = ch["v"] * 2.0
-    assert read_track(write_csv(tmp_path, csv_of(t, ch))).n == t.size
+    with pytest.raises(InputError, match=r"0\.5 times v .*check the units of x, y, z \(m\), v \(m/s\)"):
+        read_track(write_csv(tmp_path, csv_of(t, ch)))
+
+
+def test_positions_in_yards_beside_speed_in_m_s(tmp_path):
+    t, ch = vacuum_track()
+    for c in ("x", "y", "z"):
+        ch[c] = ch[c] / 0.9144
+    with pytest.raises(InputError, match=r"1\.094 times v.*x, y, z look like yards"):
+        read_track(write_csv(tmp_path, csv_of(t, ch)))
 
 
 def test_units_v_alone_not_checked(tmp_path):

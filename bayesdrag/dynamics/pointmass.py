@@ -573,6 +573,39 @@ class PointMassModel:
         msg = "impact" if t_imp is not None else sol.message
         return Trajectory(t_out, state, self.mach_of(state), True, msg, t_imp)
 
+    def state_at(self, drag_params, state, t_from, t_to, rtol=1e-9, atol=1e-6):
+        """State at ``t_to`` from ``state`` at ``t_from``, forwards or backwards in time.
+
+        A solve_ivp (DOP853) integration with the exact drag curve and atmosphere; backwards it
+        answers "where was the shell at launch" for a track that starts later. Outside the drag
+        model's Mach span its curve is held at the end value, so a long backward extrapolation
+        beyond the data is approximate.
+
+        Parameters
+        ----------
+        drag_params : (P,) array
+        state : (6,) array
+            ``[x, y, z, vx, vy, vz]`` [m, m/s] at ``t_from``.
+        t_from, t_to : float [s]
+
+        Returns
+        -------
+        (6,) ndarray, or None when the integration failed.
+        """
+        state = np.asarray(state, dtype=float)
+        if t_to == t_from:
+            return state.copy()
+        rhs = self._rhs(np.asarray(drag_params, dtype=float), 0.0, float(self.lift_constant(state)),
+                        float(self.lift_vertical_speed(state)) if self.lift_factor != 0.0 else 0.0)
+        try:
+            sol = solve_ivp(rhs, (float(t_from), float(t_to)), np.append(state, 1.0), method="DOP853",
+                            rtol=rtol, atol=atol)
+        except ValueError:
+            return None
+        if sol.status < 0 or not np.all(np.isfinite(sol.y[:6, -1])):
+            return None
+        return sol.y[:6, -1].copy()
+
     def kernel_inputs(self, drag_params, overrides=None, atmospheres=None, state0=None):
         """Arrays for :func:`_kernel.integrate_batch` for B parameter sets.
 

@@ -76,6 +76,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import gammaln
 
+from .._threads import single_blas
 from ..errors import FitError, InputError
 
 #: prior sd of non-drag parameters in units of their Cramér-Rao sd
@@ -765,6 +766,7 @@ def _tau(chain, c=5):
     return taus[window, np.arange(taus.shape[1])]
 
 
+@single_blas
 def sample_posterior(post, nwalkers=None, max_steps=20000, check_every=None, seed=None,
                      moves="auto", backend_path=None, resume=False, progress=False,
                      log=None, min_steps=100, move_options=None):

@@ -54,6 +54,10 @@ _CH_INDEX = {"x": 0, "y": 1, "z": 2}
 #: against the kernel's rounding
 IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
 
+#: a fit that no step improves has converged when Gauss-Newton predicts a cost decrease below
+#: this (the cost is a chi2: 1e-3 is far below what the data can tell)
+STUCK_PREDICTED_DECREASE = 1e-3
+
 #: longest backward extrapolation from the initial state for a shifted radar clock [s]
 MAX_BACKWARD = 0.25
 
@@ -379,8 +383,94 @@ class OutputErrorProblem:
         return r, J
 
     # ----------------------------------------------------------------------------------------
-    def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3):
-        """Run Gauss-Newton / Levenberg-Marquardt with R relaxation. Returns :class:`MLResult`."""
+    def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False):
+        """Run Gauss-Newton / Levenberg-Marquardt with R relaxation. Returns :class:`MLResult`.
+
+        Parameters
+        ----------
+        max_iter : int
+        tol_cost, tol_step, tol_sigma : float
+            Convergence rules (module docstring).
+        fallback : bool
+            When Levenberg-Marquardt ends without converging, continue from where it stopped with
+            scipy's trust-region reflective least squares (:meth:`fit_trust_region`) at the
+            noise sd reached, and keep whichever result converged with the lower cost.
+        """
+        res = self._fit_lm(max_iter, tol_cost, tol_step, tol_sigma)
+        if res.converged or not fallback or not np.all(np.isfinite(res.theta)):
+            return res
+        alt = self.fit_trust_region(res.theta, res.sigma)
+        if alt.converged and (alt.cost <= res.cost * (1 + 1e-9) or not res.converged):
+            if len(self.sigma_fixed) < len(self.channels):
+                # the noise sd was held at the LM's last estimate: one more relaxation pass
+                theta0 = self.theta0
+                self.theta0 = alt.theta.copy()
+                try:
+                    again = self._fit_lm(max_iter, tol_cost, tol_step, tol_sigma)
+                finally:
+                    self.theta0 = theta0
+                if again.converged:
+                    return again
+            return alt
+        return res
+
+    def fit_trust_region(self, theta, sigma, max_nfev=200):
+        """Minimise the cost at fixed noise sd ``sigma`` with scipy's ``least_squares``
+        (trust-region reflective, bounds respected, our central-difference Jacobian), from
+        ``theta``. Returns :class:`MLResult`; ``converged`` when scipy reports success."""
+        from scipy.optimize import least_squares
+
+        idx = np.flatnonzero(self.free)
+        sig_vec = np.array([sigma[c] for c in self.channels])
+        sw = np.sqrt(self.weights / sig_vec[None, :] ** 2)
+        base = np.asarray(theta, float).copy()
+        cache = {}
+
+        def full(x):
+            th = base.copy()
+            th[idx] = x
+            return th
+
+        def fun_jac(x):
+            key = x.tobytes()
+            if key not in cache:
+                th = full(x)
+                y, _, S = self.sensitivities(th)
+                r = ((self.z - y) * sw).reshape(-1)
+                J = -(S * sw[:, :, None]).reshape(-1, idx.size)
+                pr, pJ = self._prior_terms(th)
+                if pr.size:
+                    r = np.concatenate([r, pr])
+                    J = np.vstack([J, -pJ])
+                if not np.all(np.isfinite(r)):
+                    r = np.full_like(r, 1e10)
+                    J = np.zeros_like(J)
+                cache.clear()
+                cache[key] = (r, J)
+            return cache[key]
+
+        lo = np.where(np.isfinite(self.lower[idx]), self.lower[idx], -np.inf)
+        hi = np.where(np.isfinite(self.upper[idx]), self.upper[idx], np.inf)
+        x0 = np.clip(base[idx], np.nextafter(lo, np.inf), np.nextafter(hi, -np.inf))
+        try:
+            sol = least_squares(lambda x: fun_jac(x)[0], x0, jac=lambda x: fun_jac(x)[1],
+                                bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
+                                ftol=1e-10, xtol=1e-10, gtol=1e-10)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            th = full(x0)
+            y, mach, S = self.sensitivities(th)
+            return self._finish(th, y, mach, S, self.z - y, dict(sigma), self._cost(self.z - y, sigma, th),
+                                False, f"trust-region fallback failed: {exc}", 0, [])
+        th = full(sol.x)
+        y, mach, S = self.sensitivities(th)
+        resid = self.z - y
+        cost = self._cost(resid, sigma, th)
+        ok = bool(sol.success and np.all(np.isfinite(y)))
+        msg = (f"converged (trust-region fallback: {sol.message})" if ok
+               else f"not converged (trust-region fallback: {sol.message})")
+        return self._finish(th, y, mach, S, resid, dict(sigma), cost, ok, msg, int(sol.nfev), [cost])
+
+    def _fit_lm(self, max_iter, tol_cost, tol_step, tol_sigma):
         theta = np.clip(self.theta0, self.lower, self.upper)
         idx = np.flatnonzero(self.free)
         C = len(self.channels)
@@ -432,7 +522,19 @@ class OutputErrorProblem:
                     break
                 lam *= 10
             if not accepted:
-                message = "no step reduces the cost (damping above 1e10): the fit is stuck"
+                # no step reduces the cost: at the minimum when the Gauss-Newton decrease the
+                # model predicts is negligible against one unit of chi2 (the cost's scale)
+                try:
+                    pred = float(g @ np.linalg.lstsq(M, g, rcond=None)[0])
+                except np.linalg.LinAlgError:
+                    pred = np.inf
+                if pred < STUCK_PREDICTED_DECREASE:
+                    converged = True
+                    message = (f"converged: no step reduces the cost and the predicted decrease "
+                               f"{pred:.2g} is negligible (< {STUCK_PREDICTED_DECREASE:g} chi2)")
+                else:
+                    message = (f"no step reduces the cost (damping above 1e10) although a decrease "
+                               f"of {pred:.3g} is predicted: the fit is stuck")
                 break
             lam = max(lam / 10, 1e-9)
             dtheta = trial[idx] - theta[idx]

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import savgol_coeffs
 
+from .._threads import single_blas
 from ..drag import Constant
 from ..dynamics.pointmass import PointMassModel
 from ..errors import InputError
@@ -183,6 +184,7 @@ def smoothed_state(t, positions, i, smooth, polyorder=POLYORDER):
     return state, np.array([np.linalg.norm(c0), np.linalg.norm(c1)])
 
 
+@single_blas
 def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, free_ic=True,
                 smooth=None, polyorder=POLYORDER, progress=None):
     """Scheme 2 ML fit: a constant Cd in each window of samples.

@@ -1,0 +1,122 @@
+"""Noise sd and gross outliers from a track's own high-frequency content.
+
+Per channel, the residual about a local cubic (Savitzky-Golay over :data:`HF_WINDOW` samples,
+never across a dropout or gap) measures what no smooth flight can produce: noise. Its robust sd,
+corrected for the part the smoother absorbs, estimates the noise sd; samples further than
+``OUTLIER_K`` robust sd from the local curve are gross outliers. The fit's residuals are never
+used for this: a misfit would inflate the estimate and hide itself (the fit's goodness-of-fit
+gate, :mod:`bayesdrag.estimate.quality`, compares the two).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+
+#: gross-outlier threshold in robust sd of the high-frequency residual
+OUTLIER_K = 5.0
+#: Savitzky-Golay window (samples) and order of the local smoother for noise and outliers
+HF_WINDOW, HF_ORDER = 11, 3
+
+
+def hf_residual_t(t, z, window=HF_WINDOW, order=HF_ORDER):
+    """:func:`hf_residual` applied per run of regular sampling: the track is split where a
+    sample interval exceeds 1.5 times the median (dropouts, gaps), so the smoother never
+    bridges a gap. Runs shorter than the window get residual 0 and ``valid`` False."""
+    dtt = np.diff(t)
+    med = np.median(dtt) if dtt.size else 1.0
+    cuts = np.flatnonzero(dtt > 1.5 * med) + 1
+    e = np.zeros_like(z)
+    valid = np.zeros(z.size, bool)
+    fac = 1.0
+    for seg in np.split(np.arange(z.size), cuts):
+        if seg.size >= window:
+            e[seg], fac = hf_residual(z[seg], window, order)
+            valid[seg] = True
+    if not valid.any():
+        e, fac = hf_residual(z, window, order)
+        valid[:] = True
+    return e, fac, valid
+
+
+def hf_residual(z, window=HF_WINDOW, order=HF_ORDER):
+    """Residual of a channel about a local polynomial smoother and its variance factor.
+
+    Parameters
+    ----------
+    z : (N,) array
+    window, order : int
+
+    Returns
+    -------
+    e : (N,) array
+        ``z - smoothed(z)``.
+    factor : float
+        ``var(e) / sigma^2`` for white noise of sd sigma (``1 - h0``, h0 the smoother's central
+        weight).
+    """
+    n = z.size
+    w = min(window, n if n % 2 else n - 1)
+    if w <= order + 1:
+        return np.zeros_like(z), 1.0
+    e = z - savgol_filter(z, w, order, mode="interp")
+    h0 = float(savgol_coeffs(w, order)[w // 2])  # central weight of the smoother
+    return e, max(1.0 - h0, 1e-3)
+
+
+def _robust_sd(e):
+    med = np.median(e)
+    return 1.4826 * float(np.median(np.abs(e - med)))
+
+
+def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
+    """Noise sd per channel and a gross-outlier mask, from the data's high-frequency content.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    channels : sequence of str
+    sigma_given : dict, optional
+        A-priori sd per channel (the round's ``[radar] sigma``); used where given.
+    k : float
+        Outlier threshold in robust sd of the high-frequency residual.
+
+    Returns
+    -------
+    sigma : dict channel -> sd; source : dict channel -> "round" | "estimated";
+    outliers : (N, C) bool array
+    """
+    sigma, source = {}, {}
+    out = np.zeros((track.n, len(channels)), bool)
+    for j, c in enumerate(channels):
+        z = np.asarray(track.channels[c], float)
+        flagged = np.zeros(z.size, bool)
+        e, fac, valid = hf_residual_t(track.t, z)
+        for _ in range(3):  # re-smooth with the flagged samples interpolated over
+            zz = z.copy()
+            if flagged.any() and (~flagged).sum() > 2:
+                zz[flagged] = np.interp(track.t[flagged], track.t[~flagged], z[~flagged])
+            e, fac, valid = hf_residual_t(track.t, zz)
+            use = valid & ~flagged
+            s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
+            if sigma_given and c in sigma_given:
+                # never call a sample an outlier for deviating by less than k stated sd: on a
+                # short or coarsely quantised track the smoother follows the data too closely
+                # and its residual sd is far below the noise (Warner's 16-sample reports)
+                s = max(s, float(sigma_given[c]))
+            if s <= 0:
+                break
+            new = valid & (np.abs(z - (zz - e)) > k * s)
+            if np.array_equal(new, flagged):
+                break
+            flagged = new
+        out[:, j] = flagged
+        if sigma_given and c in sigma_given:
+            sigma[c], source[c] = float(sigma_given[c]), "round"
+        else:
+            use = valid & ~flagged
+            s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
+            sigma[c] = max(s / math.sqrt(fac), 1e-6)
+            source[c] = "estimated"
+    return sigma, source, out

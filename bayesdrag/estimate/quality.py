@@ -1,0 +1,256 @@
+"""How well a fit fits, and where its Cd is determined: the gate no answer passes unexamined.
+
+:func:`assess` looks at a finished maximum-likelihood fit and returns ``ml.quality`` of
+``result.json`` plus the ``cd`` rows with ``determined`` and ``band_sd`` filled in:
+
+Goodness of fit, per channel
+    ``chi2_per_sample`` = mean squared residual over the noise variance: against the round's
+    ``[radar] sigma`` where given, else against the noise the track's own high-frequency content
+    shows (:func:`bayesdrag.estimate.noise.noise_and_outliers`), never against the fit's own
+    residual rms (which would make every fit perfect). Above :data:`CHI2_LIMIT` the residuals
+    are far above the noise: the model misses the track. The lag-1 autocorrelation of the
+    residuals above :data:`ACF_LIMIT` says the misfit is structured (model error), not noise.
+Bands
+    ``band_sd`` of each ``cd`` row is the sd behind the ML band the result stands by: the
+    Cramér-Rao sd when the residuals look like the noise, and the larger of it and the
+    colored-residual sd (Morelli & Klein: the residuals' own size and correlation, a sandwich
+    estimate) when they do not. So a fit whose residuals show model error gets the wider band,
+    and a white-noise fit keeps the Cramér-Rao one.
+Where Cd is determined
+    A ``cd`` row is determined when its ``band_sd`` is below :data:`DETERMINED_REL_SD` of Cd, it
+    lies inside the Mach span the data cover, the drag model is not clamped there (beyond its
+    end knots the spline is held flat), and no coefficient acting there sits at its bound.
+    ``undetermined`` lists the Mach intervals of the grid where it is not.
+Rigid models
+    ``poly2``, ``poly2-split`` and ``reference-scale`` cannot follow every curve, and their
+    Cramér-Rao band holds only the noise, not their shape error; on a coarse or noisy track the
+    residuals may not show it either. :func:`check_against_flexible` compares their curve with
+    the default flexible fit of the same track: where the two differ by more than
+    :data:`RIGID_K` sd of the flexible band, the rigid curve is not determined there, and the
+    result says so.
+Problems
+    One line each (``problems``), also printed by the CLI: residuals far above the noise,
+    structured residuals, parameters at bounds, clamped or flat segments, a smoothing weight at
+    the end of its grid, launch values of the round the track contradicts.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .noise import noise_and_outliers
+
+#: a channel whose residuals have a mean square above this many noise variances misses the track
+CHI2_LIMIT = 4.0
+#: lag-1 residual autocorrelation above which the residuals are structured (white: ~0 +- 2/sqrt(N))
+ACF_LIMIT = 0.5
+#: relative sd of Cd below which Cd counts as determined
+DETERMINED_REL_SD = 0.01
+#: a rigid model's curve further than this many flexible-band sd from the flexible fit's misses
+RIGID_K = 3.0
+#: a coefficient within this fraction of its bound range of a bound sits at it
+BOUND_FRACTION = 1e-6
+
+
+def lag1(r):
+    """Lag-1 autocorrelation of a residual series (0 for fewer than 3 samples)."""
+    r = np.asarray(r, float)
+    if r.size < 3:
+        return 0.0
+    e = r - r.mean()
+    d = float(e @ e)
+    return float(e[1:] @ e[:-1] / d) if d > 0 else 0.0
+
+
+def _intervals(mach, flag):
+    """Contiguous Mach intervals [lo, hi] where ``flag`` is True."""
+    out = []
+    i = 0
+    while i < flag.size:
+        if flag[i]:
+            j = i
+            while j + 1 < flag.size and flag[j + 1]:
+                j += 1
+            out.append([float(mach[i]), float(mach[j])])
+            i = j + 1
+        else:
+            i += 1
+    return out
+
+
+def channel_fit(res, track, channels, sigma_given):
+    """Per-channel goodness of fit.
+
+    Returns
+    -------
+    dict channel -> {"n", "rms", "noise_sd", "noise_source", "chi2_per_sample", "lag1"}
+    """
+    sig_data, source, _ = noise_and_outliers(track, channels, sigma_given)
+    out = {}
+    w = res.weights if res.weights is not None else None
+    for j, c in enumerate(channels):
+        r = np.asarray(res.residuals[c], float)
+        wj = np.ones_like(r) if w is None else w[:, j]
+        n = float(wj.sum())
+        ms = float(np.sum(wj * r**2) / max(n, 1.0))
+        s = float(sig_data[c])
+        out[c] = {"n": int(round(n)), "rms": math.sqrt(ms), "noise_sd": s, "noise_source": source[c],
+                  "chi2_per_sample": ms / s**2 if s > 0 else float("inf"), "lag1": lag1(r[wj > 0])}
+    return out
+
+
+def _clamped(drag_model, mach):
+    """Rows beyond a spline's end knots (held flat there) or beyond a table's ends."""
+    fr = getattr(drag_model, "knots", None)
+    if fr is None:
+        return np.zeros(mach.size, bool)
+    lo, hi = fr[0], fr[-1]
+    return (mach < lo - 1e-9) | (mach > hi + 1e-9)
+
+
+def _at_bound_support(res, drag_model, mach, lower, upper):
+    """Rows where a coefficient at its bound acts (its basis function is non-zero there), and
+    the names of those coefficients."""
+    P = drag_model.n_params
+    th = res.theta[:P]
+    span = upper[:P] - lower[:P]
+    at = np.isfinite(span) & ((th - lower[:P] <= BOUND_FRACTION * span) | (upper[:P] - th <= BOUND_FRACTION * span))
+    at &= res.free[:P]
+    if not at.any():
+        return np.zeros(mach.size, bool), []
+    B = drag_model.jacobian(mach)
+    hit = np.abs(B[:, at]).max(axis=1) > 1e-3 * np.abs(B).max(axis=1).clip(1e-300)
+    return hit, [res.names[j] for j in np.flatnonzero(at)]
+
+
+def assess(res, prob, rows, track, sigma_given=None):
+    """Quality of a Scheme 1 ML fit.
+
+    Parameters
+    ----------
+    res : MLResult
+    prob : OutputErrorProblem
+        Its ``start`` (DataStart), ``smoothing``, ``launch_check`` are read when present.
+    rows : list of dict
+        ``cd`` rows (``mach``, ``ml``, ``crb_sd``, ``crb_sd_colored``); updated in place with
+        ``band_sd`` and ``determined``.
+    track : RadarTrack
+    sigma_given : dict, optional
+        The round's noise sd per channel.
+
+    Returns
+    -------
+    dict
+        ``ml.quality`` of result.json.
+    """
+    chans = prob.channels
+    fit = channel_fit(res, track, chans, sigma_given or {})
+    problems = []
+    misfit = [c for c, f in fit.items() if f["chi2_per_sample"] > CHI2_LIMIT]
+    structured = [c for c, f in fit.items() if f["lag1"] > ACF_LIMIT and f["n"] > 20]
+    for c in misfit:
+        f = fit[c]
+        problems.append(f"channel {c}: residual rms {f['rms']:.3g} against a noise sd of {f['noise_sd']:.3g} "
+                        f"({'the round' if f['noise_source'] == 'round' else 'estimated from the track'}): "
+                        f"the model misses the track (chi2 per sample {f['chi2_per_sample']:.1f})")
+    for c in structured:
+        problems.append(f"channel {c}: residuals strongly autocorrelated (lag-1 {fit[c]['lag1']:.2f}): model "
+                        f"error, not noise; the band uses the colored-residual sd")
+    honest_colored = bool(misfit or structured or any(f["chi2_per_sample"] > 1.5 for f in fit.values()))
+    mach = np.array([r["mach"] for r in rows], float)
+    ml = np.array([r["ml"] for r in rows], float)
+    crb = np.array([r["crb_sd"] for r in rows], float)
+    crbc = np.array([r.get("crb_sd_colored", r["crb_sd"]) for r in rows], float)
+    band = np.maximum(crb, crbc) if honest_colored else crb
+    dm = prob.model.drag
+    clamped = _clamped(dm, mach)
+    bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
+    start = getattr(prob, "start", None)
+    lo, hi = (float(np.nanmin(res.mach)), float(np.nanmax(res.mach)))
+    inside = (mach >= lo - 1e-9) & (mach <= hi + 1e-9)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(ml > 0, band / ml, np.inf)
+    det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band)
+    for r, b, d in zip(rows, band, det):
+        r["band_sd"] = float(b)
+        r["determined"] = bool(d)
+    if clamped.any():
+        for a, b in _intervals(mach, clamped):
+            problems.append(f"Cd is held flat over Mach {a:.3f}-{b:.3f} (beyond the drag model's span): "
+                            f"not determined there")
+    if bound_names:
+        for a, b in _intervals(mach, bound_rows):
+            problems.append(f"Cd sits at a bound of its model over Mach {a:.3f}-{b:.3f} "
+                            f"({', '.join(bound_names)}): not determined there")
+    ic_bound = [w for w in res.warnings if "is at its bound" in w and not any(n in w for n in bound_names)]
+    problems += ic_bound
+    sm = getattr(prob, "smoothing", None)
+    if sm and sm.get("at_grid_end") == "flexible":
+        problems.append("the smoothing weight is at the flexible end of its grid: the data ask for more "
+                        "freedom than the drag model has (the band may be too narrow where Cd bends)")
+    lc = getattr(prob, "launch_check", None) or {}
+    for c in lc.get("conflicts", []):
+        if not c.get("secondary"):
+            problems.append(c["message"])
+    undetermined = _intervals(mach, ~det)
+    quality = {
+        "ok": not (misfit or structured or bound_names or ic_bound),
+        "channels": fit,
+        "band": "colored" if honest_colored else "cramer-rao",
+        "mach_range_data": [lo, hi],
+        "undetermined": undetermined,
+        "clamped": _intervals(mach, clamped),
+        "at_bounds": bound_names + [w.split()[1] for w in ic_bound],
+        "smoothing_at_grid_end": sm.get("at_grid_end") if sm else None,
+        "launch": lc or None,
+        "start": ({"mach_span": list(start.mach_span), "notes": list(start.notes)} if start is not None else None),
+        "problems": problems,
+    }
+    return quality
+
+
+def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
+    """Compare a rigid model's ``cd`` rows with the flexible fit's on the same grid.
+
+    Rows where ``|rigid - flexible| > k * sqrt(band_rigid^2 + band_flexible^2)`` are marked not
+    determined, and ``quality`` gains ``rigid_check`` and a problem line.
+
+    Parameters
+    ----------
+    rows, flexible_rows : list of dict
+        ``cd`` rows (after :func:`assess`) on grids over the same Mach span.
+    quality : dict
+        The rigid fit's ``ml.quality`` (updated in place).
+    model_name : str
+    k : float
+    """
+    fm = np.array([r["mach"] for r in flexible_rows], float)
+    fc = np.array([r["ml"] for r in flexible_rows], float)
+    fs = np.array([r["band_sd"] for r in flexible_rows], float)
+    mach = np.array([r["mach"] for r in rows], float)
+    inside = (mach >= fm.min() - 1e-9) & (mach <= fm.max() + 1e-9)
+    f_cd = np.interp(mach, fm, fc)
+    f_sd = np.interp(mach, fm, fs)
+    z = np.zeros(mach.size)
+    for i, r in enumerate(rows):
+        sd = math.hypot(r["band_sd"], f_sd[i])
+        z[i] = abs(r["ml"] - f_cd[i]) / sd if sd > 0 else 0.0
+    off = inside & (z > k)
+    for r, o in zip(rows, off):
+        if o:
+            r["determined"] = False
+    worst = int(np.argmax(np.where(inside, z, 0.0))) if mach.size else 0
+    quality["rigid_check"] = {"against": "spline", "k": k, "max_z": float(z[worst]) if mach.size else 0.0,
+                              "mach_of_max": float(mach[worst]) if mach.size else None,
+                              "misses": _intervals(mach, off)}
+    if off.any():
+        a, b = mach[off].min(), mach[off].max()
+        rel = (rows[worst]["ml"] / f_cd[worst] - 1.0) * 100.0
+        quality["problems"].append(
+            f"the {model_name} curve misses the flexible fit of the same track by up to {z[worst]:.1f} sd "
+            f"({rel:+.1f} % at Mach {mach[worst]:.2f}) over Mach {a:.2f}-{b:.2f}: its band does not hold "
+            f"its shape error; not determined there")
+        quality["ok"] = False
+        quality["undetermined"] = _intervals(mach, ~np.array([r["determined"] for r in rows]))
+    return quality

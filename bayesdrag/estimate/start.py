@@ -1,0 +1,449 @@
+"""A start from the data: Mach span, Cd(M) and the initial state read off the track itself.
+
+The maximum-likelihood fit is a local method: it needs a start from which Gauss-Newton walks
+downhill to the right answer, and a drag model whose Mach span and knots match the flight. None
+of this may come from the round's nominal launch values or a generic curve: a round file can be
+wrong by a lot (a nominal muzzle velocity 15 % off, a time origin at the first radar sample), and
+a generic 155 mm curve is a factor two off a bullet's. This module reads them from the track:
+
+1. **Smoothed kinematics** (:func:`smooth_kinematics`). Each channel is smoothed by a cubic
+   smoothing spline whose weight generalised cross-validation chooses (scipy
+   ``make_smoothing_spline``; it handles gaps and uneven sampling). Speed ``V`` comes from the
+   ``v`` channel when there is one, else from the derivative of the positions; the path angle
+   ``gamma`` from the positions (``atan2(dz/dt, horizontal speed)``), or, without ``z``, from
+   ``cos gamma = (dx/dt) / V`` or, for a speed-only (Doppler) track, by integrating the gravity
+   turn ``d gamma/dt = -g cos gamma / V`` from the round's elevation. Height ``z`` from its
+   channel or by integrating ``V sin gamma``.
+2. **Cd per sample** (:func:`drag_samples`): the drag deceleration along the path is
+   ``D = -dV/dt - g sin gamma`` (point mass, no wind), and ``Cd = D / (k rho(z) V^2)`` with
+   ``k = pi d^2 / (8 m)``, at ``M = V / a(z)`` in the round's atmosphere.
+3. **Start curve** (:func:`start_curve`): the per-sample values averaged in 0.01 Mach bins and
+   smoothed across Mach (again a GCV smoothing spline, weighted by the bin counts), so that an
+   ascent and a descent through the same Mach agree on one curve. It is within a few percent
+   of the truth wherever the track flies (measured in ``tests/unit/test_start.py``); in a steep
+   drag rise it is smeared over the Mach the smoothing window spans, which the fit then sharpens.
+4. **Initial state** at the first sample from the smoothed positions and velocity.
+
+The same kinematics give a check of the units from the physics (:func:`check_gravity_units`): a
+point-mass path bends under gravity alone, ``d gamma / dt = -g cos gamma / V``, so the gravity a
+track implies, in its own length unit, is ~9.81 in metres and ~32.2 in feet whatever the round
+says.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import make_smoothing_spline
+
+from ..atmosphere import G0
+from ..errors import InputError
+
+#: Mach bin width of the start curve
+START_BIN = 0.01
+#: lower and upper clip of the start curve's Cd (a start, not an answer: keeps a noisy end sane)
+START_CD_CLIP = (0.02, 3.0)
+#: Mach scale over which :attr:`DataStart.shape` is smoothed (a steep rise is ~0.1 Mach wide)
+SHAPE_SCALE = 0.04
+#: degree of the global polynomial trend removed before the smoothing spline (:func:`_smoother`)
+TREND_DEGREE = 3
+#: fewest samples the smoothing spline accepts (scipy needs 5)
+MIN_SMOOTH_SAMPLES = 5
+#: gravity check: a track's implied gravity off from g by more than this factor is a unit error
+GRAVITY_RATIO_LIMIT = 1.25
+#: ... and by more than this many of its own standard errors
+GRAVITY_SIGNIFICANCE = 5.0
+#: (gravity ratio, what it means) for the unit check from the physics
+_GRAVITY_UNITS = (
+    (1.0 / 0.3048, "x, y, z and v look like feet and ft/s (expected m and m/s)"),
+    (1.0 / 0.9144, "x, y, z and v look like yards and yd/s (expected m and m/s)"),
+    (1e-3, "x, y, z and v look like km and km/s (expected m and m/s)"),
+    (1e3, "x, y, z and v look like mm and mm/s (expected m and m/s), or t like milliseconds"),
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Kinematics:
+    """Smoothed flight state along a track.
+
+    Attributes
+    ----------
+    t : (N,) ndarray [s]
+        Sample times.
+    speed : (N,) ndarray [m/s]
+        Ground speed V.
+    dspeed : (N,) ndarray [m/s^2]
+        dV/dt.
+    gamma : (N,) ndarray [rad]
+        Path angle above the horizontal.
+    heading : (N,) ndarray [rad]
+        Direction of the horizontal velocity, from +x towards +y.
+    z : (N,) ndarray [m]
+        Height above the muzzle.
+    position : (N, 3) ndarray [m]
+        Smoothed x, y, z (missing channels: reconstructed or 0).
+    gamma_measured : bool
+        True when gamma comes from the positions (x or y, and z); False when reconstructed by
+        the gravity turn (then it cannot check the units).
+    notes : tuple of str
+        What was assumed where a channel was missing.
+    """
+
+    t: np.ndarray
+    speed: np.ndarray
+    dspeed: np.ndarray
+    gamma: np.ndarray
+    heading: np.ndarray
+    z: np.ndarray
+    position: np.ndarray
+    gamma_measured: bool
+    notes: tuple = ()
+
+
+@dataclass(frozen=True, eq=False)
+class DataStart:
+    """What the track says before any fit.
+
+    Attributes
+    ----------
+    mach_span : (float, float)
+        Mach range the track flies (from the smoothed speed and height).
+    mach : (K,) ndarray
+        Mach grid of the start curve (step :data:`START_BIN`, covering ``mach_span``).
+    cd : (K,) ndarray
+        Start Cd on that grid.
+    shape : (K,) ndarray
+        The same, smoothed over :data:`SHAPE_SCALE` Mach: where the drag bends, without the
+        percent-level wiggles the noise leaves in ``cd`` (knots and penalty weights use it).
+    shape_noise : float
+        Robust relative scatter of ``cd`` about ``shape`` (1.4826 x median absolute relative
+        difference): how much of the start's fine structure is noise.
+    state0 : (6,) ndarray
+        Position [m] and velocity [m/s] at the first sample.
+    samples_mach, samples_cd : (N,) ndarray
+        The per-sample values behind the curve.
+    kinematics : Kinematics
+    notes : tuple of str
+    """
+
+    mach_span: tuple
+    mach: np.ndarray
+    cd: np.ndarray
+    shape: np.ndarray
+    shape_noise: float
+    state0: np.ndarray
+    samples_mach: np.ndarray
+    samples_cd: np.ndarray
+    kinematics: Kinematics
+    notes: tuple = field(default=())
+
+    def curve(self, mach):
+        """Start Cd at ``mach`` (held constant beyond the grid)."""
+        return np.interp(np.asarray(mach, float), self.mach, self.cd)
+
+    def shape_curve(self, mach):
+        """The smoothed shape at ``mach`` (held constant beyond the grid)."""
+        return np.interp(np.asarray(mach, float), self.mach, self.shape)
+
+
+def _smoother(t, y):
+    """GCV cubic smoothing spline of y(t) and its derivative; a straight line for fewer than 5
+    samples.
+
+    The spline is fitted to what a global cubic in t leaves: a smoothing spline is *natural*
+    (zero second derivative at its ends), and a shell decelerating at 200 m/s^2 at the first
+    sample would otherwise get its starting speed tens of m/s low; the cubic carries the ends'
+    acceleration, the spline what is left."""
+    if t.size >= MIN_SMOOTH_SAMPLES:
+        # scale time to O(1) for the conditioning of scipy's penta-diagonal solve
+        t0, ts = float(t[0]), float(max(t[-1] - t[0], 1e-9))
+        u = (t - t0) / ts
+        deg = min(TREND_DEGREE, t.size - 2)
+        trend = np.polynomial.Polynomial.fit(u, y, deg)
+        spl = make_smoothing_spline(u, y - trend(u))
+        d1, dtr = spl.derivative(), trend.deriv()
+
+        def value(s):
+            v = (np.asarray(s) - t0) / ts
+            return spl(v) + trend(v)
+
+        def rate(s):
+            v = (np.asarray(s) - t0) / ts
+            return (d1(v) + dtr(v)) / ts
+
+        return value, rate
+    p = np.polyfit(t, y, 1) if t.size >= 2 else np.array([0.0, float(y[0])])
+    return (lambda s: np.polyval(p, s)), (lambda s: np.full(np.shape(s), p[0]))
+
+
+def _integrate(t, f, y0):
+    """Cumulative trapezoid of f(t) from y0 at t[0]."""
+    out = np.empty_like(t)
+    out[0] = y0
+    out[1:] = y0 + np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))
+    return out
+
+
+def smooth_kinematics(track, elevation_deg=None, g=G0):
+    """Smoothed speed, its rate, path angle, heading and height along a track.
+
+    Parameters
+    ----------
+    track : RadarTrack
+        Any subset of x, y, z [m] and v [m/s].
+    elevation_deg : float, optional
+        Launch elevation [deg]: the path angle at the first sample of a track without ``z`` that
+        starts at the launch (t = 0), or of one with neither ``z`` nor ``x`` (a Doppler speed
+        record; without it such a track is taken as flat fire). ``cos gamma = (dx/dt) / V``
+        cannot tell a flat path's few tenths of a degree from noise.
+    g : float
+        Gravity [m/s^2].
+
+    Returns
+    -------
+    Kinematics
+    """
+    t = np.asarray(track.t, float)
+    ch = track.channels
+    notes = []
+    pos_fn, vel_fn = {}, {}
+    for c in ("x", "y", "z"):
+        if c in ch:
+            pos_fn[c], vel_fn[c] = _smoother(t, ch[c])
+    vel = {c: vel_fn[c](t) for c in vel_fn}
+    if "v" in ch:
+        vfn, dvfn = _smoother(t, ch["v"])
+        speed, dspeed = vfn(t), dvfn(t)
+    elif vel:
+        sp = np.sqrt(sum(v**2 for v in vel.values()))
+        vfn, dvfn = _smoother(t, sp)
+        speed, dspeed = vfn(t), dvfn(t)
+        if "z" not in vel or not ({"x", "y"} & set(vel)):
+            notes.append("speed from the positions without all of x and z: it misses the path's "
+                         "other components")
+    else:  # pragma: no cover - a track has at least one channel
+        raise InputError(f"{track.source}: the track has no channel to read the speed from")
+    speed = np.maximum(speed, 1e-3)
+    horiz = np.hypot(vel.get("x", 0.0 * t), vel.get("y", 0.0 * t))
+    measured = "z" in vel and ("x" in vel or "y" in vel)
+    if measured:
+        gamma = np.arctan2(vel["z"], horiz)
+    elif "z" in vel:
+        gamma = np.arcsin(np.clip(vel["z"] / speed, -1.0, 1.0))
+    elif "x" in vel and (elevation_deg is None or abs(float(t[0])) > 1e-9):
+        # cos gamma = dx/dt / V; the sign flips at the summit (where dx/dt / V peaks)
+        cg = np.clip(vel["x"] / speed, -1.0, 1.0)
+        mag = np.arccos(cg)
+        apex = int(np.argmax(cg))
+        gamma = np.where(np.arange(t.size) <= apex, mag, -mag)
+        notes.append("path angle from dx/dt and v (no z channel)")
+    else:
+        g0 = math.radians(elevation_deg) if elevation_deg is not None else 0.0
+        if elevation_deg is None:
+            notes.append("speed-only track without a launch elevation: taken as flat fire")
+        gamma = np.empty_like(t)
+        gamma[0] = g0
+        for i in range(1, t.size):  # gravity turn, explicit midpoint
+            h = t[i] - t[i - 1]
+            gm = gamma[i - 1] - 0.5 * h * g * math.cos(gamma[i - 1]) / speed[i - 1]
+            gamma[i] = gamma[i - 1] - h * g * math.cos(gm) / (0.5 * (speed[i] + speed[i - 1]))
+        notes.append("path angle by the gravity turn from the launch elevation (speed-only track)")
+    heading = np.arctan2(vel["y"], vel["x"]) if ("x" in vel and "y" in vel) else np.zeros_like(t)
+    z = pos_fn["z"](t) if "z" in pos_fn else _integrate(t, speed * np.sin(gamma), 0.0)
+    if "z" not in pos_fn:
+        notes.append("height by integrating V sin(gamma) from 0 at the first sample")
+    cols = []
+    for k, c in enumerate(("x", "y", "z")):
+        if c in pos_fn:
+            cols.append(pos_fn[c](t))
+        elif c == "z":
+            cols.append(z)
+        elif c == "x":
+            cols.append(_integrate(t, speed * np.cos(gamma) * np.cos(heading), 0.0))
+        else:
+            cols.append(np.zeros_like(t))
+    return Kinematics(t, speed, dspeed, gamma, heading, z, np.column_stack(cols), bool(measured),
+                      tuple(notes))
+
+
+def drag_samples(kin, mass, diameter, atmosphere, g=G0):
+    """Mach and Cd at every sample from the deceleration along the path.
+
+    ``D = -dV/dt - g sin(gamma)`` [m/s^2] and ``Cd = D / (k rho V^2)``, ``k = pi d^2 / (8 m)``;
+    no wind (the air speed is the ground speed).
+
+    Parameters
+    ----------
+    kin : Kinematics
+    mass : float [kg]
+    diameter : float [m]
+    atmosphere : Atmosphere or MetProfile
+    g : float [m/s^2]
+
+    Returns
+    -------
+    mach, cd : (N,) ndarray
+    """
+    k = math.pi * diameter**2 / (8.0 * mass)
+    z = np.clip(kin.z, -400.0, 20000.0)
+    air = atmosphere.at_height(z)
+    D = -kin.dspeed - g * np.sin(kin.gamma)
+    return kin.speed / air.speed_of_sound, D / (k * air.density * kin.speed**2)
+
+
+def start_curve(mach, cd, dm=START_BIN):
+    """A smooth Cd(M) through per-sample values: bin means, then a GCV smoothing spline in Mach.
+
+    Parameters
+    ----------
+    mach, cd : (N,) ndarray
+    dm : float
+        Bin width [Mach].
+
+    Returns
+    -------
+    grid, curve : (K,) ndarray
+        Bin centres covering the samples' Mach range and the smoothed Cd there, clipped to
+        :data:`START_CD_CLIP`.
+    """
+    ok = np.isfinite(mach) & np.isfinite(cd)
+    mach, cd = mach[ok], cd[ok]
+    if mach.size == 0:
+        raise InputError("no finite speed along the track: cannot read a Mach number off it")
+    lo = math.floor(mach.min() / dm) * dm
+    hi = math.ceil(mach.max() / dm) * dm
+    edges = np.arange(lo, hi + 0.5 * dm, dm)
+    if edges.size < 2:
+        edges = np.array([lo, lo + dm])
+    idx = np.clip(np.digitize(mach, edges) - 1, 0, edges.size - 2)
+    cnt = np.bincount(idx, minlength=edges.size - 1)
+    tot = np.bincount(idx, weights=cd, minlength=edges.size - 1)
+    have = cnt > 0
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    xm, ym, wm = centres[have], tot[have] / cnt[have], cnt[have].astype(float)
+    if xm.size >= MIN_SMOOTH_SAMPLES:
+        try:
+            spl = make_smoothing_spline(xm, ym, w=wm / wm.mean())
+            curve = spl(centres)
+        except (ValueError, np.linalg.LinAlgError):
+            curve = np.interp(centres, xm, ym)
+    elif xm.size >= 2:
+        curve = np.polyval(np.polyfit(xm, ym, 1, w=np.sqrt(wm)), centres)
+    else:
+        curve = np.full(centres.size, float(np.average(ym, weights=wm)))
+    return centres, np.clip(curve, *START_CD_CLIP)
+
+
+def whittaker(y, w, scale_bins):
+    """Whittaker smoother: minimise ``sum w (y - f)^2 + lam sum (second differences of f)^2``
+    with ``lam = scale_bins^4`` (the equivalent kernel is ~``scale_bins`` points wide).
+
+    Parameters
+    ----------
+    y, w : (K,) ndarray
+        Values and weights (0 = no data there).
+    scale_bins : float
+
+    Returns
+    -------
+    (K,) ndarray
+    """
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import spsolve
+
+    K = y.size
+    if K < 3:
+        return y.copy()
+    D = diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(K - 2, K))
+    A = diags(w) + float(scale_bins) ** 4 * (D.T @ D)
+    return np.asarray(spsolve(A.tocsc(), w * y), float)
+
+
+def data_start(track, rnd):
+    """Mach span, start Cd(M) and the state at the first sample, read off the track.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+        Its projectile (mass, diameter) and atmosphere; the launch elevation only for a
+        speed-only track.
+
+    Returns
+    -------
+    DataStart
+    """
+    kin = smooth_kinematics(track, elevation_deg=rnd.launch.elevation_deg)
+    mach, cd = drag_samples(kin, rnd.projectile.mass, rnd.projectile.diameter, rnd.atmosphere)
+    grid, curve = start_curve(mach, cd)
+    # the shape: the start curve smoothed over SHAPE_SCALE, weighted by where samples are
+    fin = np.isfinite(mach) & np.isfinite(cd)
+    cnt = np.bincount(np.clip(np.rint((mach[fin] - grid[0]) / START_BIN).astype(int), 0, grid.size - 1),
+                      minlength=grid.size).astype(float)
+    wts = np.clip(cnt / max(cnt.mean(), 1e-9), 0.05, None)
+    shape = np.clip(whittaker(curve, wts, SHAPE_SCALE / START_BIN), *START_CD_CLIP)
+    have = cnt > 0
+    noise = float(1.4826 * np.median(np.abs(curve[have] / shape[have] - 1.0))) if have.any() else 0.0
+    state0 = np.concatenate([kin.position[0],
+                             kin.speed[0] * np.array([math.cos(kin.gamma[0]) * math.cos(kin.heading[0]),
+                                                      math.cos(kin.gamma[0]) * math.sin(kin.heading[0]),
+                                                      math.sin(kin.gamma[0])])])
+    fin = np.isfinite(mach)
+    span = (float(mach[fin].min()), float(mach[fin].max()))
+    return DataStart(span, grid, curve, shape, noise, state0, mach, cd, kin, kin.notes)
+
+
+def gravity_ratio(kin, g=G0, pieces=6):
+    """The gravity a track implies in its own units, over g: ~1 for metres.
+
+    A point mass turns under gravity alone: ``d gamma/dt = -g cos(gamma) / V``. Over each of
+    ``pieces`` consecutive parts of the track (inner 90 %) the turn ``-delta gamma`` is divided
+    by ``integral cos(gamma) / V dt``; the median of the parts over ``g`` is the ratio and their
+    spread its standard error.
+
+    Returns
+    -------
+    (ratio, standard_error) or (None, None) when the path angle was not measured or the track
+    turns too little to tell.
+    """
+    if not kin.gamma_measured or kin.t.size < 4 * pieces:
+        return None, None
+    n = kin.t.size
+    a, b = int(0.05 * n), int(0.95 * n) - 1
+    cuts = np.linspace(a, b, pieces + 1).astype(int)
+    f = np.cos(kin.gamma) / kin.speed
+    vals = []
+    for i, j in zip(cuts[:-1], cuts[1:]):
+        if j - i < 2:
+            continue
+        integ = float(np.sum(0.5 * (f[i + 1:j + 1] + f[i:j]) * np.diff(kin.t[i:j + 1])))
+        if integ > 0:
+            vals.append(-(kin.gamma[j] - kin.gamma[i]) / integ / g)
+    if len(vals) < 3:
+        return None, None
+    vals = np.asarray(vals)
+    med = float(np.median(vals))
+    se = float(1.2533 * 1.4826 * np.median(np.abs(vals - med)) / math.sqrt(len(vals)))
+    return med, se
+
+
+def check_gravity_units(kin, source="track", g=G0):
+    """Raise :class:`InputError` when the track's path bends as if gravity were far from g in
+    metres: the whole track is in another length unit (feet, yards, km, mm).
+
+    A mix of units between the positions and the speed is caught when the track is read
+    (:func:`bayesdrag.track.read_track`); a track entirely in feet is self-consistent there and
+    only the physics tells.
+    """
+    r, se = gravity_ratio(kin, g)
+    if r is None or not r > 0:
+        return
+    off = max(r, 1.0 / r)
+    if off < GRAVITY_RATIO_LIMIT or abs(r - 1.0) < GRAVITY_SIGNIFICANCE * se:
+        return
+    guess = min(_GRAVITY_UNITS, key=lambda u: abs(math.log(r / u[0])))
+    why = guess[1] if abs(math.log(r / guess[0])) < math.log(1.1) else \
+        "check the units of x, y, z (m), v (m/s) and t (s)"
+    raise InputError(f"{source}: units look wrong: the path bends as if gravity were {r * g:.3g} "
+                     f"length units/s^2 (9.81 m/s^2 expected); {why}")
