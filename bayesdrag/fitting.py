@@ -298,7 +298,8 @@ def _report(out, args, track, rnd, res, prob, rows, bayes, post, figs, warnings,
                         f"{rnd.projectile.diameter} m"),
               ("drag model", f"{prob.model.drag.name} ({prob.P} coefficients)"),
               ("Mach range of the data", f"{result['ml']['mach_range_data'][0]:.3f} - {result['ml']['mach_range_data'][1]:.3f}"),
-              ("Mach range determined (CRB < 1 % of Cd)", f"{det[0]:.2f} - {det[1]:.2f}" if det else "none"),
+              ("Mach range determined (band sd < 1 % of Cd, inside the data, not clamped)",
+               f"{det[0]:.2f} - {det[1]:.2f}" if det else "none"),
               ("noise sd used by the ML fit", ", ".join(f"{c} {v:.3g}" for c, v in res.sigma.items())),
               ("wall-clock time", f"{seconds:.1f} s")]
     conv = None
@@ -324,7 +325,8 @@ def _report(out, args, track, rnd, res, prob, rows, bayes, post, figs, warnings,
            "headline": headline, "inputs": inputs, "warnings": warnings, "convergence": conv,
            "figures": [{"title": t, "caption": c, "png": b64(f)} for f, t, c in figs],
            "ml": {"message": res.message, "iterations": res.iterations, "cost": res.cost, "rows": mlrows},
-           "posterior": post_ctx, "cd_rows": rows[::2], "windows": None, "versions": versions()}
+           "posterior": post_ctx, "cd_rows": rows[::2], "windows": None, "versions": versions(),
+           "quality": result["ml"].get("quality")}
     render_report(out / "report.html", ctx)
 
 
@@ -381,16 +383,29 @@ def _run_scheme2(args, track, rnd, chans, out, echo, quiet):
         return np.interp(grid, mk, v)
 
     cd_rows = []
-    cols = {key: interp(key) for key in ("ml", "crb_sd") + (("mean", "q05", "q95") if draws else ())}
+    cols = {key: interp(key) for key in ("ml", "crb_sd", "band_sd") + (("mean", "q05", "q95") if draws else ())}
+    # a grid point is determined when the windows on both sides of it are
+    det_w = np.array([rows[k]["determined"] for k in ok], bool)[order]
+    j_hi = np.clip(np.searchsorted(mk, grid), 0, len(mk) - 1)
+    j_lo = np.clip(j_hi - 1, 0, len(mk) - 1)
+    inside = (grid >= mk[0]) & (grid <= mk[-1])
     for i, m in enumerate(grid):
         r = {key: float(v[i]) for key, v in cols.items()}
         r["mach"] = float(m)
+        r["determined"] = bool(inside[i] and det_w[j_lo[i]] and det_w[j_hi[i]])
         r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
         cd_rows.append(r)
+    from .estimate.quality import intervals as _mach_intervals
+
+    w_problems = [f"window {k} (Mach {rows[k]['mach']:.2f}): {p}" for k in ok for p in rows[k]["quality"]["problems"]]
+    quality = {"ok": not w_problems and len(ok) == len(rows),
+               "undetermined": _mach_intervals(grid, ~np.array([r["determined"] for r in cd_rows])),
+               "windows_determined": int(det_w.sum()), "problems": w_problems}
     result = {"scheme": 2, "drag_model": "constant per window", "window": window,
               "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
-                     "windows": len(rows), "notes": list(r2.notes)},
+                     "windows": len(rows), "notes": list(r2.notes), "quality": quality},
               "cd": cd_rows, "windows": rows}
+    warnings += w_problems
     if draws:
         result["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
                           "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
@@ -451,5 +466,6 @@ def _report_scheme2(out, args, track, rnd, rows, cd_rows, warnings, result, seco
                         "its 90 % interval; the reference curve dashed.", "png": png}],
            "ml": {"message": f"{result['ml']['windows_converged']} windows converged", "iterations": "—",
                   "cost": None, "rows": []},
-           "posterior": None, "cd_rows": cd_rows[::2], "windows": rows, "versions": versions()}
+           "posterior": None, "cd_rows": cd_rows[::2], "windows": rows, "versions": versions(),
+           "quality": result["ml"].get("quality")}
     render_report(out / "report.html", ctx)

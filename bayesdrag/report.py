@@ -8,6 +8,7 @@ import base64
 import io
 import platform
 from importlib.resources import files
+from pathlib import Path
 
 
 def figure_to_base64(fig, dpi=100):
@@ -65,7 +66,7 @@ def render_report(path, context, template="report.html.j2"):
                              undefined=jinja2.StrictUndefined)
     env.filters["fmt"] = fmt
     html = env.get_template(template).render(**context)
-    atomic_write(path, lambda tmp: open(tmp, "w", encoding="utf-8").write(html))
+    atomic_write(path, lambda tmp: Path(tmp).write_text(html, encoding="utf-8"))
     return html
 
 

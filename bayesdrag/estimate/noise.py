@@ -120,3 +120,23 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
             sigma[c] = max(s / math.sqrt(fac), 1e-6)
             source[c] = "estimated"
     return sigma, source, out
+
+
+def hf_noise_sd(t, y):
+    """Noise sd of one series from its high-frequency content (the robust sd of the residual
+    about a local cubic, corrected for what the smoother absorbs); 0 for a series too short.
+
+    Parameters
+    ----------
+    t, y : (N,) ndarray
+
+    Returns
+    -------
+    float
+    """
+    y = np.asarray(y, float)
+    if y.size < HF_WINDOW + 2:
+        return 0.0
+    e, fac, valid = hf_residual_t(np.asarray(t, float), y)
+    use = valid if valid.sum() > 10 else np.ones_like(valid)
+    return float(_robust_sd(e[use]) / math.sqrt(fac)) if fac > 0 else 0.0

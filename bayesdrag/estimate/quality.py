@@ -63,7 +63,7 @@ def lag1(r):
     return float(e[1:] @ e[:-1] / d) if d > 0 else 0.0
 
 
-def _intervals(mach, flag):
+def intervals(mach, flag):
     """Contiguous Mach intervals [lo, hi] where ``flag`` is True."""
     out = []
     i = 0
@@ -79,14 +79,28 @@ def _intervals(mach, flag):
     return out
 
 
-def channel_fit(res, track, channels, sigma_given):
+def channel_fit(res, track, channels, sigma_given, noise=None):
     """Per-channel goodness of fit.
+
+    Parameters
+    ----------
+    res : MLResult
+    track : RadarTrack
+    channels : sequence of str
+    sigma_given : dict
+        The round's noise sd per channel (used where given).
+    noise : (dict, dict), optional
+        ``(sigma, source)`` from :func:`bayesdrag.estimate.noise.noise_and_outliers` already
+        computed on the whole track (Scheme 2 windows share it).
 
     Returns
     -------
     dict channel -> {"n", "rms", "noise_sd", "noise_source", "chi2_per_sample", "lag1"}
     """
-    sig_data, source, _ = noise_and_outliers(track, channels, sigma_given)
+    if noise is None:
+        sig_data, source, _ = noise_and_outliers(track, channels, sigma_given)
+    else:
+        sig_data, source = noise
     out = {}
     w = res.weights if res.weights is not None else None
     for j, c in enumerate(channels):
@@ -168,7 +182,7 @@ def assess(res, prob, rows, track, sigma_given=None):
     bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
     start = getattr(prob, "start", None)
     lo, hi = (float(np.nanmin(res.mach)), float(np.nanmax(res.mach)))
-    inside = (mach >= lo - 1e-9) & (mach <= hi + 1e-9)
+    inside = (mach >= lo - 1e-4) & (mach <= hi + 1e-4)  # the grid is rounded to 1e-4
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(ml > 0, band / ml, np.inf)
     det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band)
@@ -176,11 +190,11 @@ def assess(res, prob, rows, track, sigma_given=None):
         r["band_sd"] = float(b)
         r["determined"] = bool(d)
     if clamped.any():
-        for a, b in _intervals(mach, clamped):
+        for a, b in intervals(mach, clamped):
             problems.append(f"Cd is held flat over Mach {a:.3f}-{b:.3f} (beyond the drag model's span): "
                             f"not determined there")
     if bound_names:
-        for a, b in _intervals(mach, bound_rows):
+        for a, b in intervals(mach, bound_rows):
             problems.append(f"Cd sits at a bound of its model over Mach {a:.3f}-{b:.3f} "
                             f"({', '.join(bound_names)}): not determined there")
     ic_bound = [w for w in res.warnings if "is at its bound" in w and not any(n in w for n in bound_names)]
@@ -193,14 +207,14 @@ def assess(res, prob, rows, track, sigma_given=None):
     for c in lc.get("conflicts", []):
         if not c.get("secondary"):
             problems.append(c["message"])
-    undetermined = _intervals(mach, ~det)
+    undetermined = intervals(mach, ~det)
     quality = {
         "ok": not (misfit or structured or bound_names or ic_bound),
         "channels": fit,
         "band": "colored" if honest_colored else "cramer-rao",
         "mach_range_data": [lo, hi],
         "undetermined": undetermined,
-        "clamped": _intervals(mach, clamped),
+        "clamped": intervals(mach, clamped),
         "at_bounds": bound_names + [w.split()[1] for w in ic_bound],
         "smoothing_at_grid_end": sm.get("at_grid_end") if sm else None,
         "launch": lc or None,
@@ -243,7 +257,7 @@ def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
     worst = int(np.argmax(np.where(inside, z, 0.0))) if mach.size else 0
     quality["rigid_check"] = {"against": "spline", "k": k, "max_z": float(z[worst]) if mach.size else 0.0,
                               "mach_of_max": float(mach[worst]) if mach.size else None,
-                              "misses": _intervals(mach, off)}
+                              "misses": intervals(mach, off)}
     if off.any():
         a, b = mach[off].min(), mach[off].max()
         rel = (rows[worst]["ml"] / f_cd[worst] - 1.0) * 100.0
@@ -252,5 +266,46 @@ def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
             f"({rel:+.1f} % at Mach {mach[worst]:.2f}) over Mach {a:.2f}-{b:.2f}: its band does not hold "
             f"its shape error; not determined there")
         quality["ok"] = False
-        quality["undetermined"] = _intervals(mach, ~np.array([r["determined"] for r in rows]))
+        quality["undetermined"] = intervals(mach, ~np.array([r["determined"] for r in rows]))
     return quality
+
+
+def assess_window(res, channels, noise):
+    """Quality fields of one Scheme 2 window (a constant Cd, parameter 0 of ``res``).
+
+    Parameters
+    ----------
+    res : MLResult
+    channels : sequence of str
+    noise : (dict, dict)
+        ``(sigma, source)`` of the whole track.
+
+    Returns
+    -------
+    dict
+        ``band_sd``, ``determined`` and ``quality`` (``channels`` as in :func:`channel_fit`,
+        ``ok``, ``problems``).
+    """
+    fit = channel_fit(res, None, channels, {}, noise=noise)
+    problems = []
+    misfit = [c for c, f in fit.items() if f["chi2_per_sample"] > CHI2_LIMIT]
+    structured = [c for c, f in fit.items() if f["lag1"] > ACF_LIMIT and f["n"] > 20]
+    for c in misfit:
+        problems.append(f"channel {c}: residual rms {fit[c]['rms']:.3g} against a noise sd of "
+                        f"{fit[c]['noise_sd']:.3g}: the constant Cd misses this window")
+    for c in structured:
+        problems.append(f"channel {c}: residuals autocorrelated (lag-1 {fit[c]['lag1']:.2f}): model error")
+    colored = bool(misfit or structured or any(f["chi2_per_sample"] > 1.5 for f in fit.values()))
+    cd = float(res.theta[0])
+    band = max(float(res.crb[0]), float(res.crb_colored[0])) if colored else float(res.crb[0])
+    at_bound = any("is at its bound" in w for w in res.warnings)
+    if at_bound:
+        problems.append("Cd or the window's state sits at a bound")
+    if not res.converged:
+        problems.append(f"not converged: {res.message}")
+    det = bool(res.converged and not at_bound and cd > 0 and np.isfinite(band)
+               and band / cd < DETERMINED_REL_SD)
+    return {"band_sd": band, "determined": det,
+            "quality": {"ok": not (misfit or structured or at_bound or not res.converged),
+                        "band": "colored" if colored else "cramer-rao", "channels": fit,
+                        "problems": problems}}

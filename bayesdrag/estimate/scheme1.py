@@ -552,6 +552,13 @@ def _penalty(dm, base):
     return priors
 
 
+def smoothness_priors(dm, base, sd):
+    """The smoothness pseudo-priors of a penalised Scheme 1 drag model at penalty sd ``sd``
+    (``prob.smoothing["sd"]`` of a fit): a tuple of linear :class:`Prior` on the drag
+    coefficients (the first ``dm.n_params`` parameters). ``base`` is ``prob.base`` of the fit."""
+    return _penalty(dm, base)(sd)[0]
+
+
 def _fit_penalised(prob, base_priors, P, penalty):
     """Choose the penalty by the Laplace evidence and return the fit at the best one.
 

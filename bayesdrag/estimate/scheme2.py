@@ -41,6 +41,9 @@ from ..drag import Constant
 from ..dynamics.pointmass import PointMassModel
 from ..errors import InputError
 from .ml import OutputErrorProblem
+from .noise import noise_and_outliers
+from .quality import assess_window
+from .start import data_start
 
 #: fewest samples a window may have (7 free parameters, >= 4 samples per parameter per channel)
 MIN_WINDOW = 15
@@ -233,10 +236,17 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
     positions = [track.channels.get(c) for c in ("x", "y", "z")]
     t = track.t
     windows, results, problems, smoothed = [], [], [], []
+    # the track's own noise, for each window's goodness of fit; the start curve for each
+    # window's starting Cd (the round's table may be another shell's, or absent)
+    sig_data, source, _ = noise_and_outliers(track, chans, sig)
+    try:
+        start = data_start(track.with_channels(chans) if set(chans) != set(track.names) else track, rnd)
+    except InputError:
+        start = None
     for k, (i0, i1) in enumerate(slices):
         s0, _ = smoothed_state(t, positions, i0, smooth, polyorder)
         sub = track.subset(np.arange(i0, i1))
-        cd0 = _start_cd(model, s0, ref)
+        cd0 = _start_cd(model, s0, ref, start)
         theta0 = np.concatenate([[cd0], s0])
         free = np.ones(7, bool)
         if not free_ic:
@@ -244,7 +254,7 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
         if "y" not in chans:
             free[[2, 5]] = False
         prob = OutputErrorProblem(model, sub, theta0, free=free, sigma=sig, channels=chans)
-        res = prob.fit()
+        res = prob.fit(fallback=True)
         mach = res.mach[np.isfinite(res.mach)] if res.mach is not None else np.array([np.nan])
         mmean = float(np.mean(mach))
         windows.append({
@@ -253,6 +263,7 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
             "ml": float(res.theta[0]), "crb_sd": float(res.crb[0]), "crb_sd_colored": float(res.crb_colored[0]),
             "reference": float(ref.value(mmean)) if ref is not None else None,
             "converged": bool(res.converged), "message": res.message, "warnings": list(res.warnings),
+            **assess_window(res, chans, (sig_data, source)),
         })
         results.append(res)
         problems.append(prob)
@@ -263,17 +274,20 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
                          int(overlap), bool(free_ic))
 
 
-def _start_cd(model, s0, reference):
-    """Starting Cd of a window: the reference at the window's starting Mach, else 0.3."""
-    if reference is None:
-        return 0.3
+def _start_cd(model, s0, reference, start=None):
+    """Starting Cd of a window at its starting Mach: the track's own start curve
+    (:mod:`bayesdrag.estimate.start`), else the reference, else 0.3."""
     _, a = model.atmosphere.density_and_sound_speed(float(s0[2]))
     m = float(np.linalg.norm(s0[3:])) / a
+    if start is not None:
+        return float(start.curve(m))
+    if reference is None:
+        return 0.3
     return float(reference.value(m))
 
 
 def windows_table(result):
     """The ``windows`` part of result.json (DESIGN.md): one dict per window."""
-    keys = ("t_start", "t_end", "mach", "ml", "crb_sd", "crb_sd_colored", "reference", "n", "mach_min",
-            "mach_max", "converged")
+    keys = ("t_start", "t_end", "mach", "ml", "crb_sd", "crb_sd_colored", "band_sd", "determined", "reference",
+            "n", "mach_min", "mach_max", "converged", "quality")
     return [{k: w[k] for k in keys} for w in result.windows]

@@ -39,6 +39,7 @@ from scipy.interpolate import make_smoothing_spline
 
 from ..atmosphere import G0
 from ..errors import InputError
+from .noise import hf_noise_sd
 
 #: Mach bin width of the start curve
 START_BIN = 0.01
@@ -46,8 +47,10 @@ START_BIN = 0.01
 START_CD_CLIP = (0.02, 3.0)
 #: Mach scale over which :attr:`DataStart.shape` is smoothed (a steep rise is ~0.1 Mach wide)
 SHAPE_SCALE = 0.04
-#: degree of the global polynomial trend removed before the smoothing spline (:func:`_smoother`)
-TREND_DEGREE = 3
+#: a window of the model-based start spans at most this relative change of speed, and this many
+#: samples (7 parameters need a few dozen values; too long a window averages Cd over much Mach)
+WINDOW_DV = 0.08
+WINDOW_MIN, WINDOW_MAX = 12, 60
 #: fewest samples the smoothing spline accepts (scipy needs 5)
 MIN_SMOOTH_SAMPLES = 5
 #: gravity check: a track's implied gravity off from g by more than this factor is a unit error
@@ -147,34 +150,85 @@ class DataStart:
         return np.interp(np.asarray(mach, float), self.mach, self.shape)
 
 
-def _smoother(t, y):
-    """GCV cubic smoothing spline of y(t) and its derivative; a straight line for fewer than 5
-    samples.
+def divided_difference_matrix(t, order):
+    """Sparse (N - order, N) matrix of divided differences of ``order`` on the abscissae ``t``
+    (uneven spacing allowed): ``D @ y`` approximates the order-th derivative / order!."""
+    from scipy.sparse import diags, identity
 
-    The spline is fitted to what a global cubic in t leaves: a smoothing spline is *natural*
-    (zero second derivative at its ends), and a shell decelerating at 200 m/s^2 at the first
-    sample would otherwise get its starting speed tens of m/s low; the cubic carries the ends'
-    acceleration, the spline what is left."""
-    if t.size >= MIN_SMOOTH_SAMPLES:
-        # scale time to O(1) for the conditioning of scipy's penta-diagonal solve
-        t0, ts = float(t[0]), float(max(t[-1] - t[0], 1e-9))
-        u = (t - t0) / ts
-        deg = min(TREND_DEGREE, t.size - 2)
-        trend = np.polynomial.Polynomial.fit(u, y, deg)
-        spl = make_smoothing_spline(u, y - trend(u))
-        d1, dtr = spl.derivative(), trend.deriv()
+    D = identity(t.size, format="csr")
+    for k in range(1, order + 1):
+        n = t.size - k
+        step = t[k:] - t[:-k]
+        Dk = diags([-1.0 / step, 1.0 / step], [0, 1], shape=(n, n + 1), format="csr")
+        D = Dk @ D
+    return D
 
-        def value(s):
-            v = (np.asarray(s) - t0) / ts
-            return spl(v) + trend(v)
 
-        def rate(s):
-            v = (np.asarray(s) - t0) / ts
-            return (d1(v) + dtr(v)) / ts
+def penalized_smooth(t, y, order, sigma):
+    """A penalized least-squares smoother whose weight matches the noise: minimise
+    ``sum (y - f)^2 + lam |D_order f|^2`` (``D`` the divided differences on ``t``), with ``lam``
+    chosen so that the residual rms equals ``sigma`` (the discrepancy principle: the smoother
+    takes out what the noise could have put in and no more).
 
-        return value, rate
-    p = np.polyfit(t, y, 1) if t.size >= 2 else np.array([0.0, float(y[0])])
-    return (lambda s: np.polyval(p, s)), (lambda s: np.full(np.shape(s), p[0]))
+    The penalty's null space is the polynomials of degree < ``order``: with order 3 on
+    positions, a constant acceleration costs nothing, so a shell decelerating at 200 m/s^2 at
+    its first sample is followed there (a cubic smoothing spline, which penalises acceleration,
+    starts it tens of m/s slow).
+
+    Parameters
+    ----------
+    t, y : (N,) ndarray
+        Times [s] (increasing) and values.
+    order : int
+        Derivative penalised (3 for positions, 2 for a speed).
+    sigma : float
+        Noise sd of ``y`` (same unit).
+
+    Returns
+    -------
+    f, df : (N,) ndarray
+        The smoothed values and their time derivative at ``t``.
+    """
+    from scipy.linalg import solveh_banded
+
+    n = t.size
+    if n < order + 3 or not sigma > 0:
+        p = np.polyfit(t, y, min(order - 1, max(n - 1, 0))) if n >= 2 else np.array([float(y[0])])
+        return np.polyval(p, t), np.polyval(np.polyder(p), t) if p.size > 1 else np.zeros(n)
+    ts = float(t[-1] - t[0])
+    u = (t - t[0]) / ts
+    D = divided_difference_matrix(u, order)
+    P = (D.T @ D).tocsr()
+    band = np.zeros((order + 1, n))
+    for k in range(order + 1):
+        dk = P.diagonal(k)
+        band[order - k, k:] = dk
+    band /= max(float(np.max(band[order])), 1e-300)  # lam = 1: the penalty as strong as the data
+
+    def solve(lam):
+        ab = band * lam
+        ab[order] += 1.0
+        return solveh_banded(ab, y, lower=False, check_finite=False)
+
+    target = sigma * sigma
+    lo, hi = -6.0, 11.0           # log10 lam (penalty normalised to the identity's scale)
+    f_lo, f_hi = solve(10.0**lo), solve(10.0**hi)
+    if np.mean((y - f_hi) ** 2) <= target:
+        f = f_hi
+    elif np.mean((y - f_lo) ** 2) >= target:
+        f = f_lo
+    else:
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            f = solve(10.0**mid)
+            if np.mean((y - f) ** 2) > target:
+                hi = mid
+            else:
+                lo = mid
+            if hi - lo < 0.02:
+                break
+        f = solve(10.0 ** (0.5 * (lo + hi)))
+    return f, np.gradient(f, t, edge_order=2)
 
 
 def _integrate(t, f, y0):
@@ -185,7 +239,7 @@ def _integrate(t, f, y0):
     return out
 
 
-def smooth_kinematics(track, elevation_deg=None, g=G0):
+def smooth_kinematics(track, elevation_deg=None, g=G0, sigma=None):
     """Smoothed speed, its rate, path angle, heading and height along a track.
 
     Parameters
@@ -199,6 +253,9 @@ def smooth_kinematics(track, elevation_deg=None, g=G0):
         cannot tell a flat path's few tenths of a degree from noise.
     g : float
         Gravity [m/s^2].
+    sigma : dict, optional
+        Noise sd per channel (the round's ``[radar] sigma``); channels without one get the sd
+        their own high-frequency content shows.
 
     Returns
     -------
@@ -207,18 +264,19 @@ def smooth_kinematics(track, elevation_deg=None, g=G0):
     t = np.asarray(track.t, float)
     ch = track.channels
     notes = []
-    pos_fn, vel_fn = {}, {}
+    sig = dict(sigma or {})
+    for c in ch:
+        if c not in sig:
+            sig[c] = hf_noise_sd(t, ch[c])
+    pos, vel = {}, {}
     for c in ("x", "y", "z"):
         if c in ch:
-            pos_fn[c], vel_fn[c] = _smoother(t, ch[c])
-    vel = {c: vel_fn[c](t) for c in vel_fn}
+            pos[c], vel[c] = penalized_smooth(t, ch[c], 3, sig[c])
     if "v" in ch:
-        vfn, dvfn = _smoother(t, ch["v"])
-        speed, dspeed = vfn(t), dvfn(t)
+        speed, dspeed = penalized_smooth(t, ch["v"], 2, sig["v"])
     elif vel:
         sp = np.sqrt(sum(v**2 for v in vel.values()))
-        vfn, dvfn = _smoother(t, sp)
-        speed, dspeed = vfn(t), dvfn(t)
+        speed, dspeed = penalized_smooth(t, sp, 2, hf_noise_sd(t, sp))
         if "z" not in vel or not ({"x", "y"} & set(vel)):
             notes.append("speed from the positions without all of x and z: it misses the path's "
                          "other components")
@@ -250,13 +308,13 @@ def smooth_kinematics(track, elevation_deg=None, g=G0):
             gamma[i] = gamma[i - 1] - h * g * math.cos(gm) / (0.5 * (speed[i] + speed[i - 1]))
         notes.append("path angle by the gravity turn from the launch elevation (speed-only track)")
     heading = np.arctan2(vel["y"], vel["x"]) if ("x" in vel and "y" in vel) else np.zeros_like(t)
-    z = pos_fn["z"](t) if "z" in pos_fn else _integrate(t, speed * np.sin(gamma), 0.0)
-    if "z" not in pos_fn:
+    z = pos["z"] if "z" in pos else _integrate(t, speed * np.sin(gamma), 0.0)
+    if "z" not in pos:
         notes.append("height by integrating V sin(gamma) from 0 at the first sample")
     cols = []
     for k, c in enumerate(("x", "y", "z")):
-        if c in pos_fn:
-            cols.append(pos_fn[c](t))
+        if c in pos:
+            cols.append(pos[c])
         elif c == "z":
             cols.append(z)
         elif c == "x":
@@ -360,6 +418,88 @@ def whittaker(y, w, scale_bins):
     return np.asarray(spsolve(A.tocsc(), w * y), float)
 
 
+def _window_bounds(speed, n_min, n_max, dv):
+    """Sample ranges [i0, i1) of consecutive windows, each spanning at most a relative change
+    ``dv`` of ``speed`` (and ``n_min``..``n_max`` samples); a short remainder joins the last."""
+    n = speed.size
+    out, i0 = [], 0
+    while n - i0 >= n_min:
+        ref = speed[i0]
+        j = i0 + n_min
+        while j < min(n, i0 + n_max) and abs(speed[j] / ref - 1.0) <= dv:
+            j += 1
+        out.append([i0, j])
+        i0 = j
+    if out and i0 < n:
+        out[-1][1] = n
+    return [tuple(w) for w in out]
+
+
+def window_fits(track, rnd, kin, cd0, sigma=None, ends_only=False):
+    """Constant-Cd maximum-likelihood fits over short windows of a track with positions.
+
+    The point-mass model integrates the flight exactly within each window, so a shell that
+    loses a third of its speed in half a second (a sphere at Mach 1.6) is read as well as a
+    slow one, where derivatives of smoothed positions are biased at the track's ends. Each
+    window spans at most :data:`WINDOW_DV` relative change of speed (and :data:`WINDOW_MIN` to
+    :data:`WINDOW_MAX` samples); its start is the smoothed state and ``cd0`` at its Mach.
+
+    Parameters
+    ----------
+    track : RadarTrack
+        Needs ``x`` and ``z``.
+    rnd : Round
+    kin : Kinematics
+        The smoothed kinematics (window starts).
+    cd0 : callable
+        ``cd0(mach)``: starting Cd.
+    sigma : dict, optional
+        Noise sd per channel (default the round's; missing channels are estimated).
+    ends_only : bool
+        Only the first and the last window (where smoothed derivatives are least certain).
+
+    Returns
+    -------
+    list of dict with ``i0``, ``i1``, ``mach`` (mean, min, max), ``cd``, ``state0`` (6,) at the
+    window's first sample; only windows whose fit converged.
+    """
+    from ..drag import Constant
+    from ..dynamics.pointmass import PointMassModel
+    from ..errors import FitError
+    from .ml import OutputErrorProblem
+
+    if "x" not in track.channels or "z" not in track.channels:
+        return []
+    model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, Constant(), rnd.atmosphere)
+    sig = dict(rnd.radar.sigma if sigma is None else sigma)
+    chans = track.names
+    out = []
+    bounds = _window_bounds(kin.speed, WINDOW_MIN, WINDOW_MAX, WINDOW_DV)
+    if ends_only and len(bounds) > 2:
+        bounds = [bounds[0], bounds[-1]]
+    for i0, i1 in bounds:
+        g, h, V = kin.gamma[i0], kin.heading[i0], kin.speed[i0]
+        s0 = np.concatenate([kin.position[i0], V * np.array([math.cos(g) * math.cos(h),
+                                                             math.cos(g) * math.sin(h), math.sin(g)])])
+        a = model.atmosphere.at_height(np.array([kin.z[i0]])).speed_of_sound[0]
+        theta0 = np.concatenate([[float(np.clip(cd0(V / a), 0.02, 2.9))], s0])
+        free = np.ones(7, bool)
+        if "y" not in chans:
+            free[[2, 5]] = False
+        try:
+            prob = OutputErrorProblem(model, track.subset(slice(i0, i1)), theta0, free=free, sigma=sig,
+                                      channels=chans)
+            res = prob.fit(max_iter=30)
+        except (FitError, InputError, ValueError, np.linalg.LinAlgError):
+            continue
+        m = res.mach[np.isfinite(res.mach)] if res.mach is not None else np.zeros(0)
+        if not (res.converged and m.size and 0.0 < res.theta[0] < 2.99):
+            continue
+        out.append({"i0": int(i0), "i1": int(i1), "mach": float(m.mean()), "mach_min": float(m.min()),
+                    "mach_max": float(m.max()), "cd": float(res.theta[0]), "state0": res.theta[1:].copy()})
+    return out
+
+
 def data_start(track, rnd):
     """Mach span, start Cd(M) and the state at the first sample, read off the track.
 
@@ -374,9 +514,25 @@ def data_start(track, rnd):
     -------
     DataStart
     """
-    kin = smooth_kinematics(track, elevation_deg=rnd.launch.elevation_deg)
+    kin = smooth_kinematics(track, elevation_deg=rnd.launch.elevation_deg, sigma=rnd.radar.sigma)
     mach, cd = drag_samples(kin, rnd.projectile.mass, rnd.projectile.diameter, rnd.atmosphere)
     grid, curve = start_curve(mach, cd)
+    # the track's ends, where a smoothed derivative is least certain and a fast-decelerating
+    # shell's speed is biased most, are read by the model itself (a constant-Cd window fit):
+    # its samples take the window's Cd over the window's fitted Mach range, and the first
+    # window gives the state at the first sample
+    wins = window_fits(track, rnd, kin, lambda m: np.interp(m, grid, curve), ends_only=True)
+    state_w = None
+    if wins:
+        keep = np.ones(mach.size, bool)
+        for w in wins:
+            keep[w["i0"]:w["i1"]] = False
+        mach = np.concatenate([mach[keep]] + [np.linspace(w["mach_min"], w["mach_max"], w["i1"] - w["i0"])
+                                              for w in wins])
+        cd = np.concatenate([cd[keep]] + [np.full(w["i1"] - w["i0"], w["cd"]) for w in wins])
+        grid, curve = start_curve(mach, cd)
+        if wins[0]["i0"] == 0:
+            state_w = wins[0]["state0"]
     # the shape: the start curve smoothed over SHAPE_SCALE, weighted by where samples are
     fin = np.isfinite(mach) & np.isfinite(cd)
     cnt = np.bincount(np.clip(np.rint((mach[fin] - grid[0]) / START_BIN).astype(int), 0, grid.size - 1),
@@ -389,6 +545,8 @@ def data_start(track, rnd):
                              kin.speed[0] * np.array([math.cos(kin.gamma[0]) * math.cos(kin.heading[0]),
                                                       math.cos(kin.gamma[0]) * math.sin(kin.heading[0]),
                                                       math.sin(kin.gamma[0])])])
+    if state_w is not None:
+        state0 = state_w
     fin = np.isfinite(mach)
     span = (float(mach[fin].min()), float(mach[fin].max()))
     return DataStart(span, grid, curve, shape, noise, state0, mach, cd, kin, kin.notes)

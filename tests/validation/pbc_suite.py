@@ -294,6 +294,64 @@ WIND_CASES = [
 
 ALL_CASES = CASES + WIND_CASES
 
+#: projectile classes for random cases: (label, mass [kg], diameter [m], v0 range [m/s], QE range
+#: [deg], tables that suit the shape, dt choices [s], noise choices [m])
+_CLASSES = (
+    ("bullet", (0.0026, 0.012), (0.0057, 0.0085), (700.0, 1000.0), (0.5, 5.0), ("G1", "G7", "G2", "G5"),
+     (0.005, 0.01, 0.02), (0.05, 0.1, 0.2)),
+    ("subsonic", (0.0026, 0.02), (0.0057, 0.0115), (280.0, 330.0), (1.0, 10.0), ("RA4", "G1"),
+     (0.01, 0.02), (0.05, 0.1)),
+    ("sphere", (0.06, 0.6), (0.025, 0.05), (400.0, 650.0), (2.0, 25.0), ("GS",), (0.02, 0.05), (0.2, 0.5)),
+    ("cannon", (0.3, 1.0), (0.025, 0.040), (800.0, 1050.0), (2.0, 15.0), ("G6", "G8", "G1"),
+     (0.02, 0.05, 0.1), (0.5, 1.0, 2.0)),
+    ("mortar", (3.0, 14.0), (0.060, 0.120), (200.0, 330.0), (40.0, 65.0), ("G2", "G5", "G1"),
+     (0.1, 0.2, 0.5), (1.0, 2.0, 3.0)),
+    ("shell", (12.0, 46.0), (0.100, 0.155), (450.0, 900.0), (5.0, 50.0), ("M101", "G7", "G1", "GI", "G5"),
+     (0.05, 0.1, 0.5, 1.0), (0.5, 1.0, 2.0, 3.0)),
+)
+
+
+def random_cases(n, seed=0):
+    """``n`` random cases (a check on shells, tables and conditions nobody chose), reproducible
+    from ``seed``: a projectile class, its mass, diameter, speed and elevation drawn uniformly in
+    the class's range, a table that suits its shape, the sampling and noise, the channels
+    (mostly x, y, z, v; sometimes positions only or x and v), the round's reference (none, right,
+    another shell's, 10 % off) and launch velocity (right, +-3 %, -15 %), sometimes a late lock-on
+    or an early loss. M101 is drawn only where the launch Mach stays inside its table."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        label, (m0, m1), (d0, d1), (v0a, v0b), (q0, q1), tabs, dts, noises = _CLASSES[rng.integers(len(_CLASSES))]
+        u = rng.uniform()
+        mass, diam = m0 + u * (m1 - m0), d0 + u * (d1 - d0)  # heavier with larger calibre
+        v0 = float(rng.uniform(v0a, v0b))
+        qe = float(rng.uniform(q0, q1))
+        tab = str(rng.choice(tabs))
+        if tab == "M101" and not (340.0 * 0.6 < v0 < 340.0 * 2.5):
+            tab = "G7"
+        pos = float(rng.choice(noises))
+        dt = float(rng.choice(dts))
+        ch_draw = rng.uniform()
+        channels = CHANNELS if ch_draw < 0.8 else (XZ if ch_draw < 0.9 else XV)
+        ref_draw = rng.uniform()
+        if ref_draw < 0.35:
+            ref = "none"
+        elif ref_draw < 0.7:
+            ref = "right"
+        elif ref_draw < 0.85:
+            other = [t for t in ("G1", "G7", "G2", "G5", "G6", "G8") if t != tab]
+            ref = "other:" + str(rng.choice(other))
+        else:
+            ref = "scaled:1.10"
+        vel_factor = float(rng.choice([1.0, 1.0, 1.0, 0.97, 1.03, 0.85]))
+        part = rng.uniform()
+        lock = float(rng.uniform(0.3, 1.5)) if part < 0.15 and label not in ("bullet", "subsonic") else None
+        out.append(_c(f"r{seed}-{i:02d}-{label}-{tab.lower()}", tab, round(mass, 5), round(diam, 5), round(v0, 1),
+                      round(qe, 2), dt, pos, 1000 * seed + i, channels=channels, ref=ref,
+                      vel_factor=vel_factor, lock_on=lock,
+                      note=f"random case {i} of seed {seed} ({label})"))
+    return out
+
 #: fast subset for the default test run: a flat bullet, a positions-only mortar at QE 60, a
 #: partial 130 mm track, the 155 mm shell with the round's velocity 15 % low, a 30 mm late lock-on
 FAST = ("b26-g7-flat", "m81-g2-pos60", "s130-g1-part", "s155-m101-v85", "p30-g6-late")
@@ -336,6 +394,14 @@ def case_by_name(name):
     for c in ALL_CASES + ISSUE_CASES:
         if c.name == name:
             return c
+    if name.startswith("r") and name.count("-") >= 2:  # a random case: r<seed>-<i>-...
+        try:
+            seed, i = int(name[1:].split("-")[0]), int(name.split("-")[1])
+            c = random_cases(i + 1, seed)[i]
+            if c.name == name:
+                return c
+        except (ValueError, IndexError):
+            pass
     raise KeyError(f"no case {name!r}")
 
 

@@ -89,6 +89,9 @@ def main(argv=None):
     ap.add_argument("--skip-diagnose", action="store_true")
     ap.add_argument("--poly2-split", action="store_true", help="also fit every case with --drag poly2-split")
     ap.add_argument("--issue-cases", action="store_true", help="also run the issue's own failure list")
+    ap.add_argument("--random", type=int, default=0, metavar="N",
+                    help="run N random cases (pbc_suite.random_cases) instead of the fixed suite")
+    ap.add_argument("--random-seed", type=int, default=0, help="seed of the random cases (default 0)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--out", default=None, help="folder for the generated tracks and fit outputs "
                                                 "(default: <tmp>/bayesdrag-robustness)")
@@ -103,7 +106,7 @@ def main(argv=None):
         S.PBC_OPTIONS.update(exact_atmosphere=False, match_density=False)
     folder = Path(a.out or Path(tempfile.gettempdir()) / "bayesdrag-robustness")
     folder.mkdir(parents=True, exist_ok=True)
-    cases = S.ALL_CASES
+    cases = S.random_cases(a.random, a.random_seed) if a.random else S.ALL_CASES
     issue = list(S.ISSUE_CASES) if a.issue_cases else []
     if a.fast:
         cases = [c for c in cases if c.name in S.FAST]
