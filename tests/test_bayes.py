@@ -87,6 +87,34 @@ def test_split_rank_rhat_matches_arviz():
     assert ours[1] > 1.01 > ours[0]
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_summary_diagnostics_match_arviz():
+    """The sampler's summary (bulk and tail ESS, R-hat, MCSE of the mean; numpy, no ArviZ)
+    gives ArviZ's numbers on correlated chains of different lengths, with a stuck chain and a
+    constant parameter."""
+    import arviz as az
+
+    from bayesdrag.estimate.sampler import summarize
+
+    rng = np.random.default_rng(4)
+    for W, S in ((16, 300), (8, 57), (4, 1001)):
+        e = rng.standard_normal((W, S, 4))
+        x = np.empty_like(e)
+        x[:, 0] = e[:, 0]
+        for i in range(1, S):                              # AR(1), rho 0.5 .. 0.95
+            x[:, i] = np.array([0.5, 0.8, 0.95, 0.0]) * x[:, i - 1] + e[:, i]
+        x[:2, :, 1] += 0.5                                 # two chains off
+        x[..., 3] = 2.5                                    # constant
+        ours = summarize(x, list("abcd"))
+        ds = az.convert_to_dataset({"p": x}, dims={"p": ["k"]})
+        ref = {"r_hat": az.rhat(ds)["p"].values, "ess_bulk": az.ess(ds, method="bulk")["p"].values,
+               "ess_tail": az.ess(ds, method="tail")["p"].values, "mcse_mean": az.mcse(ds, method="mean")["p"].values}
+        for col, r in ref.items():
+            o = ours[col].values
+            assert np.allclose(o[:3], r[:3], rtol=1e-9, atol=0), (col, W, S, o, r)
+        assert np.allclose(ours["ess_bulk"].values[3], ref["ess_bulk"][3])
+
+
 # ------------------------------------------------------------------ a synthetic track
 @pytest.fixture(scope="module")
 def data(m101):

@@ -1,0 +1,109 @@
+"""ArviZ output of a Bayesian fit: the one module of bayesdrag that imports :mod:`arviz`.
+
+:func:`to_inference_data` turns a :class:`~bayesdrag.estimate.sampler.BayesResult` and its
+:class:`~bayesdrag.estimate.posterior.LogPosterior` into an ``arviz.InferenceData``, written by
+``bayesdrag fit`` as ``posterior.nc`` (DESIGN.md). The convergence numbers of the run itself
+(R-hat, ESS) are computed by :mod:`bayesdrag.estimate.sampler` with ArviZ's definitions.
+"""
+from __future__ import annotations
+
+import warnings
+
+import arviz as az
+import numpy as np
+
+
+def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain=5, rng=None, seed=None):
+    """ArviZ InferenceData of a Bayesian fit.
+
+    Parameters
+    ----------
+    result : BayesResult
+        The sampling run (``draws`` (chains, draws, K), ``thetas`` (chains, draws, n), ``lp``).
+    post : LogPosterior
+        The posterior it sampled (problem, channels, likelihood, ML fit).
+    mach : (M,) array_like
+        Mach grid of ``cd`` [-].
+    cd : (chains, draws, M) ndarray
+        Cd draws on ``mach`` (:func:`~bayesdrag.estimate.sampler.cd_draws`).
+    reference : DragModel, optional
+        Reference drag; its Cd on ``mach`` goes to ``constant_data.reference_cd``.
+    n_ppc_per_chain : int, keyword-only
+        Posterior-predictive draws per chain (evenly spaced).
+    rng : numpy.random.Generator, keyword-only
+        Consumed for the posterior-predictive noise.
+    seed : int, keyword-only
+        Backward-compatible alternative to ``rng`` (``numpy.random.default_rng(seed)``).
+
+    Returns
+    -------
+    arviz.InferenceData
+        Groups ``posterior`` (sampled parameters and ``log_sigma_<c>``), ``sample_stats``
+        (``lp``), ``observed_data`` (the track's channels against ``time`` [s]),
+        ``constant_data`` (time, Mach grid, ML estimate and Cramér-Rao sd, fixed parameters,
+        reference Cd), ``posterior_predictive`` (``cd`` on the Mach grid and the track channels
+        with noise [m, m/s]; its ``draw`` coordinate holds the posterior draw indices).
+    """
+    if rng is not None and seed is not None:
+        raise TypeError("to_inference_data: give rng or seed, not both")
+    if rng is None:
+        rng = np.random.default_rng(seed)
+    mach = np.asarray(mach, float)
+    S = result.draws.shape[1]
+    k = max(1, min(n_ppc_per_chain, S))
+    pick = np.unique(np.linspace(0, S - 1, k).round().astype(int))
+    yy = _predictive_tracks(result, post, pick, rng)
+    ppc = {"cd": cd[:, pick].astype(np.float64), **{c: yy[..., j] for j, c in enumerate(post.channels)}}
+    t = post.problem.track.t
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        idata_pp = az.from_dict(posterior_predictive=ppc, coords={"mach": mach, "time": t},
+                                dims={"cd": ["mach"], **{c: ["time"] for c in post.channels}})
+        idata = az.from_dict(
+            posterior={n: result.draws[..., k] for k, n in enumerate(result.names)},
+            sample_stats={"lp": result.lp},
+            observed_data={c: post.problem.z[:, j] for j, c in enumerate(post.channels)},
+            constant_data=_constant_data(post, mach, reference),
+            coords={"time": t, "mach": mach, "theta": list(post.names[:post.n_theta]),
+                    "fixed": [n for j, n in enumerate(post.problem.names) if not post.problem.free[j]] or ["none"]},
+            dims={**{c: ["time"] for c in post.channels}, "t": ["time"], "mach_grid": ["mach"],
+                  "reference_cd": ["mach"], "ml_estimate": ["theta"], "crb_sd": ["theta"],
+                  "fixed_values": ["fixed"]},
+            attrs={"likelihood": result.likelihood, "moves": result.moves, "steps": result.steps,
+                   "burn": result.burn, "thin": result.thin, "converged": int(result.converged),
+                   "message": result.message, "inference_library": "emcee"})
+    # the posterior predictive draws are a subset of the posterior draws: their draw
+    # coordinate holds the posterior draw indices they belong to
+    idata.add_groups({"posterior_predictive": idata_pp.posterior_predictive.assign_coords(draw=pick)})
+    return idata
+
+
+def _predictive_tracks(result, post, pick, rng):
+    """Simulated tracks with noise at draws ``pick`` of every chain: (chains, picks, N, C)
+    float32 [m, m/s]."""
+    W = result.draws.shape[0]
+    th = result.thetas[:, pick].reshape(-1, result.thetas.shape[-1])
+    y, _ = post.problem.predict(th)
+    sig_cols = [result.names.index(f"log_sigma_{c}") for c in post.channels]
+    sig = np.exp(result.draws[:, pick][..., sig_cols]).reshape(-1, post.C)
+    if post.likelihood == "gaussian":
+        noise = rng.standard_normal(y.shape) * sig[:, None, :]
+    else:
+        nu = np.exp(result.draws[:, pick][..., -1]).reshape(-1) if post.sample_nu else np.full(y.shape[0], post.nu)
+        noise = rng.standard_t(nu[:, None, None], size=y.shape) * sig[:, None, :]
+    return (y + noise).reshape(W, pick.size, y.shape[1], post.C).astype(np.float32)
+
+
+def _constant_data(post, mach, reference):
+    """``constant_data`` group: time [s], Mach grid, ML estimate and CRB sd of the sampled
+    parameters, fixed parameters' values, reference Cd."""
+    crb_ml = dict(zip(post.ml.names, post.ml.crb))
+    theta_names = post.names[:post.n_theta]
+    const = {"t": post.problem.track.t, "mach_grid": mach,
+             "ml_estimate": np.array([post.ml.params[n] for n in theta_names]),
+             "crb_sd": np.array([crb_ml[n] for n in theta_names]),
+             "fixed_values": np.array([post.theta_ml[j] for j in range(post.theta_ml.size)
+                                       if not post.problem.free[j]] or [np.nan])}
+    if reference is not None:
+        const["reference_cd"] = np.asarray(reference.value(mach), float)
+    return const

@@ -1,0 +1,593 @@
+"""Sampling a :class:`~bayesdrag.estimate.posterior.LogPosterior` with emcee until converged.
+
+Run (choices measured, see ``docs/bayes.md`` and ``benchmarks/fit.py --moves``)
+    * ``emcee.EnsembleSampler(vectorize=True)``: one kernel call per half-ensemble move, with
+      the moves of :mod:`bayesdrag.estimate.moves`.
+    * Walkers start as draws from the Gaussian (Laplace) approximation of the posterior
+      (:meth:`~bayesdrag.estimate.posterior.LogPosterior.initial_walkers`), so the burn-in is
+      short.
+    * Run length: every ``check_every`` steps the integrated autocorrelation time tau is
+      estimated (emcee's walker-averaged estimator, :func:`integrated_time`); the run stops when
+      the chain is longer than ``TAU_FACTOR`` (50) x max tau, tau changed by < ``TAU_RTOL``
+      (5 %) since the last check, and, on the burnt-in and thinned draws, the rank-normalised
+      split ``r_hat < 1.01`` and bulk and tail ESS >= 400 for every parameter; or at
+      ``max_steps`` (then ``converged=False`` with a message). Burn-in = ceil(3 max tau),
+      thinning = max(1, floor(min tau / 2)).
+    * Diagnostics (:func:`split_rank_rhat`, :func:`ess`, :func:`summarize`) are numpy versions
+      of ArviZ's ``rhat``, ``ess`` and ``mcse`` (Vehtari et al. 2021): the same numbers (tests
+      compare them with ArviZ), without ArviZ, which only :mod:`bayesdrag.estimate.inference`
+      imports.
+    * The chain is written as it runs to an HDF5 file (:class:`bayesdrag.io.chain.ChainFile`,
+      flushed every ``check_every`` steps); a run restarted on the same file (``resume=True``)
+      continues it from its last flushed step with the stored random state, so the continued
+      chain is the one an uninterrupted run would have produced.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+
+import emcee
+import numpy as np
+from scipy.fft import next_fast_len
+from scipy.special import ndtri
+from scipy.stats import rankdata
+
+from .._threads import single_blas
+from ..errors import InputError
+from ..io.chain import ChainFile
+from .moves import describe_moves, make_moves
+
+#: run until the chain is this many autocorrelation times long
+TAU_FACTOR = 50.0
+#: relative change of tau between checks below which it counts as stable
+TAU_RTOL = 0.05
+#: convergence thresholds (rank-normalised split R-hat, bulk and tail ESS)
+RHAT_MAX = 1.01
+ESS_MIN = 400
+#: default number of walkers
+DEFAULT_WALKERS = 16
+#: default steps between convergence checks (and chain-file flushes)
+CHECK_EVERY = 25
+
+
+@dataclass(frozen=True, eq=False)
+class BayesResult:
+    """Outcome of :func:`sample_posterior`.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Sampled parameter names plus ``log_sigma_<c>`` (and ``log_nu``) in the draws.
+    draws : (chains, draws, K) ndarray
+        Burnt-in, thinned draws; walkers are the chains. The last columns are the noise
+        ``log_sigma_<c>`` (Gaussian: exact conditional draws) [log m or log m/s].
+    lp : (chains, draws) ndarray
+        Log posterior of each draw (sampled coordinates).
+    thetas : (chains, draws, n) ndarray
+        Full parameter vectors (fixed parameters included), for predictions.
+    tau : (D,) ndarray
+        Integrated autocorrelation time per sampled coordinate [steps].
+    steps, burn, thin, nwalkers : int
+        Chain length, burn-in and thinning [steps]; walkers.
+    acceptance : float
+        Mean acceptance fraction.
+    converged : bool
+    message : str
+    summary : pandas.DataFrame
+        Per name of ``names``: mean, sd, q05, q50, q95, mcse_mean, ess_bulk, ess_tail, r_hat
+        (:func:`summarize`; ArviZ's definitions).
+    elapsed : float
+        Wall-clock seconds of sampling (this call).
+    moves : str
+        The move mix, described.
+    likelihood : str
+    warnings : tuple of str
+    resumed_from : int
+        Steps already in the chain file when this call started (0: a fresh chain).
+    tau_history : tuple of (steps, max tau)
+    chain : (steps, walkers, D) ndarray
+        The whole chain of the sampled coordinates, burn-in included (for trace plots).
+    """
+
+    names: tuple
+    draws: np.ndarray
+    lp: np.ndarray
+    thetas: np.ndarray
+    tau: np.ndarray
+    steps: int
+    burn: int
+    thin: int
+    nwalkers: int
+    acceptance: float
+    converged: bool
+    message: str
+    summary: object
+    elapsed: float
+    moves: str
+    likelihood: str
+    warnings: tuple = ()
+    resumed_from: int = 0
+    tau_history: tuple = field(default_factory=tuple)
+    chain: np.ndarray = None
+
+    @property
+    def r_hat(self):
+        """dict name -> rank-normalised split R-hat."""
+        return dict(zip(self.summary.index, self.summary["r_hat"].astype(float)))
+
+    @property
+    def ess_bulk(self):
+        """dict name -> bulk effective sample size [draws]."""
+        return dict(zip(self.summary.index, self.summary["ess_bulk"].astype(float)))
+
+    @property
+    def ess_tail(self):
+        """dict name -> tail effective sample size [draws]."""
+        return dict(zip(self.summary.index, self.summary["ess_tail"].astype(float)))
+
+
+# --------------------------------------------------------------------------- diagnostics
+def integrated_time(chain, *, c=5):
+    """Walker-averaged integrated autocorrelation time per coordinate: emcee's estimator
+    (``emcee.autocorr.integrated_time(chain, c=5, tol=0)``: FFT autocorrelation per walker,
+    averaged over walkers, Sokal's automatic window), computed for all walkers and coordinates in
+    one FFT instead of one call per walker and coordinate (the sampler checks it every 25 steps).
+
+    Parameters
+    ----------
+    chain : (n_steps, n_walkers, n_dim) array
+    c : float, keyword-only
+        Sokal's window factor.
+
+    Returns
+    -------
+    (n_dim,) ndarray
+        tau [steps].
+    """
+    x = np.asarray(chain, dtype=float)
+    n = x.shape[0]
+    n2 = 1 << int(np.ceil(np.log2(max(n, 1))))
+    f = np.fft.rfft(x - x.mean(axis=0), n=2 * n2, axis=0)
+    acf = np.fft.irfft(f * np.conjugate(f), n=2 * n2, axis=0)[:n]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        acf = acf / acf[0]
+    acf = np.nan_to_num(acf).mean(axis=1)                       # (n, n_dim)
+    taus = 2.0 * np.cumsum(acf, axis=0) - 1.0
+    m = np.arange(n)[:, None] < c * taus
+    window = np.where(m.all(axis=0), n - 1, np.argmin(m, axis=0))
+    return taus[window, np.arange(taus.shape[1])]
+
+
+def _split(draws):
+    """(chains, S, K) -> (2 chains, S // 2, K): first and last halves as separate chains."""
+    h = draws.shape[1] // 2
+    return np.concatenate([draws[:, :h], draws[:, draws.shape[1] - h:]], axis=0)
+
+
+def _z_scale(x):
+    """Rank-normalised values (Blom's offset 3/8) per parameter of x (chains, draws, K)."""
+    n = x.shape[0] * x.shape[1]
+    r = rankdata(x.reshape(n, -1), axis=0, method="average").reshape(x.shape)
+    return ndtri((r - 0.375) / (n + 0.25))
+
+
+def split_rank_rhat(draws):
+    """Rank-normalised split R-hat (Vehtari et al. 2021), max of bulk and folded, per parameter.
+
+    The same numbers as ``arviz.rhat`` (tests check the two agree), fast enough for the in-run
+    convergence checks.
+
+    Parameters
+    ----------
+    draws : (chains, draws, K) ndarray
+
+    Returns
+    -------
+    (K,) ndarray
+    """
+    x = _split(np.asarray(draws, float))
+    h = x.shape[1]
+
+    def rhat(y):
+        z = _z_scale(y)
+        B = h * z.mean(axis=1).var(axis=0, ddof=1)
+        Wv = z.var(axis=1, ddof=1).mean(axis=0)
+        return np.sqrt(((h - 1) / h * Wv + B / h) / Wv)
+
+    folded = np.abs(x - np.median(x.reshape(-1, x.shape[-1]), axis=0))
+    return np.maximum(rhat(x), rhat(folded))
+
+
+def _ess_chains(x):
+    """ESS of each parameter of x (chains, draws, K), chains as given: ArviZ's ``_ess``
+    (Geyer's initial positive then initial monotone sequence on the multi-chain
+    autocorrelation)."""
+    m, n, K = x.shape
+    xc = x - x.mean(axis=1, keepdims=True)
+    nfft = next_fast_len(2 * n, real=True)
+    f = np.fft.rfft(xc, n=nfft, axis=1)
+    acov = np.fft.irfft(f * np.conjugate(f), n=nfft, axis=1)[:, :n] / n    # (m, n, K)
+    mean_var = acov[:, 0].mean(axis=0) * n / (n - 1.0)
+    var_plus = mean_var * (n - 1.0) / n
+    if m > 1:
+        var_plus = var_plus + x.mean(axis=1).var(axis=0, ddof=1)
+    out = np.empty(K)
+    for k in range(K):
+        if np.ptp(x[..., k]) < np.finfo(float).resolution:
+            out[k] = m * n
+            continue
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho = 1.0 - (mean_var[k] - acov[..., k].mean(axis=0)) / var_plus[k]
+        out[k] = _geyer_ess(rho, m * n)
+    return out
+
+
+def _geyer_ess(rho, size):
+    """ESS from the autocorrelations ``rho`` (n,) of ``size`` draws (ArviZ's ``_ess``)."""
+    n = rho.size
+    rt = np.zeros(n)
+    rt[0] = even = 1.0
+    rt[1] = odd = rho[1]
+    t = 1
+    while t < n - 3 and even + odd > 0.0:                      # initial positive sequence
+        even, odd = rho[t + 1], rho[t + 2]
+        if even + odd >= 0:
+            rt[t + 1], rt[t + 2] = even, odd
+        t += 2
+    max_t = t - 2
+    if even > 0:
+        rt[max_t + 1] = even
+    t = 1
+    while t <= max_t - 2:                                      # initial monotone sequence
+        if rt[t + 1] + rt[t + 2] > rt[t - 1] + rt[t]:
+            rt[t + 1] = rt[t + 2] = (rt[t - 1] + rt[t]) / 2.0
+        t += 2
+    tau = -1.0 + 2.0 * np.sum(rt[:max_t + 1]) + np.sum(rt[max_t + 1:max_t + 2])
+    tau = max(tau, 1 / np.log10(size))
+    return np.nan if np.isnan(rt).any() else size / tau
+
+
+def ess(draws, *, method="bulk"):
+    """Effective sample size per parameter, as ``arviz.ess(..., method=method)``.
+
+    Parameters
+    ----------
+    draws : (chains, draws, K) ndarray
+    method : {"bulk", "tail", "mean"}, keyword-only
+        ``bulk``: of the rank-normalised split chains; ``tail``: the smaller of the ESS of the
+        indicators of the 5 % and 95 % quantiles; ``mean``: of the split chains as they are.
+
+    Returns
+    -------
+    (K,) ndarray
+        ESS [draws]; NaN for parameters with non-finite draws or fewer than 4 draws per chain.
+    """
+    x = np.asarray(draws, float)
+    K = x.shape[-1]
+    if x.shape[1] < 4:
+        return np.full(K, np.nan)
+    if method == "bulk":
+        out = _ess_chains(_z_scale(_split(x)))
+    elif method == "mean":
+        out = _ess_chains(_split(x))
+    elif method == "tail":
+        q = np.quantile(x.reshape(-1, K), [0.05, 0.95], axis=0)
+        out = np.minimum(_ess_chains(_split((x <= q[0]).astype(float))),
+                         _ess_chains(_split((x <= q[1]).astype(float))))
+    else:
+        raise ValueError(f"method {method!r} not known (allowed: bulk, tail, mean)")
+    out[~np.all(np.isfinite(x), axis=(0, 1))] = np.nan
+    return out
+
+
+def summarize(draws, names):
+    """Convergence summary of draws: the columns of ``arviz.summary`` that bayesdrag reports.
+
+    Parameters
+    ----------
+    draws : (chains, draws, K) ndarray
+    names : sequence of str
+        K parameter names (the index).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns mean, sd, q05, q50, q95, mcse_mean (sd / sqrt(ESS of the mean)), ess_bulk,
+        ess_tail, r_hat (rank-normalised split R-hat).
+    """
+    import pandas as pd
+
+    x = np.asarray(draws, float)
+    flat = x.reshape(-1, x.shape[-1])
+    q = np.quantile(flat, [0.05, 0.5, 0.95], axis=0)
+    sd = flat.std(0, ddof=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mcse = sd / np.sqrt(ess(x, method="mean"))
+        rhat = split_rank_rhat(x) if x.shape[1] >= 4 else np.full(x.shape[-1], np.nan)
+    return pd.DataFrame({"mean": flat.mean(0), "sd": sd, "q05": q[0], "q50": q[1], "q95": q[2],
+                         "mcse_mean": mcse, "ess_bulk": ess(x, method="bulk"), "ess_tail": ess(x, method="tail"),
+                         "r_hat": rhat}, index=list(names))
+
+
+# --------------------------------------------------------------------------- the run
+@dataclass(frozen=True)
+class _Streams:
+    """The random streams of one run: walkers' start, noise draws, emcee's generator."""
+
+    start: np.random.Generator
+    noise: np.random.Generator
+    emcee_state: tuple
+    label: object          # identifies the streams in the chain file's fingerprint
+
+
+def _streams(rng, seed):
+    """Derive a run's streams from ``rng``, or from ``seed`` exactly as earlier versions did
+    (so a given seed still gives the same chain)."""
+    if rng is not None and seed is not None:
+        raise TypeError("sample_posterior: give rng or seed, not both")
+    if rng is None:
+        seed = None if seed is None else int(seed)
+        rs = np.random.RandomState(None if seed is None else np.random.SeedSequence(seed).generate_state(1)[0])
+        return _Streams(np.random.default_rng(seed), np.random.default_rng(None if seed is None else seed + 1),
+                        rs.get_state(), seed)
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"sample_posterior: rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    state = json.dumps(rng.bit_generator.state, sort_keys=True, default=lambda a: np.asarray(a).tolist())
+    label = "rng:" + hashlib.sha256(state.encode()).hexdigest()[:16]
+    start, noise, mt = np.random.SeedSequence(rng.integers(0, 2**63, size=4)).spawn(3)
+    return _Streams(np.random.default_rng(start), np.random.default_rng(noise),
+                    np.random.RandomState(np.random.MT19937(mt)).get_state(), label)
+
+
+def _fingerprint(post, nwalkers, moves, label):
+    """Hash of everything that defines a chain, stored in the chain file to refuse resuming a
+    different problem."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(post.problem.z).tobytes())
+    h.update(np.ascontiguousarray(post.problem.track.t).tobytes())
+    h.update(np.round(post.laplace_mean, 9).tobytes())
+    h.update(json.dumps([list(post.names), post.likelihood, str(post.nu), nwalkers, moves, label]).encode())
+    return h.hexdigest()[:16]
+
+
+@single_blas
+def sample_posterior(post, *, nwalkers=None, max_steps=20000, min_steps=100, check_every=None, rng=None,
+                     seed=None, moves="auto", move_options=None, backend_path=None, resume=False,
+                     progress=False, log=None):
+    """Sample ``post`` with emcee until converged (module docstring) or ``max_steps``.
+
+    Parameters
+    ----------
+    post : LogPosterior
+    nwalkers : int, optional
+        Default :data:`DEFAULT_WALKERS` (16; rounded up to even). The stopping rule counts steps
+        (50 tau, and r_hat < 1.01 needs some 100 effective draws per walker), so the cost grows
+        with the walkers; the independence move needs no minimum number, and 16 walkers give a
+        total ESS well above 400 at the stop.
+    max_steps : int
+        Hard limit of ensemble steps (the chain's total length, resumed part included).
+    min_steps : int
+        Never stop before this many steps.
+    check_every : int, optional
+        Steps between convergence checks and chain-file flushes (default 25).
+    rng : numpy.random.Generator, optional
+        Consumed once to derive the walkers' start, the noise draws and emcee's generator.
+    seed : int, optional
+        Backward-compatible alternative to ``rng`` (give one of them): derives the streams as
+        earlier versions did, so a given seed gives the same chain. Neither: fresh entropy.
+    moves : {"auto", "de", "stretch"}
+        Move mix (:func:`~bayesdrag.estimate.moves.make_moves`).
+    move_options : dict, optional
+        Keyword options of :func:`~bayesdrag.estimate.moves.make_moves` (weight, scale, dof).
+    backend_path : path, optional
+        HDF5 file the chain is written to as it runs (:class:`~bayesdrag.io.chain.ChainFile`;
+        ``None``: memory only).
+    resume : bool
+        Continue the chain in ``backend_path`` (checked: same problem and settings, consistent
+        and finite values); a file holding no step is started afresh.
+    progress : bool
+        Show a tqdm progress bar.
+    log : callable, optional
+        Called with one-line status messages at each convergence check.
+
+    Returns
+    -------
+    BayesResult
+
+    Raises
+    ------
+    InputError
+        Bad walkers or moves, or a chain file that cannot be resumed (one line naming it).
+    """
+    D = post.ndim
+    nwalkers = int(DEFAULT_WALKERS if nwalkers is None else nwalkers)
+    nwalkers += nwalkers % 2
+    if nwalkers < 2 * D and moves != "auto":
+        raise InputError(f"--walkers {nwalkers}: ensemble moves need at least 2 x {D} walkers")
+    if nwalkers < 8:
+        raise InputError(f"--walkers {nwalkers}: at least 8 walkers are needed")
+    check_every = int(check_every or CHECK_EVERY)
+    streams = _streams(rng, seed)
+    move_list = make_moves(moves, post, nwalkers=nwalkers, **(move_options or {}))
+    backend, resumed = _open_backend(backend_path, resume, post, nwalkers, check_every,
+                                     _fingerprint(post, nwalkers, moves, streams.label))
+    sampler = emcee.EnsembleSampler(nwalkers, D, post, moves=move_list, vectorize=True, backend=backend,
+                                    blobs_dtype=float)
+    state = None
+    if not resumed:
+        state = emcee.State(post.initial_walkers(nwalkers, rng=streams.start), random_state=streams.emcee_state)
+    t0 = time.perf_counter()
+    converged, message, tau, tau_hist = _run(sampler, state, post, backend, resumed, max_steps, min_steps,
+                                             check_every, progress, log)
+    elapsed = time.perf_counter() - t0
+    return _collect(post, sampler, tau, converged, message, elapsed, moves, streams.noise, resumed, tau_hist)
+
+
+def _open_backend(path, resume, post, nwalkers, check_every, fingerprint):
+    """(backend, steps already stored): the resumed chain file, a fresh one, or (None, 0)."""
+    if path is None:
+        return None, 0
+    cf = ChainFile(path, flush_every=check_every)
+    backend = None
+    if resume and cf.exists():
+        backend = cf.load_backend(nwalkers=nwalkers, ndim=post.ndim, nblobs=post.C, fingerprint=fingerprint)
+    if backend is None:
+        return cf.new_backend(nwalkers, post.ndim, fingerprint=fingerprint), 0
+    return backend, backend.iteration
+
+
+def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every, progress, log):
+    """The sampling loop with its convergence checks; returns (converged, message, tau,
+    tau history)."""
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=max_steps, initial=done, desc="mcmc", unit="step", leave=False)
+    old_tau = None
+    tau = np.full(post.ndim, np.nan)
+    tau_hist = []
+    try:
+        while done < max_steps:
+            n = min(check_every, max_steps - done) if done >= min_steps else max(min_steps - done, 1)
+            n = min(n, max_steps - done)
+            sampler.run_mcmc(state, n, progress=False, skip_initial_state_check=True)
+            state = None
+            done = sampler.iteration
+            if backend is not None:
+                backend.flush()
+            if bar is not None:
+                bar.update(n)
+            if done < min_steps:
+                continue
+            tau = integrated_time(sampler.get_chain())
+            tmax = float(np.max(tau))
+            tau_hist.append((done, tmax))
+            stable = old_tau is not None and np.all(np.abs(tau - old_tau) < TAU_RTOL * old_tau)
+            old_tau = tau
+            msg = f"mcmc: {done} steps, tau max {tmax:.1f}, acceptance {np.mean(sampler.acceptance_fraction):.2f}"
+            if done >= TAU_FACTOR * tmax and stable and np.isfinite(tmax):
+                draws, burn, _ = _retained(sampler, tau)
+                fast_r = float(np.max(split_rank_rhat(draws)))
+                ess_est = sampler.nwalkers * (done - burn) / tmax
+                msg += f", r_hat max {fast_r:.4f}, ESS ~{ess_est:.0f}"
+                if fast_r < RHAT_MAX and ess_est >= ESS_MIN:
+                    # the reported diagnostics (bulk and tail ESS too) must confirm before stopping
+                    summary = summarize(draws, post.names[:post.ndim])
+                    worst_r = float(summary["r_hat"].max())
+                    min_ess = float(min(summary["ess_bulk"].min(), summary["ess_tail"].min()))
+                    if worst_r < RHAT_MAX and min_ess >= ESS_MIN:
+                        if log:
+                            log(msg)
+                        return (True, f"converged: {done} steps >= {TAU_FACTOR:g} tau (max {tmax:.1f}), "
+                                      f"r_hat max {worst_r:.4f}, ESS min {min_ess:.0f}", tau, tuple(tau_hist))
+            if log:
+                log(msg)
+    finally:
+        if bar is not None:
+            bar.close()
+    message = (f"not converged after {done} steps (max_steps): tau max {np.nanmax(tau):.1f} "
+               f"needs {TAU_FACTOR:g} tau; the draws are reported but check the diagnostics")
+    return False, message, tau, tuple(tau_hist)
+
+
+def _retained(sampler, tau):
+    """Burnt-in, thinned draws (walkers, draws, D), burn-in and thinning [steps]."""
+    tmax = float(np.max(tau))
+    burn = int(math.ceil(3 * tmax))
+    thin = max(1, int(np.min(tau) // 2))
+    draws = np.swapaxes(sampler.get_chain(discard=burn, thin=thin), 0, 1)
+    return draws, burn, thin
+
+
+def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, resumed, tau_hist):
+    """The :class:`BayesResult` of a finished run (noise draws from ``noise_rng``)."""
+    if not np.all(np.isfinite(tau)):
+        tau = integrated_time(sampler.get_chain())
+    draws, burn, thin = _retained(sampler, tau)
+    if draws.shape[1] < 4:  # very short (max_steps tiny): keep the second half
+        burn = sampler.iteration // 2
+        thin = 1
+        draws = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+    lp = np.swapaxes(sampler.get_log_prob(discard=burn, thin=thin), 0, 1)
+    blobs = np.swapaxes(sampler.get_blobs(discard=burn, thin=thin), 0, 1)  # (W, S, C)
+    W, S, D = draws.shape
+    flat = draws.reshape(-1, D)
+    sig = post.sigma_draws(flat, blobs.reshape(-1, post.C), rng=noise_rng)
+    if post.likelihood == "gaussian":
+        full = np.concatenate([draws, np.log(sig).reshape(W, S, post.C)], axis=-1)
+        names = post.names + tuple(f"log_sigma_{c}" for c in post.channels)
+    else:
+        full = draws
+        names = post.names
+    thetas = post.full_theta(flat).reshape(W, S, -1)
+    summary = summarize(full, names)
+    warns = [] if converged else [message]
+    bad_r = [n for n, r in zip(summary.index, summary["r_hat"]) if not r < RHAT_MAX]
+    if bad_r:
+        warns.append(f"r_hat >= {RHAT_MAX} for {', '.join(bad_r[:6])}")
+    acc = float(np.mean(sampler.acceptance_fraction))
+    if acc < 0.1:
+        warns.append(f"mean acceptance {acc:.3f} is very low: the chain barely moves"
+                     + (" (the posterior is far from its Gaussian approximation, e.g. a poorly "
+                        "identified drag model; try --moves de)" if moves == "auto" else ""))
+    return BayesResult(names, full, lp, thetas, np.asarray(tau), int(sampler.iteration), burn, thin, W,
+                       acc, converged, message, summary, elapsed, describe_moves(moves), post.likelihood,
+                       tuple(warns), resumed, tau_hist, sampler.get_chain())
+
+
+# --------------------------------------------------------------------------- Cd from the draws
+def cd_draws(result, drag_model, mach, n_drag):
+    """Cd on a Mach grid for every retained draw.
+
+    Parameters
+    ----------
+    result : BayesResult
+    drag_model : DragModel
+        Its ``jacobian(mach)`` (M, P) maps the P drag coefficients to Cd (linear models).
+    mach : (M,) array_like
+        Mach numbers [-].
+    n_drag : int
+        P, the leading drag coefficients of ``result.thetas``.
+
+    Returns
+    -------
+    (chains, draws, M) ndarray
+        Cd [-].
+    """
+    B = drag_model.jacobian(np.asarray(mach, float))  # (M, P)
+    return np.einsum("wsp,mp->wsm", result.thetas[..., :n_drag], B)
+
+
+def cd_posterior_rows(rows, cd):
+    """Add the posterior part to ``cd_table`` rows.
+
+    Parameters
+    ----------
+    rows : list of dict
+        From :func:`bayesdrag.estimate.scheme1.cd_table` (keys mach, ml, crb_sd, ...).
+    cd : (chains, draws, M) ndarray
+        Posterior draws of Cd at the rows' Mach numbers.
+
+    Returns
+    -------
+    list of dict
+        Each row with ``mean``, ``sd``, ``q05``, ``q25``, ``q50``, ``q75``, ``q95`` and
+        ``sd_over_crb`` (posterior sd / Cramér-Rao sd; None where the CRB sd is 0).
+    """
+    flat = cd.reshape(-1, cd.shape[-1])
+    q = np.quantile(flat, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
+    mean = flat.mean(axis=0)
+    sd = flat.std(axis=0, ddof=1)
+    out = []
+    for i, r in enumerate(rows):
+        r = dict(r)
+        r.update(mean=float(mean[i]), sd=float(sd[i]), q05=float(q[0, i]), q25=float(q[1, i]),
+                 q50=float(q[2, i]), q75=float(q[3, i]), q95=float(q[4, i]),
+                 sd_over_crb=float(sd[i] / r["crb_sd"]) if r.get("crb_sd") else None)
+        out.append(r)
+    return out

@@ -1,0 +1,325 @@
+"""The MCMC chain file: an HDF5 file written in blocks while emcee runs, read back to resume.
+
+emcee's own ``HDFBackend`` opens and closes its file at every step, which cost ~18 ms per step
+on the demo track (more than the step's 16 simulations). :class:`ChainBackend` is emcee's memory
+backend whose new steps are appended to the file every ``flush_every`` steps (~1 ms per block of
+25 steps); a kill loses at most the unflushed block. The file holds the random state of emcee's
+generator after its last stored step, so a resumed run continues the exact chain an uninterrupted
+run would have produced.
+
+Nothing read from the file is unpickled or evaluated (DESIGN.md). Every value is read as a typed
+number array or a plain string and checked before it is used (:meth:`ChainFile.load_backend`):
+a file that is not a chain of this format, of the expected shape, with finite values and a
+well-formed random state, made by the same problem and settings, raises
+:class:`~bayesdrag.errors.InputError` with one line naming the file and what is wrong.
+
+Layout (``format = "bayesdrag-chain/2"``), group ``mcmc``:
+
+======================  ===================  ===================================================
+name                    type, shape          content
+======================  ===================  ===================================================
+``chain``               float64 (S, W, D)    walker positions (S >= ``iteration`` steps)
+``log_prob``            float64 (S, W)       log posterior of every stored position
+``blobs``               float64 (S, W, C)    emcee blobs (residual sums of squares per channel)
+``accepted``            float64 (W,)         accepted proposals per walker, 0 .. ``iteration``
+``random_state/key``    uint32 (624,)        MT19937 key of emcee's ``RandomState``
+attributes of ``mcmc``  str, int             ``format``, ``iteration``, ``bayesdrag_fingerprint``
+attributes of           str, int, int,       ``bit_generator`` ("MT19937"), ``pos`` (0 .. 624),
+``random_state``        int, float, int      ``has_gauss`` (0/1), ``cached_gaussian``, ``step``
+======================  ===================  ===================================================
+
+The five random-state fields are those of ``numpy.random.RandomState.get_state()``; ``step`` is
+the chain step they belong to (equal to ``iteration`` in a consistent file).
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import emcee
+import h5py
+import numpy as np
+
+from ..errors import InputError
+
+#: value of the ``format`` attribute written and accepted
+FORMAT = "bayesdrag-chain/2"
+#: name of the HDF5 group holding the chain
+GROUP = "mcmc"
+#: the only bit generator emcee's ``RandomState`` uses, and its key length
+BIT_GENERATOR = "MT19937"
+MT_KEY_SIZE = 624
+_FINGERPRINT_RE = re.compile(r"^[0-9a-f]{1,64}$")
+_AFRESH = "delete it to start the chain afresh"
+
+
+class ChainFile:
+    """The chain file at ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The HDF5 file (``DIR/chain.partial.h5`` for ``bayesdrag fit``).
+    flush_every : int, keyword-only
+        Steps kept in memory before they are appended to the file (default 25).
+    """
+
+    def __init__(self, path, *, flush_every=25):
+        self.path = str(path)
+        self.flush_every = int(flush_every)
+
+    def exists(self):
+        """True when something is stored at ``path`` (whether it is a valid chain is checked by
+        :meth:`load_backend`)."""
+        return Path(self.path).exists()
+
+    def new_backend(self, nwalkers, ndim, *, fingerprint):
+        """A fresh :class:`ChainBackend`; the file is (re)created holding no step.
+
+        Parameters
+        ----------
+        nwalkers, ndim : int
+            Walkers W and sampled dimensions D.
+        fingerprint : str
+            Hex digest of what defines the chain (data, settings), checked when resuming.
+        """
+        with h5py.File(self.path, "w") as f:
+            g = f.create_group(GROUP)
+            g.attrs["format"] = FORMAT
+            g.attrs["iteration"] = 0
+            g.attrs["bayesdrag_fingerprint"] = str(fingerprint)
+        return ChainBackend(self, nwalkers, ndim, flushed=0)
+
+    def load_backend(self, *, nwalkers, ndim, nblobs, fingerprint):
+        """The stored chain as a :class:`ChainBackend`, after checking every value read.
+
+        Parameters
+        ----------
+        nwalkers, ndim : int
+            Walkers W and sampled dimensions D this run needs.
+        nblobs : int
+            Blob columns C per walker this run produces (0: none).
+        fingerprint : str
+            The fingerprint this run computes; the stored one must be equal.
+
+        Returns
+        -------
+        ChainBackend or None
+            None when the file holds no step yet (a run killed before its first block).
+
+        Raises
+        ------
+        InputError
+            One line naming the file and what is wrong: not an HDF5 file or truncated, not a
+            chain of this format (an earlier version's file with a pickled random state
+            included), another problem or settings, datasets of the wrong type or shape,
+            non-finite values, or a malformed random state.
+        """
+        try:
+            with h5py.File(self.path, "r") as f:
+                return self._read(f, int(nwalkers), int(ndim), int(nblobs), str(fingerprint))
+        except InputError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError, MemoryError) as exc:
+            detail = " ".join(str(exc).split()) or type(exc).__name__
+            raise InputError(f"{self.path}: not a readable chain file ({detail}); {_AFRESH}") from None
+
+    # ------------------------------------------------------------------------------------
+    def _fail(self, what):
+        raise InputError(f"{self.path}: {what}; {_AFRESH}")
+
+    def _read(self, f, W, D, C, fingerprint):
+        g = _member(f, GROUP, h5py.Group)
+        if g is None:
+            self._fail(f"no group '{GROUP}': not a bayesdrag chain file")
+        if "format" not in g.attrs:
+            if "random_state" in g.attrs:
+                self._fail("written by an earlier bayesdrag version that stored its random state with "
+                           "pickle, which is never loaded")
+            self._fail("no 'format' attribute: not a bayesdrag chain file")
+        fmt = _attr_str(g, "format")
+        if fmt != FORMAT:
+            self._fail(f"format {_shown(fmt, g.attrs['format'])} is not supported (expected {FORMAT!r})")
+        n = _attr_int(g, "iteration")
+        if n is None or n < 0:
+            self._fail("its 'iteration' attribute is missing or not a non-negative integer")
+        if n == 0:
+            return None
+        old = _attr_str(g, "bayesdrag_fingerprint")
+        if old is None or not _FINGERPRINT_RE.match(old):
+            self._fail("its 'bayesdrag_fingerprint' attribute is missing or not a hex digest")
+        if old != fingerprint:
+            self._fail(f"the stored chain was made with other inputs or settings (fingerprint {old} != "
+                       f"{fingerprint})")
+        chain = self._array(g, "chain", (W, D), n)
+        lp = self._array(g, "log_prob", (W,), n)
+        blobs = self._array(g, "blobs", (W, C), n) if C else None
+        acc = self._array(g, "accepted", (W,), None)
+        if np.any(acc < 0) or np.any(acc > n) or np.any(acc != np.round(acc)):
+            self._fail(f"'accepted' holds values that are not counts in 0..{n}")
+        b = ChainBackend(self, W, D, flushed=n)
+        b.chain, b.log_prob, b.blobs, b.accepted = chain, lp, blobs, acc
+        b.iteration, b.random_state = n, self._random_state(g, n)
+        return b
+
+    def _array(self, g, name, tail, n):
+        """Float dataset ``name`` of shape ``(>= n,) + tail`` (``tail`` only when n is None),
+        its first n rows, all finite."""
+        ds = _member(g, name, h5py.Dataset)
+        if ds is None:
+            self._fail(f"dataset '{name}' is missing or not stored in this file")
+        if ds.dtype.kind != "f":
+            self._fail(f"dataset '{name}' has type {ds.dtype.str!r}, expected floating point")
+        shape = tuple(ds.shape)
+        ok = shape == tail if n is None else (len(shape) == 1 + len(tail) and shape[1:] == tail and shape[0] >= n)
+        if not ok:
+            need = tail if n is None else (f">={n}",) + tail
+            self._fail(f"dataset '{name}' has shape {shape}, this run needs ({', '.join(map(str, need))})")
+        a = np.asarray(ds[()] if n is None else ds[:n], dtype=np.float64)
+        if not np.all(np.isfinite(a)):
+            self._fail(f"dataset '{name}' holds non-finite values")
+        return a
+
+    def _random_state(self, g, n):
+        """The stored ``RandomState`` state tuple, checked field by field and by numpy."""
+        rg = _member(g, "random_state", h5py.Group)
+        key = None if rg is None else _member(rg, "key", h5py.Dataset)
+        if key is None:
+            self._fail("the random state ('random_state/key') is missing or not stored in this file")
+        if key.dtype != np.dtype(np.uint32) or tuple(key.shape) != (MT_KEY_SIZE,):
+            self._fail(f"'random_state/key' is {key.dtype.str} {tuple(key.shape)}, expected uint32 "
+                       f"({MT_KEY_SIZE},)")
+        name = _attr_str(rg, "bit_generator")
+        pos, has_gauss, step = (_attr_int(rg, k) for k in ("pos", "has_gauss", "step"))
+        cached = _attr_float(rg, "cached_gaussian")
+        if name != BIT_GENERATOR:
+            self._fail(f"random state 'bit_generator' {_shown(name, _attr(rg, 'bit_generator'))}, "
+                       f"expected {BIT_GENERATOR!r}")
+        if pos is None or not 0 <= pos <= MT_KEY_SIZE:
+            self._fail(f"random state 'pos' must be an integer in 0..{MT_KEY_SIZE}")
+        if has_gauss not in (0, 1):
+            self._fail("random state 'has_gauss' must be 0 or 1")
+        if cached is None or not np.isfinite(cached):
+            self._fail("random state 'cached_gaussian' must be a finite number")
+        if step is None:
+            self._fail("random state 'step' must be an integer")
+        if step != n:
+            self._fail(f"the random state belongs to step {step}, the chain has {n} steps (the run was "
+                       f"killed while writing)")
+        state = (BIT_GENERATOR, np.array(key[()], dtype=np.uint32), pos, has_gauss, cached)
+        try:
+            np.random.RandomState().set_state(state)
+        except (ValueError, TypeError) as exc:
+            self._fail(f"the random state is not valid ({exc})")
+        return state
+
+
+class ChainBackend(emcee.backends.Backend):
+    """emcee's memory backend that appends its new steps to a :class:`ChainFile`.
+
+    Parameters
+    ----------
+    file : ChainFile
+    nwalkers, ndim : int
+    flushed : int, keyword-only
+        Steps already in the file.
+    """
+
+    def __init__(self, file, nwalkers, ndim, *, flushed):
+        super().__init__()
+        self.reset(nwalkers, ndim)
+        self.file = file
+        self.flushed = int(flushed)
+
+    def save_step(self, state, accepted):
+        super().save_step(state, accepted)
+        if self.iteration - self.flushed >= self.file.flush_every:
+            self.flush()
+
+    def flush(self):
+        """Append the steps not yet in the file, then the random state and ``iteration``."""
+        n0, n1 = self.flushed, self.iteration
+        if n1 <= n0:
+            return
+        with h5py.File(self.file.path, "a") as f:
+            g = f[GROUP]
+            W, D = self.nwalkers, self.ndim
+            if "chain" not in g:
+                g.create_dataset("chain", (0, W, D), maxshape=(None, W, D), dtype="f8", chunks=(32, W, D))
+                g.create_dataset("log_prob", (0, W), maxshape=(None, W), dtype="f8", chunks=(32, W))
+                if self.blobs is not None:
+                    C = self.blobs.shape[2] if self.blobs.ndim == 3 else 1
+                    g.create_dataset("blobs", (0, W, C), maxshape=(None, W, C), dtype="f8", chunks=(32, W, C))
+            for name, arr in (("chain", self.chain), ("log_prob", self.log_prob), ("blobs", self.blobs)):
+                if arr is None or name not in g:
+                    continue
+                g[name].resize(n1, axis=0)
+                g[name][n0:n1] = np.asarray(arr[n0:n1], float).reshape((n1 - n0,) + g[name].shape[1:])
+            if "accepted" in g:
+                del g["accepted"]
+            g.create_dataset("accepted", data=np.asarray(self.accepted, float))
+            _write_random_state(g, self.random_state, n1)
+            g.attrs["iteration"] = n1
+        self.flushed = n1
+
+
+def _write_random_state(g, state, step):
+    """Store a ``RandomState.get_state()`` tuple as typed fields (group ``random_state``)."""
+    name, key, pos, has_gauss, cached = state
+    rg = g.require_group("random_state")
+    key = np.asarray(key, dtype=np.uint32)
+    if "key" in rg:
+        rg["key"][...] = key
+    else:
+        rg.create_dataset("key", data=key, dtype=np.uint32)
+    rg.attrs["bit_generator"] = str(name)
+    rg.attrs["pos"] = int(pos)
+    rg.attrs["has_gauss"] = int(has_gauss)
+    rg.attrs["cached_gaussian"] = float(cached)
+    rg.attrs["step"] = int(step)
+
+
+def _member(parent, name, kind):
+    """``parent[name]`` when it is a hard-linked object of type ``kind`` (no soft or external
+    links to elsewhere), else None."""
+    link = parent.get(name, getlink=True)
+    if not isinstance(link, h5py.HardLink):
+        return None
+    obj = parent.get(name)
+    return obj if isinstance(obj, kind) else None
+
+
+def _attr(obj, name):
+    """Attribute value as stored (numbers, strings or opaque bytes; h5py never unpickles)."""
+    return obj.attrs[name] if name in obj.attrs else None
+
+
+def _attr_str(obj, name):
+    v = _attr(obj, name)
+    if isinstance(v, (bytes, np.bytes_)):
+        try:
+            v = bytes(v).decode("ascii")
+        except UnicodeDecodeError:
+            return None
+    return v if isinstance(v, str) else None
+
+
+def _attr_int(obj, name):
+    v = _attr(obj, name)
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
+        return None
+    return int(v)
+
+
+def _attr_float(obj, name):
+    v = _attr(obj, name)
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        return None
+    return float(v)
+
+
+def _shown(text, raw):
+    """A short printable description of an attribute value for an error message."""
+    if text is not None:
+        return repr(text[:40])
+    return "missing" if raw is None else f"of type {type(raw).__name__}"
