@@ -65,7 +65,7 @@ def fingerprint(track, round_path, job, options):
     """Fingerprint of a job's inputs: file hashes (track, round, reference drag, met profile)
     and the options that change its results. Paths are not part of it (moving a campaign
     folder keeps its results valid)."""
-    from .track import read_round
+    from .io.rounds import read_round
 
     files = {"track": _sha256(track), "round": _sha256(round_path)}
     try:
@@ -131,7 +131,8 @@ def run_diagnose_job(track, round_path, outdir):
     """The ``diagnose`` job of one round (as ``bayesdrag diagnose``). Returns the verdict text."""
     from .diagnose import diagnose
     from .diagnose_report import write_diagnosis
-    from .track import read_round, read_track
+    from .io.rounds import read_round
+    from .io.tracks import read_track
 
     tr = read_track(track)
     rnd = read_round(round_path)

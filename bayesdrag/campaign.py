@@ -558,9 +558,12 @@ def simulate_campaign(directory, n_rounds=7, scatter=0.01, rng=None, velocities=
     (Path, dict)
         The campaign file and the truth: ``deltas`` (list), ``scatter``, ``reference``.
     """
-    from .drag import ReferenceTable, load_m101
+    from .drag import ReferenceTable
+    from .io.drag_tables import load_m101
     from .simulate import add_noise, simulate_round
-    from .track import Launch, Projectile, Radar, Round, write_round, write_track
+    from .round import Launch, Projectile, Radar, Round
+    from .io.rounds import write_round
+    from .io.tracks import write_track
 
     rng = np.random.default_rng() if rng is None else rng
     d = Path(directory)

@@ -137,7 +137,8 @@ def cmd_simulate(args):
     import numpy as np
 
     from .simulate import add_noise, simulate_round
-    from .track import read_round, write_track
+    from .io.rounds import read_round
+    from .io.tracks import write_track
 
     rnd = read_round(args.round)
     if args.seed is not None and not args.noise:

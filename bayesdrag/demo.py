@@ -38,7 +38,9 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
 
     from .dynamics.pointmass import PointMassModel, initial_state
     from .plots import plot_differences, plot_drag_curve, plot_track
-    from .track import RadarTrack, read_round, read_track
+    from .track import RadarTrack
+    from .io.rounds import read_round
+    from .io.tracks import read_track
 
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():

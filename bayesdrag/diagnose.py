@@ -70,7 +70,7 @@ from scipy.stats import chi2 as _chi2
 from ._threads import single_blas
 from .effects import EFFECTS, EffectContext, effect_fn, extra_params, static_model
 from .errors import FitError
-from .estimate.ml import OutputErrorProblem
+from .estimate.problem import OutputErrorProblem
 from .estimate.noise import HF_ORDER, HF_WINDOW, OUTLIER_K, _robust_sd, hf_residual, hf_residual_t, noise_and_outliers  # noqa: F401
 
 #: overall false-alarm rate of the verdict on a track the nominal model explains
@@ -342,7 +342,7 @@ def signatures(setup, base_theta, effects):
     A = (S0 * sw[:, :, None]).reshape(-1, S0.shape[-1])
     # the launch priors are pseudo-measurements: appending their Jacobian makes the projection
     # below the Schur complement (information left for the effect after the nuisance)
-    _, pJ = prob0._prior_terms(base_theta)
+    _, pJ = prob0.prior_terms(base_theta)
     n_pr = pJ.shape[0]
     A = np.vstack([A, pJ]) if n_pr else A
     Qn, _ = np.linalg.qr(A)
@@ -491,7 +491,7 @@ def cd_shift(setup, theta_eff, effects, y_eff, base_theta, n_mach=9):
     A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
     b = (dy * sw).reshape(-1)
     # the Scheme 1 fit keeps its launch priors: the effect cannot hide in the initial state
-    _, pJ = prob._prior_terms(th)
+    _, pJ = prob.prior_terms(th)
     if pJ.shape[0]:
         A = np.vstack([A, pJ])
         b = np.concatenate([b, np.zeros(pJ.shape[0])])

@@ -186,7 +186,8 @@ def run_diagnose(args):
     """Body of ``bayesdrag diagnose TRACK ROUND -o DIR``. Returns the exit status."""
     from .diagnose import diagnose
     from .errors import InputError
-    from .track import read_round, read_track
+    from .io.rounds import read_round
+    from .io.tracks import read_track
 
     track = read_track(args.track)
     rnd = read_round(args.round)

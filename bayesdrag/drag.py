@@ -29,7 +29,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import BSpline, PchipInterpolator
@@ -37,7 +36,7 @@ from scipy.interpolate import BSpline, PchipInterpolator
 __all__ = [
     "MachGrid", "DragModel", "Poly2", "Poly2Split", "Spline", "ReferenceTable", "ReferenceScale",
     "TableSpline",
-    "read_drag_table", "make_drag_model", "default_spline_knots", "DRAG_MODEL_NAMES",
+    "make_drag_model", "default_spline_knots", "DRAG_MODEL_NAMES",
 ]
 
 DRAG_MODEL_NAMES = ("poly2", "poly2-split", "spline", "reference-scale")
@@ -633,25 +632,6 @@ def _cached_reference_cells(table, grid):
     return tab
 
 
-def read_drag_table(path, source=None):
-    """Read a CSV drag table with columns ``mach,cd`` (``#`` comments allowed).
-
-    Raises
-    ------
-    bayesdrag.errors.InputError
-        naming the file and row when the table is missing, malformed or not physical.
-    """
-    from .errors import InputError
-    from .track import read_csv_columns
-
-    path = Path(path)
-    cols = read_csv_columns(path, required=("mach", "cd"), what="drag table")
-    try:
-        return ReferenceTable(tuple(cols["mach"]), tuple(cols["cd"]), source=source or str(path))
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-
-
 def make_drag_model(name, reference=None, mach_range=None, knots=None):
     """Build a drag model by its DESIGN.md name.
 
@@ -680,11 +660,3 @@ def make_drag_model(name, reference=None, mach_range=None, knots=None):
                              "[projectile] reference_drag in the round file")
         return ReferenceScale(reference)
     raise ValueError(f"unknown drag model {name!r}; allowed: {', '.join(DRAG_MODEL_NAMES)}")
-
-
-def load_m101():
-    """The 155 mm HE M101 zero-yaw drag curve shipped with the package (BRL MR-1167, 1958)."""
-    from importlib.resources import files
-
-    return read_drag_table(files("bayesdrag") / "data" / "cd_m101.csv",
-                           source="M101, BRL MR-1167 (Odom 1958)")

@@ -6,7 +6,7 @@ bounds, finite-difference steps and a "no effect" value), a short physical expla
 mapping of a batch of parameter values (B, k) onto the batched point-mass kernel
 (:meth:`PointMassModel.simulate_batch`): kernel override columns, per-trajectory atmospheres or
 a radar clock offset. Effects compose: :func:`effect_fn` turns a list of effects into the
-``effect_fn`` of :class:`bayesdrag.estimate.ml.OutputErrorProblem`, whose extra parameters are
+``effect_fn`` of :class:`bayesdrag.estimate.problem.OutputErrorProblem`, whose extra parameters are
 the effects' parameters side by side.
 
 =============  =====================  ========================================================
@@ -56,7 +56,7 @@ import numpy as np
 from .atmosphere import Atmosphere
 from .dynamics import _kernel as K
 from .dynamics.pointmass import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
-from .estimate.ml import ExtraParam, SimInputs
+from .estimate.problem import ExtraParam, SimInputs
 
 #: induced-drag factor k in Cd (1 + k delta^2) [1/rad^2] (C_D_delta2 / C_D0 of a typical shell)
 K_YAW = 10.0
@@ -304,7 +304,7 @@ def simulate_with_effects(model, drag_params, state0, t_out, effects=(), values=
     -------
     (N, 6) states and (N,) Mach.
     """
-    from .estimate.ml import OutputErrorProblem  # noqa: F401  (same machinery as the fit)
+    from .estimate.problem import OutputErrorProblem  # noqa: F401  (same machinery as the fit)
 
     effects = [get_effect(e) if isinstance(e, str) else e for e in effects]
     ctx = ctx or EffectContext(atmosphere=model.atmosphere)

@@ -51,7 +51,8 @@ def run_fit(args, echo=print, on_fit=None):
 
     from .estimate.quality import assess, check_against_flexible
     from .estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1
-    from .track import read_round, read_track
+    from .io.rounds import read_round
+    from .io.tracks import read_track
 
     t_start = time.perf_counter()
     track = read_track(args.track)

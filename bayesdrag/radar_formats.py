@@ -77,7 +77,7 @@ def read_radar_export(path, fmt="auto", **kw):
     if fmt == "labradar":
         return read_labradar_track(path, **kw)
     if fmt == "bayesdrag":
-        from .track import read_track
+        from .io.tracks import read_track
 
         return read_track(path)
     raise InputError(f"{path}: unknown track format {fmt!r}; allowed: auto, {', '.join(FORMATS)}")
@@ -198,7 +198,7 @@ def read_labradar_track(path, keep_extrapolated=False):
 def convert(path, output, fmt="auto", **kw):
     """Convert a radar export to a bayesdrag track CSV (extra columns kept). Returns the track."""
     from .outputs import atomic_write
-    from .track import write_track
+    from .io.tracks import write_track
 
     tr = read_radar_export(path, fmt, **kw)
     atomic_write(output, lambda tmp: write_track(tmp, tr, comment=f"converted from {path} ({'; '.join(tr.notes)})"))

@@ -29,7 +29,7 @@ def simulate_round(rnd, model="pointmass", dt=0.027, *, clock_offset=0.0, wind=(
 
     Parameters
     ----------
-    rnd : bayesdrag.track.Round
+    rnd : bayesdrag.round.Round
         Needs ``[projectile] reference_drag`` and ``[launch] velocity, elevation``; Coriolis is
         on when ``[launch] latitude`` is given (with ``azimuth``).
     model : {"pointmass", "6dof"}

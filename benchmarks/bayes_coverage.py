@@ -36,7 +36,8 @@ KNOTS = (1.5, 1.7, 1.9, 2.1, 2.3, 2.45)
 
 
 def truth_model():
-    from bayesdrag.drag import load_m101, make_drag_model
+    from bayesdrag.io.drag_tables import load_m101
+    from bayesdrag.drag import make_drag_model
 
     m101 = load_m101()
     dm = make_drag_model("spline", knots=KNOTS, mach_range=(KNOTS[0], KNOTS[-1]))
@@ -50,7 +51,8 @@ def replicate(i, dm, c_true, m101, duration, seed0=1000):
     from bayesdrag.estimate.bayes import LogPosterior, cd_draws, sample_posterior
     from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
     from bayesdrag.simulate import add_noise
-    from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+    from bayesdrag.round import Launch, Projectile, Radar, Round
+    from bayesdrag.track import RadarTrack
 
     rng = np.random.default_rng(seed0 + i)
     t = np.arange(0.0, duration + 1e-9, 0.027)

@@ -29,9 +29,9 @@ def main(argv=None):
     a = ap.parse_args(argv)
 
     from bayesdrag.diagnose import _fit, diagnose, make_setup
-    from bayesdrag.drag import load_m101
+    from bayesdrag.io.drag_tables import load_m101
     from bayesdrag.simulate import add_noise, simulate_round
-    from bayesdrag.track import Launch, Projectile, Radar, Round
+    from bayesdrag.round import Launch, Projectile, Radar, Round
 
     sig = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
     proj = Projectile("155 mm M101", 42.6, 0.155, load_m101())

@@ -34,10 +34,11 @@ SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 
 
 def round_and_track(dt=0.0217):
-    from bayesdrag.drag import load_m101
+    from bayesdrag.io.drag_tables import load_m101
     from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
     from bayesdrag.simulate import add_noise
-    from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+    from bayesdrag.round import Launch, Projectile, Radar, Round
+    from bayesdrag.track import RadarTrack
 
     m101 = load_m101()
     tr = PointMassModel(42.6, 0.155, m101).simulate((), initial_state(818.0, 15.0), backend="scipy",

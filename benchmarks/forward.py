@@ -29,7 +29,7 @@ def main(argv=None):
 
     import numba
 
-    from bayesdrag.drag import load_m101
+    from bayesdrag.io.drag_tables import load_m101
     from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 
     if args.threads:

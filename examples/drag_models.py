@@ -10,7 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from bayesdrag.drag import load_m101, make_drag_model
+from bayesdrag.io.drag_tables import load_m101
+from bayesdrag.drag import make_drag_model
 
 
 def main(out=Path(__file__).resolve().parents[1] / "docs" / "figures" / "drag_models_m101.png"):

@@ -12,7 +12,8 @@ from importlib.resources import files
 import numpy as np
 
 from bayesdrag.simulate import add_noise, simulate_round
-from bayesdrag.track import read_round, write_track
+from bayesdrag.io.rounds import read_round
+from bayesdrag.io.tracks import write_track
 
 
 def main():

@@ -36,11 +36,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from bayesdrag.dynamics.pointmass import initial_state
-from bayesdrag.estimate.ml import OutputErrorProblem
+from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.estimate.scheme2 import fit_scheme2
 from bayesdrag.simulate import add_noise, simulate_round
-from bayesdrag.track import read_round
+from bayesdrag.io.rounds import read_round
 
 PAPER_TABLE2 = {818: {"a0": (-0.549, 0.0028), "a1": (-0.2137, 0.0026), "a2": (0.0346, 0.0007)},
                 360: {"a0": (-5.449, 0.6611), "a1": (9.737, 1.3507), "a2": (-3.983, 0.6887)}}

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from bayesdrag.drag import load_m101
+from bayesdrag.io.drag_tables import load_m101
 
 
 @pytest.fixture(scope="session")

@@ -15,7 +15,8 @@ import pytest
 
 from bayesdrag.cli import main
 from bayesdrag.simulate import simulate_round
-from bayesdrag.track import read_round, write_track
+from bayesdrag.io.rounds import read_round
+from bayesdrag.io.tracks import write_track
 
 GOOD_ROUND = """\
 [projectile]

@@ -12,7 +12,8 @@ from bayesdrag.estimate.bayes import (LogPosterior, cd_draws, cd_posterior_rows,
                                       sample_posterior, split_rank_rhat, to_inference_data)
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.simulate import add_noise
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 #: acceptance (issue 5)

@@ -20,7 +20,9 @@ from bayesdrag.estimate.sampler import sample_posterior
 from bayesdrag.estimate.scheme1 import fit_scheme1
 from bayesdrag.io.chain import FORMAT, MT_KEY_SIZE, ChainFile
 from bayesdrag.simulate import add_noise
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round, write_track
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
+from bayesdrag.io.tracks import write_track
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 SEED = 3

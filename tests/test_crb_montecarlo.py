@@ -19,7 +19,7 @@ import pytest
 
 from bayesdrag.drag import Spline
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-from bayesdrag.estimate.ml import OutputErrorProblem
+from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.simulate import add_noise
 from bayesdrag.track import RadarTrack
 

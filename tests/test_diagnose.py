@@ -8,9 +8,11 @@ import pytest
 from bayesdrag.cli import main
 from bayesdrag.diagnose import (autocovariance, colored_inflation, diagnose, hf_residual,
                                 noise_and_outliers, where_segments)
-from bayesdrag.drag import load_m101
+from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.simulate import add_noise, add_outliers, ar1_noise, simulate_round
-from bayesdrag.track import Launch, Projectile, Radar, Round, write_round, write_track
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.io.rounds import write_round
+from bayesdrag.io.tracks import write_track
 
 SIG = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 #: relative tolerance of a noise sd estimated from ~400 samples

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from bayesdrag.drag import (MachGrid, Poly2, Poly2Split, ReferenceScale, ReferenceTable, Spline,
-                            default_spline_knots, make_drag_model, read_drag_table)
+from bayesdrag.drag import MachGrid, Poly2, Poly2Split, ReferenceScale, ReferenceTable, Spline, default_spline_knots, make_drag_model
+from bayesdrag.io.drag_tables import read_drag_table
 from bayesdrag.errors import InputError
 
 KERNEL_TABLE_ATOL = 1e-10   # Cd: the kernel's cubic cells reproduce each model exactly

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from bayesdrag.atmosphere import Atmosphere
-from bayesdrag.drag import load_m101
+from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.effects import EFFECTS, K_YAW, EffectContext, get_effect, simulate_with_effects
 
@@ -96,7 +96,7 @@ def test_early_clock_extrapolates_backwards_within_millimetres(model):
     from scipy.integrate import solve_ivp
 
     from bayesdrag.effects import EffectContext, effect_fn, extra_params
-    from bayesdrag.estimate.ml import OutputErrorProblem
+    from bayesdrag.estimate.problem import OutputErrorProblem
     from bayesdrag.track import RadarTrack
 
     BACK_TOL_M = 2e-3

@@ -17,7 +17,7 @@ from bayesdrag.estimate.scheme1 import fit_scheme1  # noqa: E402
 from bayesdrag.export import (PBC_STANDARD_DENSITY, density_match, drag_table, export_fit, export_result,  # noqa: E402
                               load_pbc_drag_model, pbc_ballistic_coefficient)
 from bayesdrag.simulate import add_noise, simulate_round  # noqa: E402
-from bayesdrag.track import Launch, Projectile, Radar, Round  # noqa: E402
+from bayesdrag.round import Launch, Projectile, Radar, Round  # noqa: E402
 
 #: noise of the synthetic radar [m], [m/s]
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}

@@ -10,9 +10,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bayesdrag.atmosphere import read_met_profile
+from bayesdrag.io.met import read_met_profile
 from bayesdrag.errors import InputError
-from bayesdrag.track import CHANNELS, RadarTrack, Round, read_round, read_track
+from bayesdrag.track import CHANNELS, RadarTrack
+from bayesdrag.round import Round
+from bayesdrag.io.rounds import read_round
+from bayesdrag.io.tracks import read_track
 
 FAST = 60
 SLOW = 3000

@@ -14,7 +14,8 @@ import pytest
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.scheme1 import cd_table, determined_range, fit_scheme1
 from bayesdrag.simulate import add_noise, drop_samples
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 #: Cd recovery over the Mach range the data cover (issue 4's 1 % for the spline)
 CD_RTOL = 0.01

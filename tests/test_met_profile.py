@@ -7,12 +7,12 @@ US76 tables in test_atmosphere.py): a profile sampled from it must reproduce it.
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import (Atmosphere, geopotential_altitude, MetProfile, R_AIR, R_EARTH, read_met_profile,
-                                  standard_atmosphere, write_met_profile)
+from bayesdrag.atmosphere import Atmosphere, geopotential_altitude, MetProfile, R_AIR, R_EARTH, standard_atmosphere
+from bayesdrag.io.met import read_met_profile, write_met_profile
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-from bayesdrag.drag import load_m101
+from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.errors import InputError
-from bayesdrag.track import read_round, write_round
+from bayesdrag.io.rounds import read_round, write_round
 
 #: relative agreement of a profile sampled from ICAO with Atmosphere() (the brief's 1e-4; the
 #: construction is exact up to the level altitudes' rounding, measured ~1e-6)

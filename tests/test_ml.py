@@ -8,10 +8,11 @@ import pytest
 from bayesdrag.cli import main
 from bayesdrag.drag import ReferenceTable, make_drag_model
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-from bayesdrag.estimate.ml import OutputErrorProblem
+from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.simulate import add_noise
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 CD_RECOVERY_RTOL = 0.01     # issue 4: spline Cd within 1 % over Mach 1.2-2.3
 Z_ORDER_ONE = 3.0           # |error| / CRB sd "of order 1"
@@ -124,7 +125,7 @@ def test_too_few_samples(noisy_track, round_):
 def test_cli_fit_writes_result(noisy_track, round_, tmp_path, capsys):
     from importlib.resources import files
 
-    from bayesdrag.track import write_track
+    from bayesdrag.io.tracks import write_track
 
     tf = tmp_path / "t.csv"
     write_track(tf, noisy_track)
@@ -165,7 +166,8 @@ def test_six_dof_track_within_two_percent():
     absent from the point mass, shows up in the initial conditions instead: the fitted muzzle
     moves sideways by tens of metres against a 1 m launch prior (docs/ml.md explains)."""
     from bayesdrag.demo import demo_inputs
-    from bayesdrag.track import read_round, read_track
+    from bayesdrag.io.rounds import read_round
+    from bayesdrag.io.tracks import read_track
 
     tp, rp = demo_inputs()
     track, rnd = read_track(tp), read_round(rp)

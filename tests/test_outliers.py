@@ -7,7 +7,8 @@ import pytest
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.scheme1 import fit_scheme1
 from bayesdrag.simulate import add_noise, add_outliers
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 #: issue 7: the Student-t Cd within 1 % of the clean fit

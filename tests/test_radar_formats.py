@@ -6,7 +6,7 @@ import pytest
 
 from bayesdrag.errors import InputError
 from bayesdrag.radar_formats import convert, main, read_labradar_track, read_radar_export, sniff_format
-from bayesdrag.track import read_track
+from bayesdrag.io.tracks import read_track
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "radar_export" / "Shot0001 Track.csv"
 HEAD = "sep=;\nDevice ID;LBR-1;;\nSeries No;0001\nShot No;0007\n\n"

@@ -15,7 +15,8 @@ import pytest
 from bayesdrag.cli import main
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.simulate import add_noise
-from bayesdrag.track import RadarTrack, write_track
+from bayesdrag.track import RadarTrack
+from bayesdrag.io.tracks import write_track
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 ROUND = """

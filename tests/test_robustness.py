@@ -6,9 +6,10 @@ import pytest
 from bayesdrag.drag import Poly2
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.errors import FitError, InputError
-from bayesdrag.estimate.ml import OutputErrorProblem
+from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.simulate import add_noise, simulate_round
-from bayesdrag.track import Launch, Projectile, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Round
+from bayesdrag.track import RadarTrack
 
 SIGMA = {"x": 1.0, "z": 1.0, "v": 0.3}
 

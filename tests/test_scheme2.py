@@ -7,7 +7,8 @@ from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.errors import InputError
 from bayesdrag.estimate.scheme2 import MIN_WINDOW, fit_scheme2, smoothed_state, window_slices, windows_table
 from bayesdrag.simulate import add_noise
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 #: issue 4 acceptance: each window's Cd within 3 CRB sd of the reference at its mean Mach
@@ -117,7 +118,7 @@ def test_cli_scheme2_windows_and_bad_window(clean_track, round_, tmp_path, capsy
     from importlib.resources import files
 
     from bayesdrag.cli import main
-    from bayesdrag.track import write_track
+    from bayesdrag.io.tracks import write_track
 
     tf = tmp_path / "t.csv"
     write_track(tf, add_noise(clean_track, SIGMA, np.random.default_rng(3)).subset(np.arange(400)))

@@ -7,7 +7,8 @@ import pytest
 
 from bayesdrag.cli import main
 from bayesdrag.simulate import add_noise, add_outliers, ar1_noise, drop_samples, simulate_round
-from bayesdrag.track import read_round, read_track
+from bayesdrag.io.rounds import read_round
+from bayesdrag.io.tracks import read_track
 
 ROUND = """
 [projectile]

@@ -10,7 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bayesdrag.drag import ReferenceTable, Spline, TableSpline, load_m101
+from bayesdrag.drag import ReferenceTable, Spline, TableSpline
+from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.errors import InputError
 from bayesdrag.estimate.basis import adaptive_knots, rise_regions
@@ -18,7 +19,8 @@ from bayesdrag.estimate.quality import CHI2_LIMIT
 from bayesdrag.estimate.scheme1 import cd_grid, cd_table, fit_scheme1
 from bayesdrag.estimate.start import check_gravity_units, data_start, smooth_kinematics
 from bayesdrag.simulate import add_noise, simulate_round
-from bayesdrag.track import Launch, Projectile, RadarTrack, Radar, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 pbc_tables = pytest.importorskip("py_ballisticcalc.drag_tables")
 
@@ -216,7 +218,8 @@ def test_rigid_model_is_checked_against_the_flexible_fit(tmp_path):
     import json
 
     from bayesdrag.cli import main
-    from bayesdrag.track import write_round, write_track
+    from bayesdrag.io.rounds import write_round
+    from bayesdrag.io.tracks import write_track
 
     ref = _table("G7")
     track, rnd = _track(ref, 15.0, 0.105, 700.0, 20.0)

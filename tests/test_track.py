@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 
 from bayesdrag.atmosphere import Atmosphere
-from bayesdrag.drag import ReferenceTable, read_drag_table
+from bayesdrag.drag import ReferenceTable
+from bayesdrag.io.drag_tables import read_drag_table
 from bayesdrag.errors import InputError
-from bayesdrag.track import (
-    CHANNELS, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, Launch,
-    Projectile, Radar, RadarTrack, Round, read_csv_columns, read_round, read_track, write_round,
-    write_track,
-)
+from bayesdrag.track import CHANNELS, RadarTrack
+from bayesdrag.round import DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, Launch, Projectile, Radar, Round
+from bayesdrag.io.csv import read_csv_columns
+from bayesdrag.io.rounds import read_round, write_round
+from bayesdrag.io.tracks import read_track, write_track
 
 G = 9.80665
 #: write_track keeps 6 decimals of t and 4 of the channels

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesdrag.track import read_round, read_track
+from bayesdrag.io.rounds import read_round
+from bayesdrag.io.tracks import read_track
 
 ROOT = Path(__file__).resolve().parents[1]
 WARNER = ROOT / "examples" / "warner"

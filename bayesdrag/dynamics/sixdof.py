@@ -87,7 +87,7 @@ and axis are negated at the edges (:func:`_to_internal` / :func:`_to_design`).
 Aerodynamic data
 ----------------
 * Zero-yaw drag ``C_D0(M)``: the 155 mm HE M101 curve of BRL MR-1167 (Odom, 1958) shipped as
-  ``bayesdrag/data/cd_m101.csv`` (:func:`bayesdrag.drag.load_m101`), the same curve the
+  ``bayesdrag/data/cd_m101.csv`` (:func:`bayesdrag.io.drag_tables.load_m101`), the same curve the
   estimators use as the reference, so that 6-DOF tracks are "truth" for that drag.
 * All other coefficients (:func:`m107_aero`): representative values of the 155 mm HE M107
   shell, a close relative of the M101 (same ogive-cylinder-boattail family; the M101 and M107
@@ -124,7 +124,8 @@ from numba import njit
 from scipy.integrate import solve_ivp
 
 from ..atmosphere import G0, MAX_ALTITUDE, MIN_ALTITUDE, Atmosphere
-from ..drag import MachGrid, ReferenceTable, load_m101
+from ..drag import MachGrid, ReferenceTable
+from ..io.drag_tables import load_m101
 
 __all__ = [
     "ShellAero", "Shell", "SixDofResult", "m107_aero", "table1_shell", "simulate_6dof",
@@ -296,7 +297,7 @@ def table1_shell():
     """The paper's Table 1 example shell with M101 zero-yaw drag and M107 aerodynamics.
 
     42.6 kg, d = 0.155 m, Ix = 0.146 kg m^2, Iy = 1.709 kg m^2 (paper Table 1); ``cd0`` from
-    :func:`bayesdrag.drag.load_m101` (BRL MR-1167); other coefficients :func:`m107_aero`.
+    :func:`bayesdrag.io.drag_tables.load_m101` (BRL MR-1167); other coefficients :func:`m107_aero`.
     """
     return Shell(mass=42.6, diameter=0.155, Ix=0.146, Iy=1.709, aero=m107_aero(),
                  cd0=load_m101(), name="paper Table 1 shell (M101 drag, M107 aerodynamics)")

@@ -77,12 +77,6 @@ def _prior_values(prior, full):
     return np.array([prior.fn(row) for row in full], dtype=float)
 
 
-def _prior_terms(problem, theta):
-    """The problem's prior pseudo-measurements at ``theta``: weighted residuals (K,) and their
-    Jacobian (K, n_free), as the ML fit uses them."""
-    return problem._prior_terms(theta)
-
-
 def student_t_mode(problem, theta, sigma, nu, cov, *, iterations=30):
     """Mode of the Student-t likelihood by iteratively reweighted Gauss-Newton (the EM
     algorithm of the t distribution: weights ``(nu + 1) / (nu + r^2 / sigma^2)``, then
@@ -126,7 +120,7 @@ def student_t_mode(problem, theta, sigma, nu, cov, *, iterations=30):
         sw = np.sqrt(w) / sig                                    # (N, C)
         A = (S * sw[..., None]).reshape(-1, idx.size)
         b = (r * sw).reshape(-1)
-        pr, pJ = _prior_terms(problem, th)
+        pr, pJ = problem.prior_terms(th)
         if pr.size:
             A, b = np.vstack([A, pJ]), np.concatenate([b, pr])
         step = np.linalg.lstsq(A, b, rcond=None)[0]
@@ -140,7 +134,7 @@ def student_t_mode(problem, theta, sigma, nu, cov, *, iterations=30):
     W = (nu + 1) / (nu + 3) / sig ** 2
     A = (S * np.sqrt(W)[None, :, None]).reshape(-1, idx.size)
     M = A.T @ A
-    pr, pJ = _prior_terms(problem, th)
+    pr, pJ = problem.prior_terms(th)
     if pr.size:
         M = M + pJ.T @ pJ
     try:
@@ -199,14 +193,14 @@ def fisher_information(problem, theta, sigma):
     W = 1.0 / np.array([sigma[c] for c in problem.channels]) ** 2
     A = (S * np.sqrt(W)[None, :, None]).reshape(-1, S.shape[-1])
     M = A.T @ A
-    pr, pJ = _prior_terms(problem, theta)
+    pr, pJ = problem.prior_terms(theta)
     if pr.size:
         M = M + pJ.T @ pJ
     return M
 
 
 class LogPosterior:
-    """Vectorised log-posterior of an :class:`~bayesdrag.estimate.ml.OutputErrorProblem`.
+    """Vectorised log-posterior of an :class:`~bayesdrag.estimate.problem.OutputErrorProblem`.
 
     Parameters
     ----------

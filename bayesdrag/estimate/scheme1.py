@@ -53,7 +53,7 @@ from ..dynamics.pointmass import PointMassModel, initial_state
 from ..errors import FitError, InputError
 from .basis import (KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, curvature_weights, rise_regions,
                     second_difference_rows)
-from .ml import OutputErrorProblem, Prior
+from .problem import OutputErrorProblem, Prior
 from .start import check_gravity_units, data_start
 
 #: relative CRB sd of Cd below which Cd counts as determined by the data
@@ -105,7 +105,7 @@ def launch_state_priors(L, P, heading=False, names=None):
     The functions take one parameter vector (n,) or many (W, n): the sampler evaluates all
     walkers at once.
     """
-    from .ml import Prior
+    from .problem import Prior
 
     pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., P + k]), 0.0, L.position_sd)
            for k, n in enumerate(("X0", "Y0", "Z0"))]

@@ -40,7 +40,7 @@ from .._threads import single_blas
 from ..drag import Constant
 from ..dynamics.pointmass import PointMassModel
 from ..errors import InputError
-from .ml import OutputErrorProblem
+from .problem import OutputErrorProblem
 from .noise import noise_and_outliers
 from .quality import assess_window
 from .start import data_start

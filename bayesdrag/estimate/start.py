@@ -466,7 +466,7 @@ def window_fits(track, rnd, kin, cd0, sigma=None, ends_only=False):
     from ..drag import Constant
     from ..dynamics.pointmass import PointMassModel
     from ..errors import FitError
-    from .ml import OutputErrorProblem
+    from .problem import OutputErrorProblem
 
     if "x" not in track.channels or "z" not in track.channels:
         return []
@@ -591,7 +591,7 @@ def check_gravity_units(kin, source="track", g=G0):
     metres: the whole track is in another length unit (feet, yards, km, mm).
 
     A mix of units between the positions and the speed is caught when the track is read
-    (:func:`bayesdrag.track.read_track`); a track entirely in feet is self-consistent there and
+    (:func:`bayesdrag.io.tracks.read_track`); a track entirely in feet is self-consistent there and
     only the physics tells.
     """
     r, se = gravity_ratio(kin, g)

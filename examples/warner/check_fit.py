@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
-from bayesdrag.track import read_round, read_track, write_round
+from bayesdrag.io.rounds import read_round, write_round
+from bayesdrag.io.tracks import read_track
 
 HERE = Path(__file__).resolve().parent
 BULLETS = ("338_flatline", "65_flatline")

@@ -25,10 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from bayesdrag.atmosphere import Atmosphere
-from bayesdrag.drag import load_m101
+from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.simulate import add_noise, add_outliers
-from bayesdrag.track import Launch, Projectile, Radar, RadarTrack, Round
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 V0 = 818.0

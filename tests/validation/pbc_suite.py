@@ -166,7 +166,7 @@ def table(name):
     """(mach, cd) arrays of a py-ballisticcalc standard table or the M101 table."""
     if name not in _TABLE_CACHE:
         if name == "M101":
-            from bayesdrag.drag import load_m101
+            from bayesdrag.io.drag_tables import load_m101
 
             m = load_m101()
             _TABLE_CACHE[name] = (np.asarray(m.mach, float), np.asarray(m.cd_values, float))

@@ -1,0 +1,324 @@
+"""The output-error problem: one track, one point-mass model, the parameters and their priors
+(paper Eq. 19). :mod:`bayesdrag.estimate.ml` fits it.
+
+* parameters ``theta`` = drag-model coefficients + initial state ``X0, Y0, Z0, Ux0, Uy0, Uz0``
+  at ``t_ic`` (by default the first sample time), each free or fixed, then optional extra
+  (effect) parameters;
+* outputs = the channels the track has (any subset of x, y, z, v);
+* cost (Eq. 19) ``J = sum_i (z_i - y_i(theta))^T R^-1 (z_i - y_i(theta))`` with ``R`` diagonal
+  (one noise variance per channel: the round's ``[radar] sigma`` where given, else estimated by
+  relaxation), plus Gaussian priors as pseudo-measurements (extra weighted residuals).
+
+Extra parameters (the diagnosis' unmodelled effects, :mod:`bayesdrag.effects`) are appended
+after the initial state: ``theta = [drag (P), state (6), extras (E)]``. Each :class:`ExtraParam`
+has a name, start value, bounds and finite-difference step; an ``effect_fn`` maps the extra
+values of a batch (B, E) to :class:`SimInputs` (kernel override columns, per-trajectory
+atmospheres, a radar clock offset ``dt``: the model is evaluated at ``t + dt``).
+
+Optional per-sample weights (N, C) in [0, 1] multiply ``R^-1`` sample by sample: 0 removes a
+sample (a flagged gross outlier) from the cost, the sensitivities, the bounds and the residual
+autocorrelation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import FitError, InputError
+from ..track import CHANNELS
+
+IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
+_CH_INDEX = {"x": 0, "y": 1, "z": 2}
+
+#: finite-difference steps for the initial state (m, m/s): small against radar noise, large
+#: against the kernel's rounding
+IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
+
+#: longest backward extrapolation from the initial state for a shifted radar clock [s]
+MAX_BACKWARD = 0.25
+
+
+@dataclass(frozen=True)
+class ExtraParam:
+    """An extra (effect) parameter appended after the initial state.
+
+    Attributes
+    ----------
+    name : str
+    start : float
+        Starting value (usually the "no effect" value).
+    lower, upper : float
+        Bounds the fit keeps the parameter inside.
+    step : float
+        Central finite-difference step for the sensitivities (in the parameter's unit).
+    """
+
+    name: str
+    start: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    step: float = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class SimInputs:
+    """What a batch of extra-parameter values does to the simulation.
+
+    Attributes
+    ----------
+    overrides : dict kernel column -> (B,) array
+        Per-trajectory kernel parameters (``dynamics._kernel.P_*``).
+    atmospheres : list of Atmosphere (length B) or None
+    time_shift : (B,) array or None, s
+        Radar clock offset: the model is evaluated at ``track.t + time_shift``.
+    """
+
+    overrides: dict = field(default_factory=dict)
+    atmospheres: list | None = None
+    time_shift: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Prior:
+    """Gaussian prior on a function of the parameters, ``f(theta) ~ N(mean, sd^2)``.
+
+    ``fn`` maps the full parameter vector (P + 6,) to a float; ``name`` labels it. ``row``, when
+    given, says the prior is linear: ``fn(theta) = row @ theta`` with ``row`` of the full
+    parameter length, so its Jacobian needs no finite differences (the spline smoothness penalty
+    has ~45 such priors).
+    """
+
+    name: str
+    fn: object
+    mean: float
+    sd: float
+    row: object = None
+
+
+def outputs(traj_state, channels):
+    """Model outputs (B, N, C) for channels from states (B, N, 6)."""
+    out = np.empty(traj_state.shape[:-1] + (len(channels),))
+    for j, c in enumerate(channels):
+        if c == "v":
+            vx, vy, vz = traj_state[..., 3], traj_state[..., 4], traj_state[..., 5]
+            out[..., j] = np.sqrt(vx * vx + vy * vy + vz * vz)
+        else:
+            out[..., j] = traj_state[..., _CH_INDEX[c]]
+    return out
+
+
+class OutputErrorProblem:
+    """An output-error fit of one track with one point-mass model.
+
+    Parameters
+    ----------
+    model : PointMassModel
+        Its ``drag`` is the model whose coefficients are estimated.
+    track : RadarTrack
+    theta0 : (P + 6,) array
+        Starting values: drag coefficients, then the state at ``track.t[0]``.
+    free : (P + 6,) bool array, optional
+        Which parameters are estimated (default all).
+    sigma : dict channel -> sd, optional
+        Fixed noise sd; channels missing here have their sd estimated by relaxation.
+    priors : sequence of Prior, optional
+    channels : sequence of str, optional
+        Channels to fit (default: all the track has).
+    extras : sequence of ExtraParam, optional
+        Effect parameters appended after the initial state (``theta0`` then has P + 6 + E
+        entries; their start values are taken from ``theta0``).
+    effect_fn : callable, optional
+        ``effect_fn(E)`` with ``E`` (B, n_extras) returns :class:`SimInputs`; required with extras.
+    t_ic : float, optional, s
+        Time of the initial state (default ``track.t[0]``; the diagnosis uses 0 = launch).
+    weights : (N, C) array, optional
+        Per-sample weights in [0, 1] on ``R^-1`` (0 drops a sample).
+    """
+
+    def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
+                 extras=(), effect_fn=None, t_ic=None, weights=None):
+        self.model = model
+        self.track = track
+        self.channels = tuple(channels) if channels is not None else track.names
+        for c in self.channels:
+            if c not in CHANNELS or track.channels.get(c) is None:
+                raise InputError(f"{track.source}: channel {c!r} is not in the track (has {', '.join(track.names)})")
+        self.P = model.drag.n_params
+        self.extras = tuple(extras)
+        self.E = len(self.extras)
+        if self.E and effect_fn is None:
+            raise ValueError("extra parameters need an effect_fn mapping them to the simulation")
+        self.effect_fn = effect_fn
+        self.t_ic = float(track.t[0]) if t_ic is None else float(t_ic)
+        self.names = tuple(model.drag.param_names) + IC_NAMES + tuple(e.name for e in self.extras)
+        n = self.P + 6 + self.E
+        self.theta0 = np.asarray(theta0, dtype=float).copy()
+        if self.theta0.shape != (n,):
+            raise ValueError(f"theta0 must have {n} entries, got {self.theta0.shape}")
+        self.free = np.ones(n, bool) if free is None else np.asarray(free, bool).copy()
+        self.sigma_fixed = {c: float(s) for c, s in (sigma or {}).items() if c in self.channels}
+        self.priors = tuple(priors)
+        self.z = np.stack([track.channels[c] for c in self.channels], axis=-1)  # (N, C)
+        if weights is None:
+            self.weights = np.ones_like(self.z)
+        else:
+            self.weights = np.asarray(weights, dtype=float)
+            if self.weights.shape != self.z.shape or np.any(self.weights < 0) or np.any(self.weights > 1):
+                raise ValueError(f"weights must be (N, C) = {self.z.shape} in [0, 1]")
+        n_free = int(self.free.sum())
+        if self.z.shape[0] * len(self.channels) <= n_free:
+            raise InputError(f"{track.source}: {self.z.shape[0]} samples x {len(self.channels)} channels "
+                             f"are too few for {n_free} free parameters")
+        for j, c in enumerate(self.channels):
+            if np.ptp(self.z[:, j]) == 0.0 and c != "y":
+                raise InputError(f"{track.source}: channel {c} is constant ({self.z[0, j]}); "
+                                 f"it carries no information — drop the column or fix the track")
+        lb, ub = model.drag.bounds
+        big = np.full(6, np.inf)
+        self.lower = np.concatenate([lb, -big, [e.lower for e in self.extras]])
+        self.upper = np.concatenate([ub, big, [e.upper for e in self.extras]])
+        self.steps = np.concatenate([np.maximum(1e-6, 1e-5 * np.abs(self.theta0[:self.P]) + 1e-7),
+                                     IC_STEPS, [e.step for e in self.extras]])
+
+    # ----------------------------------------------------------------------------------------
+    def predict(self, thetas):
+        """Model outputs (B, N, C) and Mach (B, N) for parameter sets (B, P + 6)."""
+        thetas = np.atleast_2d(thetas)
+        P = self.P
+        if not self.E:
+            tr = self.model.simulate_batch(thetas[:, :P], thetas[:, P:P + 6], self.track.t,
+                                           t_start=self.t_ic)
+            return outputs(tr.state, self.channels), tr.mach
+        B = thetas.shape[0]
+        inp = self.effect_fn(thetas[:, P + 6:])
+        shift = np.zeros(B) if inp.time_shift is None else np.asarray(inp.time_shift, float)
+        y = np.full((B, self.track.n, len(self.channels)), np.nan)
+        mach = np.full((B, self.track.n), np.nan)
+        # one kernel call per distinct clock offset (a finite-difference batch has at most 3)
+        for s in np.unique(shift):
+            g = np.flatnonzero(shift == s)
+            t_out = self.track.t + s
+            if t_out[0] < self.t_ic - MAX_BACKWARD:
+                continue  # too far before the initial state: left NaN, the fit rejects the step
+            ov = {k: np.asarray(v, float)[g] for k, v in inp.overrides.items()}
+            atm = None if inp.atmospheres is None else [inp.atmospheres[i] for i in g]
+            state, m = self._simulate_shifted(thetas[g], t_out, ov, atm)
+            y[g] = outputs(state, self.channels)
+            mach[g] = m
+        return y, mach
+
+    def _simulate_shifted(self, th, t_out, ov, atm):
+        """States (G, N, 6) and Mach (G, N) at ``t_out``; samples before the initial state (an
+        early radar clock) are extrapolated backwards to second order from it."""
+        P = self.P
+        pre = t_out < self.t_ic - 1e-12
+        if not pre.any():
+            tr = self.model.simulate_batch(th[:, :P], th[:, P:P + 6], t_out, t_start=self.t_ic,
+                                           overrides=ov, atmospheres=atm)
+            return tr.state, tr.mach
+        hh = 1e-3
+        t_post = t_out[~pre]
+        extra = [t for t in (self.t_ic, self.t_ic + hh) if not np.any(np.abs(t_post - t) < 1e-9)]
+        t_req = np.sort(np.concatenate([extra, t_post]))
+        tr = self.model.simulate_batch(th[:, :P], th[:, P:P + 6], t_req, t_start=self.t_ic,
+                                       overrides=ov, atmospheres=atm)
+        st = tr.state
+        i1 = int(np.argmin(np.abs(t_req - (self.t_ic + hh))))
+        a0 = (st[:, i1, 3:] - st[:, 0, 3:]) / (t_req[i1] - t_req[0])
+        tau = (t_out[pre] - self.t_ic)[None, :, None]
+        pos = st[:, :1, :3] + st[:, :1, 3:] * tau + 0.5 * a0[:, None, :] * tau**2
+        vel = st[:, :1, 3:] + a0[:, None, :] * tau
+        post = np.searchsorted(t_req, t_post - 1e-9)
+        state = np.concatenate([np.concatenate([pos, vel], axis=-1), st[:, post]], axis=1)
+        mach = np.concatenate([np.repeat(tr.mach[:, :1], int(pre.sum()), axis=1), tr.mach[:, post]], axis=1)
+        return state, mach
+
+    def sensitivities(self, theta):
+        """Outputs at theta (N, C) and d outputs / d theta_free (N, C, n_free) by central
+        differences, all trajectories in one batch."""
+        idx = np.flatnonzero(self.free)
+        h = self.steps[idx]
+        batch = np.repeat(theta[None], 1 + 2 * idx.size, axis=0)
+        for k, j in enumerate(idx):
+            batch[1 + 2 * k, j] += h[k]
+            batch[2 + 2 * k, j] -= h[k]
+        if idx.size:
+            y, _ = self.predict(batch[1:])
+            S = (y[0::2] - y[1::2]) / (2 * h[:, None, None])  # (n_free, N, C)
+        else:
+            S = np.zeros((0, self.z.shape[0], self.z.shape[1]))
+        # the outputs at theta itself come from a one-trajectory call, the same code path as the
+        # trial steps of the fit (a batch runs the SIMD lanes, a single trajectory the scalar
+        # code; they agree to ~1e-9 m, but at the optimum that is the whole cost change and a
+        # mixed comparison would make every step look uphill)
+        y0, mach0 = self.predict(theta[None])
+        return y0[0], mach0[0], np.moveaxis(S, 0, -1)
+
+    def prior_terms(self, theta):
+        """Weighted prior residuals (K,) and their Jacobian (K, n_free)."""
+        if not self.priors:
+            return np.zeros(0), np.zeros((0, int(self.free.sum())))
+        idx = np.flatnonzero(self.free)
+        r = np.array([(p.mean - p.fn(theta)) / p.sd for p in self.priors])
+        J = np.zeros((len(self.priors), idx.size))
+        lin = np.array([p.row is not None for p in self.priors])
+        if lin.any():
+            rows = np.array([np.asarray(p.row, float) for p in self.priors if p.row is not None])
+            sds = np.array([p.sd for p in self.priors if p.row is not None])
+            J[lin] = rows[:, idx] / sds[:, None]
+        other = [k for k, p in enumerate(self.priors) if p.row is None]
+        if other:
+            for k, j in enumerate(idx):
+                tp, tm = theta.copy(), theta.copy()
+                tp[j] += self.steps[j]
+                tm[j] -= self.steps[j]
+                J[other, k] = [(self.priors[i].fn(tp) - self.priors[i].fn(tm)) / (2 * self.steps[j] * self.priors[i].sd)
+                               for i in other]
+        return r, J
+
+    # ----------------------------------------------------------------------------------------
+
+    def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False):
+        """Fit by Levenberg-Marquardt with noise relaxation (:func:`bayesdrag.estimate.ml.fit`).
+
+        Parameters
+        ----------
+        max_iter : int
+        tol_cost, tol_step, tol_sigma : float
+            Convergence rules (:mod:`bayesdrag.estimate.ml`).
+        fallback : bool
+            Continue an unconverged fit with scipy's trust-region reflective least squares.
+
+        Returns
+        -------
+        MLResult
+        """
+        from . import ml
+
+        return ml.fit(self, max_iter=max_iter, tol_cost=tol_cost, tol_step=tol_step, tol_sigma=tol_sigma,
+                      fallback=fallback)
+
+    def fit_trust_region(self, theta, sigma, max_nfev=200):
+        """Minimise the cost at fixed noise sd with scipy's trust-region reflective least
+        squares from ``theta`` (:func:`bayesdrag.estimate.ml.fit_trust_region`)."""
+        from . import ml
+
+        return ml.fit_trust_region(self, theta, sigma, max_nfev=max_nfev)
+
+    def update_sigma(self, resid, old):
+        sig = {}
+        for j, c in enumerate(self.channels):
+            if c in self.sigma_fixed:
+                sig[c] = self.sigma_fixed[c]
+            else:
+                w = self.weights[:, j]
+                sig[c] = max(float(np.sqrt(np.sum(w * resid[:, j] ** 2) / max(np.sum(w), 1.0))), 1e-9)
+        return sig
+
+    def cost(self, resid, sigma, theta):
+        W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2
+        J = float(np.sum(resid**2 * W[None, :] * self.weights))
+        if self.priors:
+            J += float(sum(((p.mean - p.fn(theta)) / p.sd) ** 2 for p in self.priors))
+        return J

@@ -1,0 +1,176 @@
+"""The one CSV reader: numeric tables with ``#`` comments and a header row (tracks, drag tables,
+met profiles, radar exports all use it).
+
+Every failure raises :class:`bayesdrag.errors.InputError` with one line naming the file, the line
+(file line numbers are 1-based and count comments and the header), what was found and what is
+allowed.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["read_text", "read_table", "read_csv_columns"]
+
+
+def read_text(path: Path, what: str) -> str:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{path}: {what} not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: {what} expected, found a directory") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(f"{path}: {what} is UTF-16 encoded; save it as UTF-8 (or ASCII) text")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise InputError(f"{path}: {what} is not UTF-8 text: undecodable byte 0x{raw[exc.start]:02x} "
+                         f"at line {line} (binary file?); expected a CSV text file") from None
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise InputError(f"{path}: {what} contains NUL bytes at line {line} (binary file?); "
+                         f"expected a CSV text file")
+    return text
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _clean_name(s: str) -> str:
+    s = s.strip()
+    if len(s) >= 2 and s[0] == s[-1] and s[0] in "\"'":
+        s = s[1:-1].strip()
+    return s
+
+
+def read_table(path, what, required=(), allowed=None, header_check=None):
+    """Parse a strict numeric CSV. Returns (path, names, data (N, K), line numbers (N,))."""
+    path = Path(path)
+    text = read_text(path, what)
+    if not text.strip():
+        raise InputError(f"{path}: {what} is empty; expected a header row and rows of numbers")
+    lines = text.splitlines()
+    rows = [(i, ln) for i, ln in enumerate(lines, 1) if ln.strip() and not ln.lstrip().startswith("#")]
+    if not rows:
+        raise InputError(f"{path}: {what} has only comments; expected a header row and rows of numbers")
+
+    hline, header = rows[0]
+    names = [_clean_name(s) for s in header.split(",")]
+    if all(_is_number(s) for s in names):
+        raise InputError(f"{path}: line {hline}: {what} has no header row; found numbers "
+                         f"{header.strip()[:40]!r}, expected column names"
+                         + (f" ({','.join(required)})" if required else ""))
+    if len(names) == 1 and (";" in header or "\t" in header):
+        sep = "';'" if ";" in header else "tab"
+        raise InputError(f"{path}: line {hline}: columns are separated by {sep}; "
+                         f"the {what} must be comma-separated")
+    for k, n in enumerate(names):
+        if not n:
+            raise InputError(f"{path}: line {hline}: empty column name in header (column {k + 1} "
+                             f"of {len(names)}); found {header.strip()!r}")
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise InputError(f"{path}: line {hline}: duplicate column name {n!r} in header "
+                             f"{header.strip()!r}; each column may appear once")
+        seen.add(n)
+    missing = [r for r in required if r not in seen]
+    if missing:
+        hint = ""
+        lower = {n.lower(): n for n in names}
+        near = [f"{lower[m.lower()]!r}" for m in missing if m.lower() in lower]
+        if near:
+            hint = f" (column names are case-sensitive: found {', '.join(near)})"
+        raise InputError(f"{path}: line {hline}: {what} needs column(s) {', '.join(required)}; "
+                         f"missing {', '.join(missing)}; header has {', '.join(names)}{hint}")
+    if allowed is not None:
+        bad = [n for n in names if n not in allowed]
+        if bad:
+            raise InputError(f"{path}: line {hline}: unknown column(s) {', '.join(bad)} in {what}; "
+                             f"allowed: {', '.join(allowed)}")
+    if header_check is not None:
+        header_check(path, hline, names)
+
+    body = rows[1:]
+    if not body:
+        raise InputError(f"{path}: {what} has a header (line {hline}) but no data rows")
+    ncol = len(names)
+    data_lines = [ln for _, ln in body]
+    try:  # fast path (C parser); any problem is located precisely by the slow path below
+        data = np.loadtxt(data_lines, delimiter=",", ndmin=2, comments=None, dtype=float)
+        if data.shape[1] != ncol:
+            raise ValueError
+    except ValueError:
+        data = _slow_parse(path, body, names)
+    line_no = np.fromiter((i for i, _ in body), dtype=np.int64, count=len(body))
+    finite = np.isfinite(data)
+    if not finite.all():
+        r, c = np.argwhere(~finite)[0]
+        field_text = body[r][1].split(",")[c].strip()
+        raise InputError(f"{path}: line {line_no[r]}, column {names[c]!r}: {field_text!r} is not a "
+                         f"finite number; NaN and infinity are not allowed (drop the row instead)")
+    return path, names, data, line_no
+
+
+def _slow_parse(path, body, names):
+    ncol = len(names)
+    out = np.empty((len(body), ncol))
+    for r, (i, ln) in enumerate(body):
+        fields = ln.split(",")
+        if len(fields) != ncol:
+            raise InputError(f"{path}: line {i}: {len(fields)} fields, but the header has {ncol} "
+                             f"({','.join(names)})")
+        for c, f in enumerate(fields):
+            try:
+                out[r, c] = float(f)
+            except ValueError:
+                what = "empty field" if not f.strip() else f"{f.strip()!r} is not a number"
+                raise InputError(f"{path}: line {i}, column {names[c]!r}: {what}; "
+                                 f"expected a decimal number like 12.5 or 1.25e3") from None
+    return out
+
+
+def read_csv_columns(path, required=(), what="CSV file", allowed=None):
+    """Read a numeric CSV file into columns.
+
+    Format: lines starting with ``#`` (and blank lines) are skipped anywhere; the first other
+    line is a comma-separated header of column names; every following line holds one finite
+    decimal number per column.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    required : sequence of str
+        Column names that must be present (case-sensitive).
+    what : str
+        Name of the file's role in messages, e.g. ``"drag table"``.
+    allowed : sequence of str, optional
+        If given, every column must be one of these.
+
+    Returns
+    -------
+    dict of str -> ndarray, shape (N,)
+        Float columns in header order, N >= 1.
+
+    Raises
+    ------
+    bayesdrag.errors.InputError
+        Missing/unreadable/binary file, no header, duplicate or missing columns, ragged rows,
+        non-numeric or non-finite values, no data rows. Line numbers in messages are file
+        lines, 1-based.
+    """
+    _, names, data, _ = read_table(path, what, tuple(required),
+                                    None if allowed is None else tuple(allowed))
+    return {n: np.ascontiguousarray(data[:, k]) for k, n in enumerate(names)}

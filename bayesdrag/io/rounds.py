@@ -1,0 +1,250 @@
+"""Round files (TOML, DESIGN.md "Files"): ``[projectile]``, ``[launch]``, ``[atmosphere]`` and
+``[radar]`` sections; paths inside are relative to the round file. See :func:`read_round`.
+
+Every failure raises :class:`bayesdrag.errors.InputError` with one line naming the file, the
+key, what was found and what is allowed.
+"""
+from __future__ import annotations
+
+import difflib
+import os
+import tomllib
+from pathlib import Path
+
+import tomli_w
+
+from ..atmosphere import Atmosphere, MetProfile
+from ..errors import InputError
+from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, Launch, Projectile,
+                     Radar, Round)
+from ..validate import number, type_name
+from .csv import read_text
+from .drag_tables import read_drag_table
+from .met import read_met_profile, write_met_profile
+
+__all__ = ["read_round", "write_round"]
+
+
+_SCHEMA = {
+    "projectile": {"name": "text", "mass": "kg", "diameter": "m", "reference_drag": "CSV path",
+                   "reference_extrapolate": "boolean"},
+    "launch": {"elevation": "deg", "velocity": "m/s", "azimuth": "deg", "latitude": "deg",
+               "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
+    "atmosphere": {"model": "text", "profile": "CSV path", "temperature_offset": "K",
+                   "pressure_ratio": "-", "density_ratio": "-"},
+    "radar": {"sigma": "table"},
+}
+ATMOSPHERE_MODELS = ("icao", "profile")
+#: how far [Mach] the launch Mach may exceed the reference table's last row before the round is
+#: rejected (unless ``reference_extrapolate = true``): beyond its end the table is held constant,
+#: and a supersonic Cd changes ~2-4 % per 0.1 Mach, so a 0.05 overshoot costs at most ~2 %
+REFERENCE_MACH_SLACK = 0.05
+
+
+def _unknown(path, what, key, allowed):
+    near = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
+    hint = f" (did you mean {near[0]!r}?)" if near else ""
+    return InputError(f"{path}: unknown {what} {key!r}{hint}; allowed: {', '.join(allowed)}")
+
+
+def read_round(path):
+    """Read and validate a round TOML file (DESIGN.md "Files").
+
+    Sections and keys (units in brackets; all but ``[projectile] mass`` and ``diameter``
+    optional):
+
+    - ``[projectile]`` name, mass [kg], diameter [m], reference_drag (CSV ``mach,cd``, path
+      relative to the TOML file, read with :func:`bayesdrag.io.drag_tables.read_drag_table`)
+      and reference_extrapolate (boolean, default false: the table must reach the launch Mach,
+      ``velocity`` over the speed of sound at the gun, to within :data:`REFERENCE_MACH_SLACK`;
+      true holds Cd at the table's last value beyond it, e.g. for a published curve that
+      stops short of the muzzle Mach)
+    - ``[launch]`` elevation [deg], velocity [m/s], azimuth [deg, default 0], latitude [deg],
+      altitude [m, default 0], velocity_sd [m/s, default 5], elevation_sd [deg, default 0.2],
+      position_sd [m, default 1]
+    - ``[atmosphere]`` model (``"icao"``, default, or ``"profile"``), profile (CSV met
+      profile ``altitude,temperature,pressure[,wind_x,wind_y]``, path relative to the TOML file,
+      read with :func:`bayesdrag.io.met.read_met_profile`; giving it implies
+      ``model = "profile"``, and ``model = "icao"`` with a profile is a contradiction),
+      temperature_offset [K], pressure_ratio, density_ratio (applied on top of a profile too)
+    - ``[radar]`` sigma = {x, y, z [m], v [m/s]}
+
+    A missing ``name`` defaults to the file's stem.
+
+    Returns
+    -------
+    Round
+
+    Raises
+    ------
+    bayesdrag.errors.InputError
+        Missing/unreadable file, invalid TOML (with line and column), unknown section or key
+        (allowed ones listed, close matches suggested), wrong types (booleans are not numbers),
+        missing ``[projectile]`` mass or diameter, implausible values (mass, diameter -- with a
+        millimetre hint --, elevation, velocity, latitude, sd values, sigma, atmosphere), and a
+        missing or malformed reference drag table (naming the key and the CSV file).
+    """
+    path = Path(path)
+    text = read_text(path, "round file")
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+
+    for sec, tab in doc.items():
+        if sec not in _SCHEMA:
+            what = "section" if isinstance(tab, dict) else "top-level key"
+            raise _unknown(path, what, sec, tuple(_SCHEMA))
+    tables = {}
+    for sec, keys in _SCHEMA.items():
+        tab = doc.get(sec, {})
+        if not isinstance(tab, dict):
+            raise InputError(f"{path}: {sec} must be a section [{sec}], got {type_name(tab)}")
+        for k in tab:
+            if k not in keys:
+                raise _unknown(path, f"key in [{sec}]", k, tuple(keys))
+        tables[sec] = tab
+
+    def build(sec, fn):
+        try:
+            return fn()
+        except InputError:
+            raise
+        except ValueError as exc:
+            raise InputError(f"{path}: [{sec}] {exc}") from None
+
+    pt = tables["projectile"]
+    if "projectile" not in doc:
+        raise InputError(f"{path}: missing section [projectile]; it needs mass (kg) and diameter (m)")
+    for k, unit in (("mass", "kg"), ("diameter", "m")):
+        if k not in pt:
+            raise InputError(f"{path}: [projectile] missing key {k} ({unit})")
+
+    ref, ref_path = None, None
+    if "reference_drag" in pt:
+        rel = pt["reference_drag"]
+        if not isinstance(rel, str) or not rel.strip():
+            raise InputError(f"{path}: [projectile] reference_drag must be a CSV file path (string), "
+                             f"got {type_name(rel)}")
+        ref_path = Path(os.path.normpath(path.parent / rel))
+        try:
+            ref = read_drag_table(ref_path)
+        except InputError as exc:
+            raise InputError(f"{path}: [projectile] reference_drag = {rel!r}: {exc}") from None
+    projectile = build("projectile", lambda: Projectile(
+        pt.get("name", path.stem), pt["mass"], pt["diameter"], ref,
+        None if ref_path is None else str(ref_path), pt.get("reference_extrapolate", False) is True))
+
+    lt = tables["launch"]
+    launch = build("launch", lambda: Launch(
+        lt.get("elevation"), lt.get("velocity"), lt.get("azimuth", 0.0), lt.get("latitude"),
+        lt.get("altitude", 0.0), lt.get("velocity_sd", DEFAULT_VELOCITY_SD),
+        lt.get("elevation_sd", DEFAULT_ELEVATION_SD_DEG), lt.get("position_sd", DEFAULT_POSITION_SD)))
+
+    at = tables["atmosphere"]
+    model = at.get("model", "profile" if "profile" in at else "icao")
+    if not isinstance(model, str) or model.lower() not in ATMOSPHERE_MODELS:
+        raise InputError(f"{path}: [atmosphere] model = {model!r} is not supported; allowed: "
+                         f"{', '.join(repr(m) for m in ATMOSPHERE_MODELS)}")
+    model = model.lower()
+    if model == "profile" and "profile" not in at:
+        raise InputError(f"{path}: [atmosphere] model = 'profile' needs profile = \"met.csv\" "
+                         f"(CSV altitude,temperature,pressure[,wind_x,wind_y])")
+    if model == "icao" and "profile" in at:
+        raise InputError(f"{path}: [atmosphere] model = 'icao' contradicts profile = {at['profile']!r}; "
+                         f"use model = 'profile' (or leave model out) to fly through the profile, "
+                         f"or drop profile for the standard atmosphere")
+
+    def make_atmosphere():
+        vals = {k: number(k, at.get(k, d), _SCHEMA["atmosphere"][k])
+                for k, d in (("temperature_offset", 0.0), ("pressure_ratio", 1.0), ("density_ratio", 1.0))}
+        if model == "profile":
+            rel = at["profile"]
+            if not isinstance(rel, str) or not rel.strip():
+                raise InputError(f"{path}: [atmosphere] profile must be a CSV file path (string), "
+                                 f"got {type_name(rel)}")
+            prof_path = Path(os.path.normpath(path.parent / rel))
+            try:
+                return read_met_profile(prof_path, gun_altitude=launch.altitude, **vals)
+            except InputError as exc:
+                raise InputError(f"{path}: [atmosphere] profile = {rel!r}: {exc}") from None
+        return Atmosphere(**vals, gun_altitude=launch.altitude)
+
+    atmosphere = build("atmosphere", make_atmosphere)
+    extrapolate = pt.get("reference_extrapolate", False)
+    if not isinstance(extrapolate, bool):
+        raise InputError(f"{path}: [projectile] reference_extrapolate must be true or false, got "
+                         f"{type_name(extrapolate)}")
+    if ref is not None and launch.velocity is not None and not extrapolate:
+        a_gun = float(atmosphere.at_height(0.0).speed_of_sound)
+        m_launch = launch.velocity / a_gun
+        if m_launch > ref.mach[-1] + REFERENCE_MACH_SLACK:
+            raise InputError(
+                f"{path}: [projectile] reference_drag = {pt['reference_drag']!r} covers Mach "
+                f"{ref.mach[0]:g}-{ref.mach[-1]:g} but the launch (velocity = {launch.velocity:g} m/s, "
+                f"speed of sound {a_gun:.1f} m/s) is Mach {m_launch:.2f}; the table must reach the "
+                f"launch Mach (to within {REFERENCE_MACH_SLACK:g}): extend it, or set "
+                f"reference_extrapolate = true to hold Cd at its last value beyond the table")
+    radar = build("radar", lambda: Radar(tables["radar"].get("sigma", {})))
+    return Round(projectile, launch, atmosphere, radar, str(path))
+
+
+def write_round(path, rnd, comment=None):
+    """Write a round as TOML that :func:`read_round` reads back to the same values.
+
+    ``reference_drag`` is written relative to the new file's directory. A reference table
+    without ``reference_drag_path`` is first written next to it as ``<stem>_reference_drag.csv``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    rnd : Round
+    comment : str, optional
+        Written first as ``#`` lines.
+    """
+    path = Path(path)
+    p, la, at = rnd.projectile, rnd.launch, rnd.atmosphere
+    proj = {"name": p.name, "mass": p.mass, "diameter": p.diameter}
+    if p.reference_drag is not None or p.reference_drag_path is not None:
+        ref = p.reference_drag_path
+        if ref is None:
+            ref = path.with_name(f"{path.stem}_reference_drag.csv")
+            body = "".join(f"{m:.6g},{c:.8g}\n" for m, c in zip(p.reference_drag.mach,
+                                                                p.reference_drag.cd_values))
+            ref.write_text(f"# reference drag of {p.name}\nmach,cd\n{body}", encoding="utf-8")
+        try:
+            rel = os.path.relpath(Path(ref).resolve(), path.resolve().parent)
+        except ValueError:  # other drive (Windows)
+            rel = str(Path(ref).resolve())
+        proj["reference_drag"] = Path(rel).as_posix()
+        if p.reference_extrapolate:
+            proj["reference_extrapolate"] = True
+    launch = {}
+    if la.elevation_deg is not None:
+        launch["elevation"] = la.elevation_deg
+    if la.velocity is not None:
+        launch["velocity"] = la.velocity
+    launch["azimuth"] = la.azimuth_deg
+    if la.latitude_deg is not None:
+        launch["latitude"] = la.latitude_deg
+    launch.update(altitude=la.altitude, velocity_sd=la.velocity_sd, elevation_sd=la.elevation_sd_deg,
+                  position_sd=la.position_sd)
+    atm = {"model": "icao"}
+    if isinstance(at, MetProfile):
+        prof = Path(at.source) if at.source else None
+        if prof is None or not prof.is_file():
+            prof = path.with_name(f"{path.stem}_met.csv")
+            write_met_profile(prof, at, comment=f"met profile of {p.name}")
+        try:
+            rel = os.path.relpath(prof.resolve(), path.resolve().parent)
+        except ValueError:  # other drive (Windows)
+            rel = str(prof.resolve())
+        atm = {"model": "profile", "profile": Path(rel).as_posix()}
+    atm.update(temperature_offset=float(at.temperature_offset), pressure_ratio=float(at.pressure_ratio),
+               density_ratio=float(at.density_ratio))
+    doc = {"projectile": proj, "launch": launch, "atmosphere": atm}
+    if rnd.radar.sigma:
+        doc["radar"] = {"sigma": dict(rnd.radar.sigma)}
+    head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
+    head += "# units: kg, m, deg, m/s, K\n"
+    path.write_text(head + tomli_w.dumps(doc), encoding="utf-8")

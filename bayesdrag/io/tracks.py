@@ -1,0 +1,193 @@
+"""Track files (CSV, DESIGN.md "Files"): ``#`` comment lines, a header row naming ``t`` plus at
+least one of ``x, y, z, v``, then one row of numbers per radar sample; SI units (t [s], x, y,
+z [m], v [m/s]). Extra columns (SNR, range rate, ...) are kept in ``RadarTrack.extra``, ignored
+by the fit, and reported by one line in ``RadarTrack.notes``.
+
+Reading also checks that the channels agree with each other: the speed from the positions must
+match ``v`` (a track in yards beside m/s, in km, in ft/s is refused with the likely unit).
+
+Examples
+--------
+>>> from bayesdrag import read_track            # doctest: +SKIP
+>>> track = read_track("r1.csv")                # doctest: +SKIP
+>>> track.names, track.n                        # doctest: +SKIP
+(('x', 'y', 'z', 'v'), 1200)
+"""
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..track import CHANNELS, RadarTrack
+from .csv import read_table
+
+__all__ = ["read_track", "write_track"]
+
+
+# (median speed-from-positions / v, explanation) for the unit check
+_UNIT_GUESSES = (
+    (1.0 / 0.9144, "x, y, z look like yards (expected metres)"),
+    (0.9144, "v looks like yd/s (expected m/s)"),
+    (1e-3, "x, y, z look like kilometres (expected metres)"),
+    (1.0 / 3.6, "v looks like km/h (expected m/s)"),
+    (0.3048, "v looks like ft/s (expected m/s)"),
+    (1.0 / 0.3048, "x, y, z look like feet (expected metres)"),
+    (1e3, "x, y, z look like millimetres (expected metres), or v like km/s (expected m/s)"),
+)
+#: the unit check fires when the median ratio is off from 1 by more than this factor, or, with x
+#: and z present (the speed from the positions is then the whole speed: the drift y is tiny), by
+#: more than :data:`UNIT_REL_LIMIT` and :data:`UNIT_SIGNIFICANCE` of its standard errors. A
+#: consistent track's ratio is 1 to ~0.1 %: chords of 0.5 s are shorter than the arc by
+#: (curvature x length)^2 / 24 ~ 1e-6, a missing y channel hides < 0.1 % of the speed, and the
+#: noise averages out in the median. Yards beside m/s give 0.914.
+UNIT_RATIO_LIMIT = 3.0
+UNIT_REL_LIMIT = 0.05
+UNIT_SIGNIFICANCE = 5.0
+
+
+def _speed_ratio(t, channels):
+    """Median over the track of |chord velocity from positions| / mean v, or None."""
+    pos = [c for c in ("x", "y", "z") if c in channels]
+    v = channels.get("v")
+    n = t.size
+    if not pos or v is None or n < 2:
+        return None, pos, None
+    dt_med = float(np.median(np.diff(t)))
+    # chords of ~0.5 s average the radar noise down (1 m noise -> ~3 m/s) and bend negligibly
+    k = int(min(max(round(0.5 / dt_med), 1), max((n - 1) // 2, 1)))
+    i0 = np.arange(n - k)
+    i1 = i0 + k
+    d2 = sum((channels[c][i1] - channels[c][i0]) ** 2 for c in pos)
+    speed = np.sqrt(d2) / (t[i1] - t[i0])
+    vm = 0.5 * (v[i0] + v[i1])
+    ok = vm > 0
+    if not ok.any():
+        return None, pos, None
+    q = speed[ok] / vm[ok]
+    med = float(np.median(q))
+    # standard error of the median from the MAD; chords overlap by k samples, so count only
+    # non-overlapping ones as independent
+    n_ind = max(q.size / k, 1.0)
+    se = 1.2533 * 1.4826 * float(np.median(np.abs(q - med))) / math.sqrt(n_ind)
+    return med, pos, se
+
+
+def _check_units(path, t, channels):
+    r, pos, se = _speed_ratio(t, channels)
+    if r is None:
+        return
+    full = "x" in pos and "z" in pos  # drift y is small: x and z carry nearly all of |dr/dt|
+    too_high = r > UNIT_RATIO_LIMIT
+    # with missing components the position speed is legitimately below v; only x alone still bounds it
+    low_limit = 1.0 / UNIT_RATIO_LIMIT if full else (0.01 if "x" in pos else 0.0)
+    near = full and abs(r - 1.0) > UNIT_REL_LIMIT and abs(r - 1.0) > UNIT_SIGNIFICANCE * se
+    if not (too_high or r < low_limit or near):
+        return
+    guess = min(_UNIT_GUESSES, key=lambda g: abs(math.log(max(r, 1e-300) / g[0])))
+    if abs(math.log(max(r, 1e-300) / guess[0])) < math.log(1.3 if abs(math.log(guess[0])) > 0.5 else 1.03):
+        why = guess[1]
+        if guess[0] == 1e-3 and t[-1] - t[0] > 1000.0:
+            why = "t looks like milliseconds (expected seconds), or " + why
+        elif guess[0] == 1e-3:
+            why += ", or t like milliseconds (expected seconds)"
+    else:
+        why = "check the units of x, y, z (m), v (m/s) and t (s), and that v is the total ground speed"
+    raise InputError(f"{path}: units look wrong: the speed from the positions ({','.join(pos)}) is "
+                     f"{r:.4g} times v (median over the track); {why}")
+
+
+def _track_header_check(path, line, names):
+    if "t" not in names:
+        lower = [n for n in names if n.lower() == "t"]
+        hint = f" (column names are case-sensitive: found {lower[0]!r})" if lower else ""
+        raise InputError(f"{path}: line {line}: track needs a time column 't' plus at least one of "
+                         f"{', '.join(CHANNELS)}; header has {', '.join(names)}{hint}")
+    if not any(c in names for c in CHANNELS):
+        raise InputError(f"{path}: line {line}: track has 't' but none of the channels "
+                         f"{', '.join(CHANNELS)}; header has {', '.join(names)}")
+
+
+def read_track(path):
+    """Read and validate a radar track CSV (DESIGN.md "Files").
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        CSV with header ``t`` plus at least one of ``x, y, z, v``; SI units (s, m, m/s).
+
+    Returns
+    -------
+    RadarTrack
+        ``notes`` lists ignored extra columns, if any.
+
+    Raises
+    ------
+    bayesdrag.errors.InputError
+        Everything :func:`read_csv_columns` rejects, plus: no ``t`` or no channel, fewer than 2
+        rows, time not strictly increasing (line that repeats or goes back), negative ``v``, and
+        positions clearly inconsistent with ``v`` (median ratio of the speed from finite
+        differences of the positions to ``v`` off by more than 3x; the message names the likely
+        unit mistake: km, ft, ft/s, km/h, mm, ms). A ``v`` in ft/s alone (no positions) cannot be
+        detected and is not checked.
+    """
+    path, names, data, line_no = read_table(path, "track", header_check=_track_header_check)
+    if data.shape[0] < 2:
+        raise InputError(f"{path}: track has {data.shape[0]} data row; at least 2 are needed")
+    cols = {n: np.ascontiguousarray(data[:, k]) for k, n in enumerate(names)}
+    t = cols["t"]
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = bad[0] + 1
+        how = ("repeats the previous row's time" if dt[bad[0]] == 0
+               else f"goes back from {t[i - 1]:g} s on line {line_no[i - 1]}")
+        raise InputError(f"{path}: line {line_no[i]}: t = {t[i]:g} s {how}; time must increase "
+                         f"strictly (sort the rows, drop duplicates)")
+    channels = {c: cols[c] for c in CHANNELS if c in cols}
+    if "v" in channels and np.any(channels["v"] < 0):
+        i = int(np.argmax(channels["v"] < 0))
+        raise InputError(f"{path}: line {line_no[i]}: v = {channels['v'][i]:g} m/s is negative; v is the "
+                         f"ground speed |dr/dt| >= 0 (a signed range rate belongs in an extra column)")
+    _check_units(path, t, channels)
+    extra = {n: cols[n] for n in names if n != "t" and n not in CHANNELS}
+    notes = ()
+    if extra:
+        notes = (f"{path}: extra column(s) {', '.join(extra)} kept but ignored by the fit",)
+    return RadarTrack(t, channels, extra, str(path), notes)
+
+
+def write_track(path, track, comment=None, extra=True):
+    """Write a track as CSV: ``t`` then the present channels (then extra columns).
+
+    Precision: t with 6 decimals (1 us), x, y, z, v with 4 decimals (0.1 mm, 0.1 mm/s), extra
+    columns with 10 significant digits.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    track : RadarTrack
+    comment : str, optional
+        Written first, each line prefixed by ``# ``.
+    extra : bool
+        Also write ``track.extra`` columns (default True; :func:`read_track` notes them).
+    """
+    names = ["t", *track.names]
+    cols = [track.t, *(track.channels[k] for k in track.names)]
+    fmts = ["%.6f"] + ["%.4f"] * len(track.names)
+    if extra:
+        for k, a in track.extra.items():
+            names.append(k)
+            cols.append(a)
+            fmts.append("%.10g")
+    buf = io.StringIO()
+    if comment:
+        for ln in str(comment).splitlines() or [""]:
+            buf.write(f"# {ln}".rstrip() + "\n")
+    buf.write(",".join(names) + "\n")
+    if track.n:
+        np.savetxt(buf, np.column_stack(cols), fmt=fmts, delimiter=",")
+    Path(path).write_text(buf.getvalue(), encoding="utf-8")

@@ -1,0 +1,230 @@
+"""Everything known about one firing besides the track: the projectile, the launch, the air and
+the radar (``Projectile``, ``Launch``, ``Radar``, ``Round``). Values only; the round file (TOML)
+is read and written by :mod:`bayesdrag.io.rounds`.
+
+Construction checks every value and raises ``ValueError`` naming the key, what was found and
+what is allowed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .atmosphere import Atmosphere, MetProfile
+from .drag import ReferenceTable
+from .track import CHANNELS, UNITS
+from .validate import number, positive, type_name
+
+__all__ = ["Projectile", "Launch", "Radar", "Round", "DEFAULT_VELOCITY_SD", "DEFAULT_ELEVATION_SD_DEG",
+           "DEFAULT_POSITION_SD"]
+
+#: default a-priori sd of the launch velocity [m/s]: round-to-round muzzle-velocity dispersion of
+#: a lot is ~0.3-0.5 % (2.5-4 m/s at 800 m/s); 5 m/s also absorbs a nominal value taken from the
+#: firing table rather than measured, while staying far looser than what a track determines.
+DEFAULT_VELOCITY_SD = 5.0
+#: default a-priori sd of the launch elevation [deg]: laying error (~1 mil = 0.056 deg) plus
+#: vertical jump (typically 0.5-2 mil) gives ~0.1 deg; 0.2 deg (3.5 mil) is deliberately loose.
+DEFAULT_ELEVATION_SD_DEG = 0.2
+#: default a-priori sd of the muzzle position at t = 0 per axis [m]: survey of radar vs muzzle and
+#: the offset of the muzzle from the trunnion are decimetres; 1 m is loose.
+DEFAULT_POSITION_SD = 1.0
+
+#: plausible ranges checked when a round is built (SI / degrees as noted)
+MASS_MAX = 10000.0              # kg
+DIAMETER_RANGE = (0.004, 1.0)   # m
+ELEVATION_RANGE_DEG = (-10.0, 90.0)  # open interval
+VELOCITY_MAX = 3000.0           # m/s
+ALTITUDE_RANGE = (-1000.0, 10000.0)  # m above sea level of the gun
+
+
+@dataclass(frozen=True, eq=False)
+class Projectile:
+    """The shell.
+
+    Attributes
+    ----------
+    name : str
+    mass : float, kg
+        In (0, 10000].
+    diameter : float, m
+        Reference diameter (area pi d^2/4), in [0.004, 1.0].
+    reference_drag : ReferenceTable or None
+        Firing-table Cd(M), if known.
+    reference_drag_path : str or None
+        Where ``reference_drag`` was read from (as resolved from the round file).
+    reference_extrapolate : bool
+        The round allows the flight to go beyond the table's Mach range (Cd held at the end
+        values); see :func:`read_round`.
+    """
+
+    name: str = ""
+    mass: float = None
+    diameter: float = None
+    reference_drag: "ReferenceTable | None" = field(default=None, repr=False)
+    reference_drag_path: str | None = None
+    reference_extrapolate: bool = False
+
+    def __post_init__(self):
+        if not isinstance(self.name, str):
+            raise ValueError(f"name must be a string, got {type_name(self.name)}")
+        mass = number("mass", self.mass, "kg")
+        if not 0.0 < mass <= MASS_MAX:
+            raise ValueError(f"mass = {mass:g} kg is outside (0, {MASS_MAX:g}] kg")
+        d = number("diameter", self.diameter, "m")
+        lo, hi = DIAMETER_RANGE
+        if not lo <= d <= hi:
+            if lo * 1000 <= d <= hi * 1000:
+                raise ValueError(f"diameter = {d:g} looks like millimetres; diameter is in metres "
+                                 f"({d / 1000:g}); allowed [{lo:g}, {hi:g}] m")
+            raise ValueError(f"diameter = {d:g} m is outside the plausible range [{lo:g}, {hi:g}] m")
+        object.__setattr__(self, "mass", mass)
+        object.__setattr__(self, "diameter", d)
+        if self.reference_drag_path is not None:
+            object.__setattr__(self, "reference_drag_path", str(self.reference_drag_path))
+
+    @property
+    def area(self):
+        """Reference area pi d^2 / 4 [m^2]."""
+        return math.pi * self.diameter ** 2 / 4.0
+
+
+@dataclass(frozen=True, eq=False)
+class Launch:
+    """Launch conditions: initial guesses, priors, simulator input, Coriolis geometry.
+
+    Messages name the TOML keys (``elevation`` for ``elevation_deg`` etc.).
+
+    Attributes
+    ----------
+    elevation_deg : float or None, deg
+        Quadrant elevation, in (-10, 90). None: unknown (estimated from the track).
+    velocity : float or None, m/s
+        Launch (muzzle) velocity, in (0, 3000]. None: unknown.
+    azimuth_deg : float, deg
+        Firing azimuth clockwise from true north, normalised to [0, 360). Default 0 (north): it
+        only matters for Coriolis, which also needs ``latitude_deg``.
+    latitude_deg : float or None, deg
+        Latitude of the gun, north positive, in [-90, 90]. None: unknown (no Coriolis geometry).
+    altitude : float, m
+        Gun altitude above mean sea level, in [-1000, 10000]; default 0.
+    velocity_sd : float, m/s
+        A-priori sd of ``velocity``; default :data:`DEFAULT_VELOCITY_SD` = 5 m/s (lot dispersion
+        0.3-0.5 % plus a firing-table nominal value).
+    elevation_sd_deg : float, deg
+        A-priori sd of ``elevation_deg``; default :data:`DEFAULT_ELEVATION_SD_DEG` = 0.2 deg
+        (laying error plus jump).
+    position_sd : float, m
+        A-priori sd of the muzzle position at t = 0, per axis; default
+        :data:`DEFAULT_POSITION_SD` = 1 m (radar/muzzle survey).
+    """
+
+    elevation_deg: float | None = None
+    velocity: float | None = None
+    azimuth_deg: float = 0.0
+    latitude_deg: float | None = None
+    altitude: float = 0.0
+    velocity_sd: float = DEFAULT_VELOCITY_SD
+    elevation_sd_deg: float = DEFAULT_ELEVATION_SD_DEG
+    position_sd: float = DEFAULT_POSITION_SD
+
+    def __post_init__(self):
+        el = number("elevation", self.elevation_deg, "deg", optional=True)
+        lo, hi = ELEVATION_RANGE_DEG
+        if el is not None and not lo < el < hi:
+            raise ValueError(f"elevation = {el:g} deg is outside ({lo:g}, {hi:g}) deg")
+        vel = number("velocity", self.velocity, "m/s", optional=True)
+        if vel is not None and not 0.0 < vel <= VELOCITY_MAX:
+            raise ValueError(f"velocity = {vel:g} m/s is outside (0, {VELOCITY_MAX:g}] m/s")
+        az = number("azimuth", self.azimuth_deg, "deg") % 360.0
+        lat = number("latitude", self.latitude_deg, "deg", optional=True)
+        if lat is not None and not -90.0 <= lat <= 90.0:
+            raise ValueError(f"latitude = {lat:g} deg is outside [-90, 90] deg")
+        alt = number("altitude", self.altitude, "m")
+        if not ALTITUDE_RANGE[0] <= alt <= ALTITUDE_RANGE[1]:
+            raise ValueError(f"altitude = {alt:g} m is outside [{ALTITUDE_RANGE[0]:g}, "
+                             f"{ALTITUDE_RANGE[1]:g}] m above sea level")
+        values = dict(elevation_deg=el, velocity=vel, azimuth_deg=az, latitude_deg=lat, altitude=alt,
+                      velocity_sd=positive("velocity_sd", self.velocity_sd, "m/s"),
+                      elevation_sd_deg=positive("elevation_sd", self.elevation_sd_deg, "deg"),
+                      position_sd=positive("position_sd", self.position_sd, "m"))
+        for k, v in values.items():
+            object.__setattr__(self, k, v)
+
+    @property
+    def elevation(self):
+        """Elevation [rad], or None."""
+        return None if self.elevation_deg is None else math.radians(self.elevation_deg)
+
+    @property
+    def elevation_sd(self):
+        """Elevation sd [rad]."""
+        return math.radians(self.elevation_sd_deg)
+
+    @property
+    def azimuth(self):
+        """Azimuth [rad] clockwise from true north."""
+        return math.radians(self.azimuth_deg)
+
+    @property
+    def latitude(self):
+        """Latitude [rad], or None."""
+        return None if self.latitude_deg is None else math.radians(self.latitude_deg)
+
+
+@dataclass(frozen=True, eq=False)
+class Radar:
+    """A-priori radar noise.
+
+    Attributes
+    ----------
+    sigma : dict of str -> float
+        Noise sd per channel (keys among ``x, y, z`` [m] and ``v`` [m/s]), each > 0; may be
+        empty (then the fit estimates the noise).
+    """
+
+    sigma: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not isinstance(self.sigma, dict):
+            raise ValueError(f"sigma must be a table like {{x = 1.0, v = 0.3}}, got {type_name(self.sigma)}")
+        bad = [k for k in self.sigma if k not in CHANNELS]
+        if bad:
+            raise ValueError(f"sigma has unknown channel(s) {', '.join(map(str, bad))}; "
+                             f"allowed: {', '.join(CHANNELS)}")
+        sig = {k: positive(f"sigma.{k}", self.sigma[k], UNITS[k]) for k in CHANNELS if k in self.sigma}
+        object.__setattr__(self, "sigma", sig)
+
+
+@dataclass(frozen=True, eq=False)
+class Round:
+    """Everything known about one firing besides the track.
+
+    Attributes
+    ----------
+    projectile : Projectile
+    launch : Launch
+    atmosphere : Atmosphere or MetProfile
+        ``gun_altitude`` equals ``launch.altitude`` (built so by :func:`read_round`, and by
+        default when None is passed).
+    radar : Radar
+    path : str
+        The round file, or "".
+    """
+
+    projectile: Projectile
+    launch: Launch = field(default_factory=Launch)
+    atmosphere: Atmosphere = None
+    radar: Radar = field(default_factory=Radar)
+    path: str = ""
+
+    def __post_init__(self):
+        if self.atmosphere is None:
+            object.__setattr__(self, "atmosphere", Atmosphere(gun_altitude=self.launch.altitude))
+        object.__setattr__(self, "path", str(self.path))
+
+    @property
+    def reference_drag(self):
+        """The projectile's firing-table drag (``ReferenceTable``) or None."""
+        return self.projectile.reference_drag
