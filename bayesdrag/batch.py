@@ -110,9 +110,9 @@ def _fit_namespace(track, round_path, outdir, options):
 def run_fit_job(track, round_path, outdir, options, covariance="colored"):
     """The ``fit`` job of one round: :func:`bayesdrag.fitting.run_fit` into ``outdir`` plus
     ``pooling.json`` (:func:`bayesdrag.campaign.pooling_input`). Returns a message."""
-    from .campaign import pooling_input
+    from .campaign.pooling import pooling_input
     from .fitting import run_fit
-    from .outputs import write_json
+    from .io.outputs import write_json
 
     kept = {}
 
@@ -171,7 +171,7 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
     import matplotlib
 
     matplotlib.use("Agg")
-    from .outputs import ensure_output_dir, write_json
+    from .io.outputs import ensure_output_dir, write_json
 
     options = dict(options or {})
     report = {"name": name, "jobs": {}, "pid": os.getpid()}
@@ -295,8 +295,8 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
     """
     from tqdm import tqdm
 
-    from .campaign import read_campaign
-    from .outputs import ensure_output_dir
+    from .io.campaign import read_campaign
+    from .io.outputs import ensure_output_dir
 
     bad = [j for j in jobs if j not in JOBS]
     if bad or not jobs:
@@ -332,8 +332,8 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print):
     round was fitted."""
     import numpy as np
 
-    from .campaign import campaign_json, pool_rounds
-    from .campaign_report import write_campaign_report
+    from .campaign.pooling import campaign_json, pool_rounds
+    from .report.campaign import write_campaign_report
 
     inputs = []
     for r in camp.rounds:

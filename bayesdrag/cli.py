@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from .errors import FitError, InputError
-from .outputs import atomic_write as _atomic_write
+from .io.outputs import atomic_write as _atomic_write
 
 
 class _Parser(argparse.ArgumentParser):
@@ -174,7 +174,7 @@ def cmd_fit(args):
 
     if args.round is None:  # bayesdrag fit CAMPAIGN.toml -o DIR
         from .batch import run_campaign_fit
-        from .campaign import is_campaign_file
+        from .io.campaign import is_campaign_file
 
         if not is_campaign_file(args.track):
             raise InputError(f"command line: fit needs TRACK ROUND, or a campaign file ({args.track} is not a "

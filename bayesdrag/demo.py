@@ -37,7 +37,8 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     import matplotlib.pyplot as plt
 
     from .dynamics.pointmass import PointMassModel, initial_state
-    from .plots import plot_differences, plot_drag_curve, plot_track
+    from .plots.track import plot_differences, plot_track
+    from .plots.cd import plot_drag_curve
     from .track import RadarTrack
     from .io.rounds import read_round
     from .io.tracks import read_track
@@ -94,7 +95,8 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     worst = max(abs(r["mean"] / r["reference"] - 1) for r in in_range) if in_range else None
     worst_ml = max(abs(r["ml"] / r["reference"] - 1) for r in in_range) if in_range else None
     # the ML figures of the earlier demo (kept: users and tests know them)
-    from .plots import plot_cd_ml, plot_residuals
+    from .plots.cd import plot_cd_ml
+    from .plots.residuals import plot_residuals
 
     res = kept["res"]
     ax = plot_cd_ml(rows, label="ML, spline (from the 6-DOF track)")

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .outputs import atomic_write, ensure_output_dir, write_json
+from .io.outputs import atomic_write, ensure_output_dir, write_json
 
 
 def summary_paragraph(s):

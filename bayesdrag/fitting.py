@@ -18,9 +18,9 @@ import time
 from pathlib import Path
 
 from .errors import FitError, InputError
-from .outputs import atomic_write as _atomic_write
-from .outputs import write_json as _write_json
-from .outputs import write_figure as _write_figure
+from .io.outputs import atomic_write as _atomic_write
+from .io.outputs import write_json as _write_json
+from .io.outputs import write_figure as _write_figure
 
 PARTIAL = "chain.partial.h5"
 CHAIN = "chain.h5"
@@ -208,8 +208,9 @@ def _fit_figures(out, res, prob, dm, rows, rnd, track, bayes, post):
     matplotlib.use("Agg")
     import numpy as np
 
-    from .plots import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
-                        plot_corner, plot_residuals, plot_residuals_acf, plot_traces)
+    from .plots.cd import plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative
+    from .plots.mcmc import plot_corner, plot_traces
+    from .plots.residuals import plot_residuals, plot_residuals_acf
 
     figs = []
     if bayes is None:
@@ -275,7 +276,7 @@ def _fit_figures(out, res, prob, dm, rows, rnd, track, bayes, post):
 def _report(out, args, track, rnd, res, prob, rows, bayes, post, figs, warnings, result, seconds):
     import datetime
 
-    from .report import render_report, versions
+    from .report.render import render_report, versions
 
     def b64(name):
         import base64
@@ -430,7 +431,7 @@ def _run_scheme2(args, track, rnd, chans, out, echo, quiet):
     import matplotlib
 
     matplotlib.use("Agg")
-    from .plots import plot_windows
+    from .plots.cd import plot_windows
 
     ax = plot_windows([rows[k] for k in ok], reference=rnd.reference_drag.value if rnd.reference_drag else None)
     _write_figure(out / "windows.png", ax.figure)
@@ -447,7 +448,7 @@ def _report_scheme2(out, args, track, rnd, rows, cd_rows, warnings, result, seco
     import base64
     import datetime
 
-    from .report import render_report, versions
+    from .report.render import render_report, versions
 
     png = base64.b64encode((out / "windows.png").read_bytes()).decode("ascii")
     inputs = [("track", f"{args.track} ({track.n} samples)"), ("round", str(args.round)),

@@ -38,7 +38,8 @@ def main(argv=None):
     workers = [int(w) for w in a.workers.split(",")]
 
     from bayesdrag.batch import _Dask, round_task
-    from bayesdrag.campaign import read_campaign, simulate_campaign
+    from bayesdrag.io.campaign import read_campaign
+    from bayesdrag.campaign.synthetic import simulate_campaign
 
     root = Path(a.keep or tempfile.mkdtemp(prefix="bayesdrag-batch-bench-"))
     path, _ = simulate_campaign(root / "campaign", n_rounds=n, scatter=0.01, rng=np.random.default_rng(1), dt=a.dt)

@@ -17,8 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from bayesdrag.batch import run_campaign
-from bayesdrag.campaign import campaign_json, pool_rounds, read_campaign, simulate_campaign
-from bayesdrag.campaign_report import write_campaign_report
+from bayesdrag.campaign.pooling import campaign_json, pool_rounds
+from bayesdrag.io.campaign import read_campaign
+from bayesdrag.campaign.synthetic import simulate_campaign
+from bayesdrag.report.campaign import write_campaign_report
 
 
 def main(argv=None):

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from bayesdrag.batch import WORKER_ENV, fingerprint, job_done, marker_path, round_task, run_campaign
-from bayesdrag.campaign import simulate_campaign, write_campaign
+from bayesdrag.campaign.synthetic import simulate_campaign
+from bayesdrag.io.campaign import write_campaign
 from bayesdrag.cli import main
 
 #: how long the kill test waits for the first finished round before giving up [s]

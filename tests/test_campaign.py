@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from bayesdrag.campaign import (NODE_FINE, NODE_SPACING, is_campaign_file, mach_nodes, pool_rounds,
-                                read_campaign, scatter_log_posterior, simulate_campaign)
+from bayesdrag.campaign.pooling import NODE_FINE, NODE_SPACING, mach_nodes, pool_rounds, scatter_log_posterior
+from bayesdrag.io.campaign import is_campaign_file, read_campaign
+from bayesdrag.campaign.synthetic import simulate_campaign
 from bayesdrag.cli import main
 from bayesdrag.errors import InputError
 

@@ -14,8 +14,7 @@ import pytest
 pbc = pytest.importorskip("py_ballisticcalc")
 
 from bayesdrag.estimate.scheme1 import fit_scheme1  # noqa: E402
-from bayesdrag.export import (PBC_STANDARD_DENSITY, density_match, drag_table, export_fit, export_result,  # noqa: E402
-                              load_pbc_drag_model, pbc_ballistic_coefficient)
+from bayesdrag.io.export import PBC_STANDARD_DENSITY, density_match, drag_table, export_fit, export_result, load_pbc_drag_model, pbc_ballistic_coefficient
 from bayesdrag.simulate import add_noise, simulate_round  # noqa: E402
 from bayesdrag.round import Launch, Projectile, Radar, Round  # noqa: E402
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from bayesdrag.errors import InputError
-from bayesdrag.radar_formats import convert, main, read_labradar_track, read_radar_export, sniff_format
+from bayesdrag.io.radar_formats import convert, main, read_labradar_track, read_radar_export, sniff_format
 from bayesdrag.io.tracks import read_track
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "radar_export" / "Shot0001 Track.csv"

@@ -8,7 +8,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from .errors import InputError
+from ..errors import InputError
 
 
 def atomic_write(path, write_fn):
@@ -34,15 +34,15 @@ def write_json(path, obj):
 
 
 
-def write_figure(path, fig, dpi=110):
-    """Save a matplotlib figure atomically as PNG (by ``path``'s suffix) and close it."""
-    import matplotlib.pyplot as plt
+def write_bytes(path, data):
+    """Write bytes atomically."""
+    atomic_write(path, lambda tmp: Path(tmp).write_bytes(data))
 
+
+def write_figure(path, fig, dpi=110):
+    """Save a matplotlib figure atomically in the format of ``path``'s suffix (PNG by default)."""
     fmt = Path(path).suffix.lstrip(".") or "png"
-    try:
-        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
-    finally:
-        plt.close(fig)
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
 def ensure_output_dir(out):

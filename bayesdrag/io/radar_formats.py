@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 #: velocity units in LabRadar headers -> factor to m/s
 VELOCITY_UNITS = {"fps": 0.3048, "ft/s": 0.3048, "m/s": 1.0, "mps": 1.0, "km/h": 1 / 3.6, "mph": 0.44704}
@@ -77,7 +77,7 @@ def read_radar_export(path, fmt="auto", **kw):
     if fmt == "labradar":
         return read_labradar_track(path, **kw)
     if fmt == "bayesdrag":
-        from .io.tracks import read_track
+        from .tracks import read_track
 
         return read_track(path)
     raise InputError(f"{path}: unknown track format {fmt!r}; allowed: auto, {', '.join(FORMATS)}")
@@ -120,7 +120,7 @@ def read_labradar_track(path, keep_extrapolated=False):
         Channel ``v`` [m/s]; extra columns ``range_m`` [m] and ``snr_db`` [dB] when present;
         ``notes`` say what was converted and dropped; ``source`` is the file.
     """
-    from .track import RadarTrack
+    from ..track import RadarTrack
 
     path = Path(path)
     try:
@@ -198,7 +198,7 @@ def read_labradar_track(path, keep_extrapolated=False):
 def convert(path, output, fmt="auto", **kw):
     """Convert a radar export to a bayesdrag track CSV (extra columns kept). Returns the track."""
     from .outputs import atomic_write
-    from .io.tracks import write_track
+    from .tracks import write_track
 
     tr = read_radar_export(path, fmt, **kw)
     atomic_write(output, lambda tmp: write_track(tmp, tr, comment=f"converted from {path} ({'; '.join(tr.notes)})"))

@@ -1,22 +1,17 @@
-"""Campaign figures and ``campaign.html`` (self-contained: figures embedded as base64 PNG).
-
-No physics here: the pooled posterior comes from :mod:`bayesdrag.campaign`. Every plot
-function takes ``ax=`` and returns the Axes it drew on (project style).
-"""
+"""Figures of a campaign: every round's Cd(M) and the pooled band, rounds relative to the
+campaign, the round-to-round scatter posterior and each round's offset."""
 from __future__ import annotations
 
-import datetime
-from pathlib import Path
-
+import matplotlib
 import numpy as np
 
-from .campaign import BAND
+from ..campaign.pooling import BAND
+from .common import new_axes
 
+__all__ = ['plot_campaign_overlay', 'plot_campaign_relative', 'plot_scatter_posterior', 'plot_deltas']
 
-def _axes(ax, figsize=(8, 4.6)):
-    from .plots import _axes as base
-
-    return base(ax, figsize)
+#: size of a campaign figure [inch]
+CAMPAIGN_FIGSIZE = (8, 4.6)
 
 
 def plot_campaign_overlay(inputs, pooled, ax=None, truth=None):
@@ -32,9 +27,9 @@ def plot_campaign_overlay(inputs, pooled, ax=None, truth=None):
     truth : callable Mach -> Cd, optional
         Campaign truth (simulations) drawn as a black line.
     """
-    ax = _axes(ax)
+    ax = new_axes(ax, CAMPAIGN_FIGSIZE)
     z = 1.6448536
-    cmap = __import__("matplotlib").colormaps["tab10"]
+    cmap = matplotlib.colormaps["tab10"]
     for i, r in enumerate(inputs):
         m, cd, sd = np.asarray(r["mach"]), np.asarray(r["cd"]), np.sqrt(np.clip(np.diag(np.asarray(r["cov"])), 0, None))
         c = cmap(i % 10)
@@ -56,10 +51,10 @@ def plot_campaign_overlay(inputs, pooled, ax=None, truth=None):
 def plot_campaign_relative(inputs, pooled, ax=None, truth=None):
     """Each round's Cd relative to the campaign median [%]: a round that differs by a constant
     factor is a flat line (the model's delta_r); the pooled 90 % band around 0."""
-    ax = _axes(ax)
+    ax = new_axes(ax, CAMPAIGN_FIGSIZE)
     med = np.median(pooled.cd_draws, axis=0)
     idx_of = {round(float(m), 6): i for i, m in enumerate(pooled.mach)}
-    cmap = __import__("matplotlib").colormaps["tab10"]
+    cmap = matplotlib.colormaps["tab10"]
     for i, r in enumerate(inputs):
         m = np.asarray(r["mach"])
         j = np.array([idx_of[round(float(v), 6)] for v in m])
@@ -77,7 +72,7 @@ def plot_campaign_relative(inputs, pooled, ax=None, truth=None):
 
 def plot_scatter_posterior(pooled, ax=None, truth=None):
     """Posterior of the round-to-round relative sd of Cd [%] with its 90 % interval."""
-    ax = _axes(ax, (6, 3.6))
+    ax = new_axes(ax, (6, 3.6))
     s = 100 * pooled.scatter_draws
     ax.hist(s, bins=60, density=True, color="0.6")
     for v in np.quantile(s, BAND):
@@ -91,7 +86,7 @@ def plot_scatter_posterior(pooled, ax=None, truth=None):
 
 def plot_deltas(pooled, ax=None, truth=None):
     """Each round's relative offset delta_r [%] (posterior median and 90 % interval)."""
-    ax = _axes(ax, (6, 0.4 * len(pooled.names) + 1.4))
+    ax = new_axes(ax, (6, 0.4 * len(pooled.names) + 1.4))
     d = 100 * pooled.delta_draws
     q = np.quantile(d, [BAND[0], 0.5, BAND[1]], axis=0)
     y = np.arange(len(pooled.names))[::-1]
@@ -103,58 +98,3 @@ def plot_deltas(pooled, ax=None, truth=None):
     ax.axvline(0, color="k", lw=0.6)
     ax.set(xlabel="delta_r: Cd_r / Cd_campaign - 1 [%]", title="Round offsets")
     return ax
-
-
-def write_campaign_report(out, camp, inputs, pooled, doc, truth=None):
-    """Write ``campaign.json``, the PNG figures and ``campaign.html`` into ``out``.
-
-    Parameters
-    ----------
-    out : path
-    camp : Campaign
-    inputs : list of dict
-    pooled : PooledResult
-    doc : dict
-        :func:`bayesdrag.campaign.campaign_json`.
-    truth : dict, optional
-        For simulated campaigns: ``{"cd": callable, "scatter": float, "deltas": [...]}``; drawn
-        in the figures and checked in the report.
-    """
-    import base64
-
-    from .outputs import write_figure, write_json
-    from .report import render_report, versions
-
-    out = Path(out)
-    write_json(out / "campaign.json", doc)
-    tr = truth or {}
-    figs = [("campaign_cd.png", plot_campaign_overlay(inputs, pooled, truth=tr.get("cd")).figure,
-             "Cd(M) of every round and the campaign",
-             "Each round's ML curve with its 90 % Cramér-Rao band (colours, the paper's Fig. 4 overlay), "
-             "the campaign (population) median and 90 % credible band (black), the reference (dashed)."),
-            ("campaign_relative.png", plot_campaign_relative(inputs, pooled, truth=tr.get("cd")).figure,
-             "Rounds relative to the campaign",
-             "A round that differs by a constant factor is a flat line; a tilted or bent line is a Mach-"
-             "dependent difference the common-factor model does not describe."),
-            ("campaign_scatter.png", plot_scatter_posterior(pooled, truth=tr.get("scatter")).figure,
-             "Round-to-round scatter", "Posterior of the relative sd of Cd between rounds."),
-            ("campaign_deltas.png", plot_deltas(pooled, truth=tr.get("deltas")).figure,
-             "Round offsets", "Posterior median and 90 % interval of each round's Cd offset.")]
-    for name, fig, *_ in figs:
-        write_figure(out / name, fig)
-    b64 = [{"title": t, "caption": c, "png": base64.b64encode((out / n).read_bytes()).decode("ascii")}
-           for n, _, t, c in figs]
-    checks = []
-    if truth:
-        rows = doc["cd"]
-        cov = [r["q05"] <= float(truth["cd"](r["mach"])) <= r["q95"] for r in rows]
-        s = doc["scatter"]
-        checks = [("campaign truth inside the 90 % band", f"{sum(cov)} of {len(cov)} nodes"),
-                  ("true scatter inside the 90 % interval",
-                   f"{'yes' if s['q05'] <= truth['scatter'] <= s['q95'] else 'no'} "
-                   f"({100 * truth['scatter']:.3g} % in {100 * s['q05']:.3g}-{100 * s['q95']:.3g} %)")]
-    ctx = {"title": f"bayesdrag campaign: {camp.name}", "created": datetime.datetime.now().isoformat(timespec="seconds"),
-           "doc": doc, "figures": b64, "checks": checks, "versions": versions(),
-           "inputs": [(r["name"], f"{r['mach_range'][0]:.3f}-{r['mach_range'][1]:.3f}", r["drag_model"], len(r["mach"]))
-                      for r in inputs]}
-    render_report(out / "campaign.html", ctx, template="campaign.html.j2")

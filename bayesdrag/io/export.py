@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 #: py-ballisticcalc's drag constant: rho0 pi / (4 * 2 * 144) with rho0 = 0.076474 lb/ft^3
 PBC_DRAG_CONSTANT = 2.08551e-04

@@ -1,15 +1,5 @@
-"""Campaigns: many rounds of one shell, their pooled (population) Cd(M) and the round-to-round
+"""Campaign pooling: the population Cd(M) of many rounds of one shell and the round-to-round
 scatter (DESIGN.md "Campaigns").
-
-A campaign TOML lists rounds (paths relative to the campaign file)::
-
-    [campaign]
-    name = "130 mm cargo shell, trial 5"
-
-    [[rounds]]
-    name = "r1"          # folder name of the round's outputs: letters, digits, '.', '_', '-'
-    track = "r1.csv"
-    round = "r1.toml"
 
 Pooling model (decided here, written down)
 ------------------------------------------
@@ -51,170 +41,43 @@ factor show up as rounds whose relative deviation is not flat (figure ``campaign
 from __future__ import annotations
 
 import math
-import re
-import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
+
 
 #: node spacing of the pooled curve [Mach]
 NODE_SPACING = 0.05
+
+
 #: node spacing inside :data:`TRANSONIC_BAND` [Mach] (the drag rise is ~0.1 Mach wide)
 NODE_FINE = 0.02
+
+
 #: Mach band of the drag rise where the nodes are refined
 TRANSONIC_BAND = (0.86, 1.20)
+
+
 #: relative sd floor added independently at every node of a round (representation error of
 #: the round's spline and conditioning of its covariance)
 REL_FLOOR = 5e-4
+
+
 #: scale of the half-normal prior of the round-to-round relative sd ``s`` (weak: 5 %)
 SCATTER_PRIOR_SD = 0.05
+
+
 #: which stage-1 covariance is pooled: "colored" (Morelli-Klein corrected, the default: honest
 #: when residuals are correlated, equal to the CRB within its noise when they are white) or "crb"
 COVARIANCES = ("colored", "crb")
+
+
 #: credible band of the campaign outputs
 BAND = (0.05, 0.95)
 
-_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
-_CAMPAIGN_KEYS = ("name", "description")
-_ROUND_KEYS = ("name", "track", "round")
 
-
-# ----------------------------------------------------------------------------------------------
-# campaign file
-@dataclass(frozen=True)
-class CampaignRound:
-    """One round of a campaign: its name (output folder) and resolved input paths."""
-
-    name: str
-    track: Path
-    round: Path
-
-
-@dataclass(frozen=True)
-class Campaign:
-    """A campaign file: ``name`` and the ``rounds`` in file order; ``path`` the TOML file."""
-
-    name: str
-    rounds: tuple
-    path: Path
-    description: str = ""
-
-    @property
-    def names(self):
-        return [r.name for r in self.rounds]
-
-
-def is_campaign_file(path):
-    """True if ``path`` is a TOML file with a ``[campaign]`` table or ``[[rounds]]`` array (so
-    ``bayesdrag fit`` treats it as a campaign rather than a track)."""
-    p = Path(path)
-    if p.suffix.lower() != ".toml" or not p.is_file():
-        return False
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
-        return False
-    return "campaign" in doc or "rounds" in doc
-
-
-def read_campaign(path):
-    """Read and validate a campaign TOML.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    Campaign
-
-    Raises
-    ------
-    InputError
-        Naming the file and the key: unreadable TOML, unknown keys, a round without ``track``
-        or ``round``, a name that is not a safe folder name, duplicate names, missing files,
-        fewer than one round.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: campaign file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the campaign file ({exc})") from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML ({exc})") from None
-    unknown = [k for k in doc if k not in ("campaign", "rounds")]
-    if unknown:
-        raise InputError(f"{path}: unknown top-level key {unknown[0]!r}; allowed: [campaign], [[rounds]]")
-    camp = doc.get("campaign", {})
-    if not isinstance(camp, dict):
-        raise InputError(f"{path}: [campaign] must be a table with name = \"...\"")
-    bad = [k for k in camp if k not in _CAMPAIGN_KEYS]
-    if bad:
-        raise InputError(f"{path}: unknown key campaign.{bad[0]}; allowed: {', '.join(_CAMPAIGN_KEYS)}")
-    name = camp.get("name", path.stem)
-    if not isinstance(name, str):
-        raise InputError(f"{path}: campaign.name must be text, got {type(name).__name__}")
-    rounds = doc.get("rounds")
-    if not isinstance(rounds, list) or not rounds:
-        raise InputError(f"{path}: a campaign needs at least one [[rounds]] entry with name, track and round")
-    out, seen = [], set()
-    for i, r in enumerate(rounds, 1):
-        where = f"{path}: rounds entry {i}"
-        if not isinstance(r, dict):
-            raise InputError(f"{where}: must be a table with name, track and round")
-        bad = [k for k in r if k not in _ROUND_KEYS]
-        if bad:
-            raise InputError(f"{where}: unknown key {bad[0]!r}; allowed: {', '.join(_ROUND_KEYS)}")
-        for k in ("track", "round"):
-            if k not in r:
-                raise InputError(f"{where}: missing key {k!r} (a path relative to the campaign file)")
-            if not isinstance(r[k], str) or not r[k]:
-                raise InputError(f"{where}: {k} must be a non-empty path, got {r[k]!r}")
-        nm = r.get("name", Path(r["track"]).stem)
-        if not isinstance(nm, str) or not _NAME_RE.match(nm):
-            raise InputError(f"{where}: name {nm!r} is not allowed; use 1-64 letters, digits, '.', '_', '-' "
-                             f"(it names the output folder)")
-        if nm in seen:
-            raise InputError(f"{where}: duplicate round name {nm!r}; names must be unique")
-        seen.add(nm)
-        files = {}
-        for k in ("track", "round"):
-            p = (path.parent / r[k]).resolve() if not Path(r[k]).is_absolute() else Path(r[k])
-            if not p.is_file():
-                raise InputError(f"{where} ({nm}): {k} file {r[k]!r} not found (looked at {p})")
-            files[k] = p
-        out.append(CampaignRound(nm, files["track"], files["round"]))
-    return Campaign(name, tuple(out), path.resolve(), str(camp.get("description", "")))
-
-
-def write_campaign(path, name, rounds):
-    """Write a campaign TOML. ``rounds``: iterable of (name, track path, round path); paths are
-    written relative to the campaign file's folder when possible."""
-    import os
-
-    path = Path(path)
-    lines = [f"[campaign]\nname = {_toml_str(name)}\n"]
-    for nm, tr, ro in rounds:
-        rel = [Path(os.path.relpath(Path(p).resolve(), path.resolve().parent)).as_posix() for p in (tr, ro)]
-        lines.append(f"\n[[rounds]]\nname = {_toml_str(nm)}\ntrack = {_toml_str(rel[0])}\n"
-                     f"round = {_toml_str(rel[1])}\n")
-    path.write_text("".join(lines), encoding="utf-8")
-    return path
-
-
-def _toml_str(s):
-    return '"' + str(s).replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-# ----------------------------------------------------------------------------------------------
-# stage 1: what a round contributes
 def mach_nodes(mach_min, mach_max, spacing=NODE_SPACING, fine=NODE_FINE, band=TRANSONIC_BAND):
     """Campaign Mach nodes inside ``[mach_min, mach_max]``.
 
@@ -269,8 +132,6 @@ def pooling_input(res, drag_model, reference=None, covariance="colored", name=""
             "mach_range": [lo, hi], "covariance": covariance, "drag_model": drag_model.name}
 
 
-# ----------------------------------------------------------------------------------------------
-# stage 2: the hierarchical model
 class _Stage2:
     """Precomputed pieces of the log-space model: per round the node indices, ``y``,
     ``C^-1``, ``log|C|``, ``C^-1 1`` and ``1' C^-1 1``."""
@@ -524,70 +385,3 @@ def _clean(o):
     if isinstance(o, np.bool_):
         return bool(o)
     return o
-
-
-# ----------------------------------------------------------------------------------------------
-# simulated campaigns (tests, benchmark, tutorial)
-def simulate_campaign(directory, n_rounds=7, scatter=0.01, rng=None, velocities=(790.0, 840.0),
-                      elevations=(12.0, 20.0), dt=0.054, sigma=None, reference=None, mass=42.6,
-                      diameter=0.155, name="simulated campaign"):
-    """Write a simulated campaign: rounds whose Cd is ``reference * (1 + delta_r)`` with
-    ``delta_r ~ N(0, scatter^2)``, launch speed and elevation spread over the given ranges
-    (so the rounds cover different Mach spans), point-mass tracks with Gaussian noise.
-
-    Parameters
-    ----------
-    directory : path
-        Created if needed; receives ``campaign.toml``, ``reference.csv`` and per round
-        ``<name>.toml``, ``<name>.csv``.
-    n_rounds : int
-    scatter : float
-        Round-to-round relative sd of Cd.
-    rng : numpy.random.Generator
-    velocities, elevations : (lo, hi)
-        Launch speed [m/s] and quadrant elevation [deg] ranges (evenly spread, shuffled).
-    dt : float, s
-        Radar sample interval.
-    sigma : dict, optional
-        Noise sd per channel (default x, y, z 1 m, v 0.3 m/s).
-    reference : ReferenceTable, optional
-        Campaign truth (default the 155 mm M101 table shipped in the package).
-
-    Returns
-    -------
-    (Path, dict)
-        The campaign file and the truth: ``deltas`` (list), ``scatter``, ``reference``.
-    """
-    from .drag import ReferenceTable
-    from .io.drag_tables import load_m101
-    from .simulate import add_noise, simulate_round
-    from .round import Launch, Projectile, Radar, Round
-    from .io.rounds import write_round
-    from .io.tracks import write_track
-
-    rng = np.random.default_rng() if rng is None else rng
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
-    ref = load_m101() if reference is None else reference
-    sigma = dict(sigma or {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3})
-    ref_path = d / "reference.csv"
-    ref_path.write_text("# campaign truth: population Cd(M)\nmach,cd\n"
-                        + "".join(f"{m:.6g},{c:.8g}\n" for m, c in zip(ref.mach, ref.cd_values)), encoding="utf-8")
-    deltas = scatter * rng.standard_normal(n_rounds)
-    vel = np.linspace(*velocities, n_rounds)[rng.permutation(n_rounds)]
-    el = np.linspace(*elevations, n_rounds)[rng.permutation(n_rounds)]
-    rows = []
-    for i in range(n_rounds):
-        nm = f"r{i + 1}"
-        table = ReferenceTable(ref.mach, tuple(np.asarray(ref.cd_values) * (1.0 + deltas[i])), source=f"{nm} truth")
-        launch = Launch(elevation_deg=float(round(el[i], 3)), velocity=float(round(vel[i], 2)), azimuth_deg=90.0)
-        proj = Projectile("simulated shell", mass, diameter, reference_drag=table)
-        truth_round = Round(proj, launch, radar=Radar(sigma))
-        track = add_noise(simulate_round(truth_round, dt=dt), sigma, rng)
-        file_round = Round(Projectile("simulated shell", mass, diameter, reference_drag=ref,
-                                      reference_drag_path=str(ref_path)), launch, radar=Radar(sigma))
-        write_round(d / f"{nm}.toml", file_round, comment=f"{name}: round {nm} (truth delta = {deltas[i]:+.5f})")
-        write_track(d / f"{nm}.csv", track, comment=f"{name}: round {nm}, simulated point mass, noise {sigma}")
-        rows.append((nm, d / f"{nm}.csv", d / f"{nm}.toml"))
-    path = write_campaign(d / "campaign.toml", name, rows)
-    return path, {"deltas": deltas.tolist(), "scatter": scatter, "reference": ref}

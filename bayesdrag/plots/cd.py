@@ -1,0 +1,208 @@
+"""Figures of Cd(M): the ML curve with its band, the posterior bands, relative panels, Scheme 2 windows."""
+from __future__ import annotations
+
+import numpy as np
+
+from .common import new_axes
+
+__all__ = ['plot_drag_curve', 'plot_cd_ml', 'plot_cd_posterior', 'plot_cd_posterior_relative', 'plot_cd_relative', 'plot_windows']
+
+
+def plot_drag_curve(mach, cd, ax=None, label=None, **kw):
+    """Cd against Mach.
+
+    Parameters
+    ----------
+    mach, cd : array_like, shape (N,)
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = new_axes(ax, (6, 4))
+    ax.plot(mach, cd, label=label, **kw)
+    ax.set(xlabel="Mach number", ylabel="drag coefficient Cd")
+    ax.grid(alpha=0.3)
+    if label:
+        ax.legend(fontsize="small")
+    return ax
+
+
+def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
+    """Cd(M) from an ML fit with its Cramér-Rao band and the reference curve.
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``result.json`` ``cd`` rows (keys mach, ml, crb_sd, reference).
+    ax : matplotlib Axes, optional
+    band : float
+        Central probability of the Gaussian CRB band.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from scipy.stats import norm
+
+    ax = new_axes(ax, (7, 4.5))
+    m = np.array([r["mach"] for r in rows])
+    cd = np.array([r["ml"] for r in rows])
+    sd = np.array([r["crb_sd"] for r in rows])
+    k = norm.ppf(0.5 + band / 2)
+    ax.fill_between(m, cd - k * sd, cd + k * sd, alpha=0.3, label=f"{band:.0%} CRB band")
+    ax.plot(m, cd, label=label)
+    ref = [r.get("reference") for r in rows]
+    if all(v is not None for v in ref):
+        ax.plot(m, ref, "k--", label="reference (firing table)")
+    ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_cd_posterior(rows, ax=None, truth=None, label="posterior", crb_band=0.90):
+    """Cd(M) posterior: median, 50 % and 90 % bands, the Cramér-Rao band of the ML fit, the
+    reference (firing-table) curve and the truth when known.
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``result.json`` ``cd`` rows with the posterior part (keys mach, ml, crb_sd, q05, q25,
+        q50, q75, q95, reference).
+    ax : matplotlib Axes, optional
+    truth : callable or (M,) array, optional
+        True Cd (a drag model's ``value`` or values at the rows' Mach numbers).
+    crb_band : float
+        Central probability of the Gaussian CRB band drawn around the ML curve.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from scipy.stats import norm
+
+    ax = new_axes(ax, (7.5, 4.8))
+    m = np.array([r["mach"] for r in rows])
+    g = {k: np.array([r[k] for r in rows], float) for k in ("q05", "q25", "q50", "q75", "q95", "ml", "crb_sd")}
+    ax.fill_between(m, g["q05"], g["q95"], color="C0", alpha=0.22, lw=0, label="90 % posterior")
+    ax.fill_between(m, g["q25"], g["q75"], color="C0", alpha=0.45, lw=0, label="50 % posterior")
+    ax.plot(m, g["q50"], color="C0", lw=1.4, label=f"{label} median")
+    k = norm.ppf(0.5 + crb_band / 2)
+    ax.plot(m, g["ml"] - k * g["crb_sd"], color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
+    ax.plot(m, g["ml"] + k * g["crb_sd"], color="C3", ls=":", lw=1.1)
+    ref = [r.get("reference") for r in rows]
+    if all(v is not None for v in ref):
+        ax.plot(m, ref, "k--", lw=1, label="reference (firing table)")
+    if truth is not None:
+        tv = truth(m) if callable(truth) else np.asarray(truth)
+        ax.plot(m, tv, color="C2", lw=1.2, label="truth")
+    ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient: posterior vs Cramér-Rao vs reference")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_cd_posterior_relative(rows, ax=None, truth=None, crb_band=0.90):
+    """The Cd(M) posterior relative to the reference curve, in percent: 50 % and 90 % bands,
+    the ML curve's CRB band, the truth when known. At a radar track's precision (Cd to
+    ~0.1 %) the bands are invisible on :func:`plot_cd_posterior`; here they are not.
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``cd`` rows with the posterior part and a non-null ``reference``.
+    ax : matplotlib Axes, optional
+    truth : callable or (M,) array, optional
+    crb_band : float
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from scipy.stats import norm
+
+    ax = new_axes(ax, (7.5, 4.2))
+    m = np.array([r["mach"] for r in rows])
+    ref = np.array([r["reference"] for r in rows], float)
+    pct = lambda v: 100 * (np.asarray(v, float) / ref - 1)  # noqa: E731
+    g = {k: np.array([r[k] for r in rows], float) for k in ("q05", "q25", "q50", "q75", "q95", "ml", "crb_sd")}
+    ax.fill_between(m, pct(g["q05"]), pct(g["q95"]), color="C0", alpha=0.22, lw=0, label="90 % posterior")
+    ax.fill_between(m, pct(g["q25"]), pct(g["q75"]), color="C0", alpha=0.45, lw=0, label="50 % posterior")
+    ax.plot(m, pct(g["q50"]), color="C0", lw=1.2, label="posterior median")
+    k = norm.ppf(0.5 + crb_band / 2)
+    ax.plot(m, pct(g["ml"] - k * g["crb_sd"]), color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
+    ax.plot(m, pct(g["ml"] + k * g["crb_sd"]), color="C3", ls=":", lw=1.1)
+    ax.axhline(0, color="k", ls="--", lw=1, label="reference (firing table)")
+    if truth is not None:
+        tv = truth(m) if callable(truth) else np.asarray(truth)
+        ax.plot(m, pct(tv), color="C2", lw=1.2, label="truth")
+    lo, hi = np.nanpercentile(np.concatenate([pct(g["q05"]), pct(g["q95"])]), [2, 98])
+    pad = 0.3 * (hi - lo) + 0.05
+    ax.set_ylim(lo - pad, hi + pad)
+    ax.set(xlabel="Mach", ylabel="Cd / reference − 1 [%]", title="drag coefficient relative to the reference")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_cd_relative(rows, ax=None):
+    """Posterior sd of Cd over the Cramér-Rao sd against Mach (1 = the bound is attained).
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``cd`` rows with ``sd_over_crb``.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = new_axes(ax, (6, 3))
+    m = np.array([r["mach"] for r in rows])
+    q = np.array([np.nan if r.get("sd_over_crb") is None else r["sd_over_crb"] for r in rows])
+    ax.axhspan(0.7, 1.5, color="0.9", label="0.7-1.5")
+    ax.plot(m, q, "C0")
+    ax.axhline(1, color="k", lw=0.6)
+    ax.set(xlabel="Mach", ylabel="posterior sd / CRB sd", title="posterior width vs Cramér-Rao bound")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_windows(windows, ax=None, reference=None):
+    """Scheme 2: Cd per window against its Mach number with the posterior 90 % interval (or the
+    ML ±1.645 CRB sd when there is no posterior) and the reference curve.
+
+    Parameters
+    ----------
+    windows : list of dict
+        ``result.json`` ``windows`` rows (mach, ml, crb_sd, optional q05, q95, mean, reference).
+    ax : matplotlib Axes, optional
+    reference : callable, optional
+        Reference Cd(M) drawn as a curve.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = new_axes(ax, (7, 4.5))
+    m = np.array([w["mach"] for w in windows])
+    if all(w.get("q05") is not None for w in windows):
+        mid = np.array([w["mean"] for w in windows])
+        lo = mid - np.array([w["q05"] for w in windows])
+        hi = np.array([w["q95"] for w in windows]) - mid
+        lab = "window posterior mean, 90 % interval"
+    else:
+        mid = np.array([w["ml"] for w in windows])
+        lo = hi = 1.645 * np.array([w["crb_sd"] for w in windows])
+        lab = "window ML, 90 % CRB interval"
+    ax.errorbar(m, mid, yerr=[lo, hi], fmt="o", ms=3, capsize=2, label=lab)
+    if reference is not None:
+        mm = np.linspace(m.min(), m.max(), 300)
+        ax.plot(mm, reference(mm), "k--", lw=1, label="reference (firing table)")
+    ax.set(xlabel="Mach", ylabel="Cd", title="Scheme 2: constant Cd per window")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
