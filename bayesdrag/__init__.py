@@ -36,6 +36,12 @@ _API = {
     "Atmosphere": "bayesdrag.atmosphere",
     "MetProfile": "bayesdrag.atmosphere",
     "ReferenceTable": "bayesdrag.drag",
+    # the work
+    "fit": "bayesdrag.commands.fit",
+    "simulate": "bayesdrag.commands.simulate",
+    "FitResult": "bayesdrag.results",
+    "FitOptions": "bayesdrag.commands.options",
+    "SimulateOptions": "bayesdrag.commands.options",
     # errors
     "InputError": "bayesdrag.errors",
     "FitError": "bayesdrag.errors",

@@ -1,10 +1,9 @@
-"""Command line: ``bayesdrag simulate | fit | demo`` (``fit`` is maximum likelihood, Scheme 1,
-for now; the Bayesian layer, Scheme 2 and ``diagnose`` arrive with their issues).
+"""Command line: ``bayesdrag simulate | fit | diagnose | batch | demo``.
 
-Exit status (DESIGN.md): 0 success; 2 bad input, with one line on stderr naming the file, row
-or key, what was found and what is allowed (no traceback); 1 internal failure. Outputs are
-written to a temporary name and renamed into place only when complete, so a failed run never
-deletes or overwrites a file it did not finish.
+This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
+the command and maps what happened to the exit status (DESIGN.md): 0 success; 2 bad input, with
+one line on stderr naming the file, row or key, what was found and what is allowed (no
+traceback); 1 an internal failure or a fit that has no solution; 130 interrupted.
 """
 from __future__ import annotations
 
@@ -14,7 +13,10 @@ import sys
 from pathlib import Path
 
 from .errors import FitError, InputError
-from .io.outputs import atomic_write as _atomic_write
+
+DESCRIPTION = ("Drag coefficient Cd(Mach) of projectiles from radar tracks: maximum likelihood with "
+               "Cramér-Rao bounds, emcee posterior, and the diagnosis of the gap between a simulation and "
+               "the measured track.")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -25,7 +27,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _integer(minimum, label=None):
-    """An argparse type: an integer >= ``minimum`` (0 or 1), with a message naming the option."""
+    """An argparse type: an integer >= ``minimum``, with a message naming the option."""
     kind = "non-negative" if minimum == 0 else "positive"
     head = f"{label} must be" if label else "expected"
 
@@ -43,7 +45,7 @@ def _integer(minimum, label=None):
 
 _seed = _integer(0, "--seed")
 _non_negative_int = _integer(0)
-_walkers = _integer(1)
+_positive_int = _integer(1)
 
 
 def _positive_float(value):
@@ -56,6 +58,16 @@ def _positive_float(value):
     return v
 
 
+def _finite_float(value):
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {value!r}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {value!r}")
+    return v
+
+
 def _nu(value):
     if value == "sample":
         return value
@@ -65,57 +77,83 @@ def _nu(value):
         raise argparse.ArgumentTypeError(f"--nu must be a positive number or 'sample', got {value!r}") from None
     if not v > 0 or v == float("inf"):
         raise argparse.ArgumentTypeError(f"--nu must be a positive number or 'sample', got {value!r}")
-    return value
+    return v
+
+
+def _add_fit_options(p, batch=False):
+    """The options that change a fit's result (shared by ``fit`` and ``batch``)."""
+    from .commands.options import LIKELIHOODS, MOVES, FitOptions
+    from .drag import DRAG_MODEL_NAMES
+
+    d = FitOptions()
+    p.add_argument("--drag", choices=DRAG_MODEL_NAMES, default=d.drag,
+                   help="drag model (default spline: follows any transonic rise; with a firing table it is the "
+                        "table times a smooth correction)")
+    p.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")
+    p.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (no posterior sampling)")
+    p.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at their starting values")
+    p.add_argument("--seed", type=_seed, default=None,
+                   help="seed of the sampler (reproducible chains)" + ("; also of the pooling" if batch else ""))
+    if batch:
+        return
+    p.add_argument("--scheme", type=int, choices=(1, 2), default=d.scheme,
+                   help="1 = Cd model over the whole flight (default); 2 = a constant Cd per window")
+    p.add_argument("--window", type=_positive_int, default=d.window,
+                   help=f"Scheme 2: samples per window (default {d.window})")
+    p.add_argument("--overlap", type=_non_negative_int, default=d.overlap,
+                   help="Scheme 2: samples shared by consecutive windows (default 0)")
+    p.add_argument("--walkers", type=_positive_int, default=None, help="emcee walkers (default 16)")
+    p.add_argument("--max-steps", type=_positive_int, default=d.max_steps,
+                   help=f"hard limit of sampler steps (default {d.max_steps}; the run stops earlier at convergence)")
+    p.add_argument("--moves", choices=MOVES, default=d.moves,
+                   help="emcee moves: auto (independence proposal from the ML fit + local move, default), "
+                        "de (differential evolution, for posteriors far from Gaussian; needs >= 2 x parameters "
+                        "walkers), stretch")
+    p.add_argument("--likelihood", choices=LIKELIHOODS, default=d.likelihood,
+                   help="noise model: gaussian (default) or student-t (robust to outliers)")
+    p.add_argument("--nu", type=_nu, default=d.nu,
+                   help=f"Student-t degrees of freedom: a number (default {d.nu:g}) or 'sample'")
 
 
 def build_parser():
-    p = _Parser(prog="bayesdrag", description=__doc__.split("\n\n")[0])
+    from .commands.options import SIMULATION_MODELS, SimulateOptions
+
+    p = _Parser(prog="bayesdrag", description=DESCRIPTION)
     p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
+    so = SimulateOptions()
     s = sub.add_parser("simulate", help="write a synthetic radar track of a round (launch to impact)")
     s.add_argument("round", help="round file (TOML)")
     s.add_argument("-o", "--output", required=True, help="track file to write (CSV)")
-    s.add_argument("--model", choices=("pointmass", "6dof"), default="pointmass")
-    s.add_argument("--dt", type=_positive_float, default=0.027, help="sample interval [s] (default 0.027)")
+    s.add_argument("--model", choices=SIMULATION_MODELS, default=so.model)
+    s.add_argument("--dt", type=_positive_float, default=so.dt, help=f"sample interval [s] (default {so.dt})")
     s.add_argument("--noise", action="store_true", help="add Gaussian noise with the round's [radar] sigma")
     s.add_argument("--seed", type=_seed, default=None, help="seed of the noise generator")
-    s.add_argument("--clock-offset", type=float, default=0.0,
+    s.add_argument("--clock-offset", type=_finite_float, default=so.clock_offset,
                    help="radar clock late by this many seconds (recorded = true - offset)")
 
     f = sub.add_parser("fit", help="estimate Cd(M) from a track (ML with Cramér-Rao bounds, then emcee posterior)")
     f.add_argument("track", help="radar track (CSV), or a campaign file (TOML) without ROUND")
     f.add_argument("round", nargs="?", default=None, help="round file (TOML); omitted for a campaign")
     f.add_argument("-o", "--output", required=True, help="output folder")
-    f.add_argument("--scheme", type=int, choices=(1, 2), default=1,
-                   help="1 = Cd model over the whole flight (default); 2 = a constant Cd per window")
-    f.add_argument("--window", type=_walkers, default=50, help="Scheme 2: samples per window (default 50)")
-    f.add_argument("--overlap", type=_non_negative_int, default=0,
-                   help="Scheme 2: samples shared by consecutive windows (default 0)")
-    f.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline",
-                   help="drag model (default spline: the only one that follows a transonic rise)")
-    f.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")
-    f.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (no posterior sampling)")
-    f.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at the launch values")
-    f.add_argument("--seed", type=_seed, default=None, help="seed of the sampler (reproducible chains)")
+    _add_fit_options(f)
     f.add_argument("--resume", action="store_true",
                    help="continue the unfinished chain in OUTPUT/chain.partial.h5 (after a kill)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or status lines")
-    f.add_argument("--walkers", type=_walkers, default=None, help="emcee walkers (default 16)")
-    f.add_argument("--max-steps", type=_walkers, default=20000,
-                   help="hard limit of sampler steps (default 20000; the run stops earlier at convergence)")
-    f.add_argument("--moves", choices=("auto", "de", "stretch"), default="auto",
-                   help="emcee moves: auto (independence proposal from the ML fit + local move, default), "
-                        "de (differential evolution, for posteriors far from Gaussian; needs >= 2 x parameters "
-                        "walkers), stretch")
-    f.add_argument("--likelihood", choices=("gaussian", "student-t"), default="gaussian",
-                   help="noise model: gaussian (default) or student-t (robust to outliers)")
-    f.add_argument("--nu", type=_nu, default="4",
-                   help="Student-t degrees of freedom: a number (default 4) or 'sample'")
 
-    from .batch import add_batch_parser  # campaigns on Dask (issue 8)
-
-    add_batch_parser(sub, {"seed": _seed, "walkers": _walkers, "nu": _nu})
+    b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
+    b.add_argument("campaign", help="campaign file (TOML)")
+    b.add_argument("-o", "--output", required=True, help="output folder")
+    b.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of a running Dask scheduler (default: a local cluster)")
+    b.add_argument("--workers", type=_positive_int, default=None,
+                   help="local cluster worker processes (default: the number of CPUs)")
+    b.add_argument("--jobs", default="fit", help="comma-separated jobs per round among fit,diagnose (default fit)")
+    _add_fit_options(b, batch=True)
+    b.add_argument("--covariance", choices=("colored", "crb"), default="colored",
+                   help="round covariance pooled: colored-residual corrected (default) or plain CRB")
+    b.add_argument("--quiet", action="store_true", help="no progress bar")
 
     g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
     g.add_argument("track", help="radar track (CSV)")
@@ -133,64 +171,90 @@ def _version():
     return f"bayesdrag {__version__}"
 
 
+def _fit_options(args):
+    """FitOptions from the parsed ``fit`` (or ``batch``) arguments."""
+    from .commands.options import FitOptions
+
+    kw = {"drag": args.drag, "mcmc": not args.no_mcmc, "fix_ic": args.fix_ic, "seed": args.seed}
+    if args.channels is not None:
+        ch = tuple(c.strip() for c in args.channels.split(",") if c.strip())
+        if not ch:
+            raise InputError(f"command line: --channels {args.channels!r} names no channel; use e.g. x,z,v")
+        kw["channels"] = ch
+    for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu"):
+        if hasattr(args, k):
+            kw[k] = getattr(args, k)
+    return FitOptions(**kw)
+
+
 def cmd_simulate(args):
-    import numpy as np
+    from .commands.options import SimulateOptions
+    from .commands.simulate import run_simulate
 
-    from .simulate import add_noise, simulate_round
-    from .io.rounds import read_round
-    from .io.tracks import write_track
-
-    rnd = read_round(args.round)
     if args.seed is not None and not args.noise:
         raise InputError("command line: --seed only makes sense with --noise")
-    track = simulate_round(rnd, model=args.model, dt=args.dt, clock_offset=args.clock_offset)
-    comment = f"synthetic track: {args.model}, dt = {args.dt} s, from {args.round}"
-    if args.noise:
-        if not rnd.radar.sigma:
-            raise InputError(f"{args.round}: --noise needs [radar] sigma = {{x = ..., z = ..., v = ...}}")
-        track = add_noise(track, rnd.radar.sigma, np.random.default_rng(args.seed))
-        comment += f"; Gaussian noise {rnd.radar.sigma}, seed {args.seed}"
-    _atomic_write(args.output, lambda tmp: write_track(tmp, track, comment=comment))
-    print(f"wrote {args.output}: {track.n} samples, t = 0 .. {track.t[-1]:.2f} s, "
-          f"range {track.x[-1]:.0f} m" if track.x is not None else f"wrote {args.output}")
+    run_simulate(args.round, args.output, SimulateOptions(model=args.model, dt=args.dt, noise=args.noise,
+                                                          seed=args.seed, clock_offset=args.clock_offset))
     return 0
-
-
-def cmd_demo(args):
-    from .demo import run_demo
-
-    run_demo(Path(args.output))
-    return 0
-
-
-def cmd_diagnose(args):
-    from .diagnose_report import run_diagnose
-
-    return run_diagnose(args)
 
 
 def cmd_fit(args):
-    from .fitting import run_fit
+    if args.channels is not None and args.round is not None:
+        from .io.tracks import read_track
 
+        track = read_track(args.track)
+        ch = [c.strip() for c in args.channels.split(",") if c.strip()]
+        bad = [c for c in ch if c not in track.names]
+        if bad or not ch:
+            raise InputError(f"command line: --channels {args.channels!r}: {', '.join(bad) or 'empty'} not in the "
+                             f"track {args.track} (it has {', '.join(track.names)})")
+    opts = _fit_options(args)
     if args.round is None:  # bayesdrag fit CAMPAIGN.toml -o DIR
-        from .batch import run_campaign_fit
+        from .commands.batch import run_campaign, summarise
         from .io.campaign import is_campaign_file
 
         if not is_campaign_file(args.track):
             raise InputError(f"command line: fit needs TRACK ROUND, or a campaign file ({args.track} is not a "
                              f"TOML file with [campaign] and [[rounds]])")
-        return run_campaign_fit(args)
-    return run_fit(args)
+        res = run_campaign(args.track, args.output, jobs=("fit",), options=opts,
+                           executor="sequential", quiet=args.quiet, pool_seed=args.seed or 0)
+        return summarise(res)
+    from .commands.fit import run_fit
+
+    run_fit(args.track, args.round, args.output, opts, resume=args.resume, quiet=args.quiet)
+    return 0
 
 
 def cmd_batch(args):
-    from .batch import cmd_batch as run
+    from .commands.batch import run_campaign, summarise
+    from .commands.options import BatchOptions
 
-    return run(args)
+    jobs = tuple(j.strip() for j in args.jobs.split(",") if j.strip())
+    b = BatchOptions(jobs=jobs, fit=_fit_options(args), scheduler=args.scheduler, workers=args.workers,
+                     covariance=args.covariance)
+    workers = b.workers or max(1, min(os.cpu_count() or 1, 64))
+    res = run_campaign(args.campaign, args.output, jobs=b.jobs, options=b.fit, executor="dask",
+                       scheduler=b.scheduler, workers=workers, covariance=b.covariance, quiet=args.quiet,
+                       pool_seed=args.seed or 0)
+    return summarise(res)
 
 
-COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo, "diagnose": cmd_diagnose}
-COMMANDS["batch"] = cmd_batch
+def cmd_diagnose(args):
+    from .commands.diagnose import run_diagnose
+
+    run_diagnose(args.track, args.round, args.output)
+    return 0
+
+
+def cmd_demo(args):
+    from .commands.demo import run_demo
+
+    run_demo(Path(args.output))
+    return 0
+
+
+COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "batch": cmd_batch, "diagnose": cmd_diagnose,
+            "demo": cmd_demo}
 
 
 def main(argv=None):

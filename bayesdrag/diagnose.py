@@ -222,7 +222,7 @@ class Setup:
 
 def _launch_priors(L, P):
     """Priors on the state at launch (t = 0): muzzle at the origin, speed, elevation, heading."""
-    from .estimate.scheme1 import launch_state_priors
+    from .estimate.launch import launch_state_priors
 
     return launch_state_priors(L, P, heading=True)
 
@@ -231,7 +231,7 @@ def make_setup(track, rnd, sigma=None, channels=None):
     """Baseline problem definition for a track and a round (see the module docstring)."""
     from .drag import make_drag_model
     from .dynamics.pointmass import PointMassModel, initial_state
-    from .estimate.scheme1 import _initial_state, mach_span
+    from .estimate.start import data_start
 
     chans = tuple(channels) if channels is not None else tuple(track.names)
     L = rnd.launch
@@ -255,7 +255,7 @@ def make_setup(track, rnd, sigma=None, channels=None):
         s0 = initial_state(L.velocity, L.elevation_deg)
     else:
         t_ic = float(track.t[0])
-        s0 = _initial_state(track, rnd)
+        s0 = data_start(track, rnd).state0
         notes.append("no [launch] velocity/elevation: initial state fitted at the first sample without "
                      "priors; a late radar clock (radar_time) cannot be told from a later start")
     ref = rnd.reference_drag
@@ -263,7 +263,7 @@ def make_setup(track, rnd, sigma=None, channels=None):
         drag = ref
         dparams = np.zeros(0)
     else:
-        lo, hi = mach_span(track, rnd, s0 if not launch_known else s0)
+        lo, hi = data_start(track, rnd).mach_span
         drag = make_drag_model("spline", mach_range=(lo, hi))
         dparams = drag.initial_params(None)
         notes.append("no reference drag in the round: the diagnosis works relative to a fitted Cd "

@@ -180,29 +180,3 @@ def _jsonable(o):
     if isinstance(o, np.bool_):
         return bool(o)
     return o
-
-
-def run_diagnose(args):
-    """Body of ``bayesdrag diagnose TRACK ROUND -o DIR``. Returns the exit status."""
-    from .diagnose import diagnose
-    from .errors import InputError
-    from .io.rounds import read_round
-    from .io.tracks import read_track
-
-    track = read_track(args.track)
-    rnd = read_round(args.round)
-    for note in getattr(track, "notes", ()):
-        print(f"bayesdrag: note: {note}", file=sys.stderr)
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: output path exists and is not a folder")
-    from .diagnose import MIN_DIAGNOSIS_SAMPLES
-
-    if track.n < MIN_DIAGNOSIS_SAMPLES:
-        raise InputError(f"{args.track}: {track.n} samples are too few for a diagnosis (need >= {MIN_DIAGNOSIS_SAMPLES})")
-    d = diagnose(track, rnd)
-    paragraph = write_diagnosis(out, d, track_name=str(args.track), round_name=str(args.round))
-    print(f"bayesdrag: diagnosis: {paragraph}", file=sys.stderr)
-    print(f"diagnose: verdict {d.summary['verdict'] or 'none'}; wrote {out / 'diagnosis.json'}, diagnosis.html, "
-          f"diagnosis_*.png")
-    return 0

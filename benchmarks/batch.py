@@ -37,7 +37,9 @@ def main(argv=None):
     n = 10 if a.quick else a.rounds
     workers = [int(w) for w in a.workers.split(",")]
 
-    from bayesdrag.batch import _Dask, round_task
+    from bayesdrag.commands.options import FitOptions
+
+    from bayesdrag.commands.batch import _Dask, round_task
     from bayesdrag.io.campaign import read_campaign
     from bayesdrag.campaign.synthetic import simulate_campaign
 
@@ -47,13 +49,13 @@ def main(argv=None):
     # warm the on-disk numba cache (compile once, here)
     r0 = camp.rounds[0]
     round_task(r0.name, str(r0.track), str(r0.round), str(root / "warm" / r0.name), jobs=("fit", "diagnose"),
-               options={"no_mcmc": True})
+               options=FitOptions(mcmc=False))
     out = {"rounds": n, "dt": a.dt, "jobs": "fit,diagnose", "cpus": os.cpu_count(), "configs": {}}
     for w in workers:
         dest = root / f"out_w{w}"
         shutil.rmtree(dest, ignore_errors=True)
         calls = [dict(name=r.name, track=str(r.track), round_path=str(r.round), outdir=str(dest / r.name),
-                      jobs=("fit", "diagnose"), options={"no_mcmc": True}) for r in camp.rounds]
+                      jobs=("fit", "diagnose"), options=FitOptions(mcmc=False)) for r in camp.rounds]
         load0 = os.getloadavg()[0]
         ex = _Dask(None, w)
         t_start = time.perf_counter()

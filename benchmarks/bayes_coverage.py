@@ -50,7 +50,7 @@ def replicate(i, dm, c_true, m101, duration, seed0=1000):
     from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
     from bayesdrag.estimate.bayes import LogPosterior, cd_draws, sample_posterior
     from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
-    from bayesdrag.simulate import add_noise
+    from bayesdrag.synthetic import add_noise
     from bayesdrag.round import Launch, Projectile, Radar, Round
     from bayesdrag.track import RadarTrack
 
@@ -60,7 +60,8 @@ def replicate(i, dm, c_true, m101, duration, seed0=1000):
     track = add_noise(RadarTrack(t, {ch: tr.channel(ch) for ch in "xyzv"}, {}), SIGMA, rng)
     rnd = Round(Projectile("155", 42.6, 0.155, m101, None), Launch(15.0, 818.0), radar=Radar(dict(SIGMA)),
                 path="coverage.toml")
-    res, prob = fit_scheme1(track, rnd, drag="spline", knots=KNOTS)
+    f1 = fit_scheme1(track, rnd, drag="spline", knots=KNOTS)
+    res, prob = f1.ml, f1.problem
     if not res.success:
         return None
     post = LogPosterior(prob, res)

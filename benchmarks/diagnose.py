@@ -30,7 +30,7 @@ def main(argv=None):
 
     from bayesdrag.diagnose import _fit, diagnose, make_setup
     from bayesdrag.io.drag_tables import load_m101
-    from bayesdrag.simulate import add_noise, simulate_round
+    from bayesdrag.synthetic import add_noise, simulate_round
     from bayesdrag.round import Launch, Projectile, Radar, Round
 
     sig = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}

@@ -36,7 +36,7 @@ SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 def round_and_track(dt=0.0217):
     from bayesdrag.io.drag_tables import load_m101
     from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-    from bayesdrag.simulate import add_noise
+    from bayesdrag.synthetic import add_noise
     from bayesdrag.round import Launch, Projectile, Radar, Round
     from bayesdrag.track import RadarTrack
 
@@ -54,7 +54,8 @@ def time_ml(track, rnd, drag):
 
     fit_scheme1(track, rnd, drag=drag)
     t = time.perf_counter()
-    res, prob = fit_scheme1(track, rnd, drag=drag)
+    f1 = fit_scheme1(track, rnd, drag=drag)
+    res, prob = f1.ml, f1.problem
     return time.perf_counter() - t, res, prob
 
 
@@ -65,7 +66,8 @@ def time_bayes(track, rnd, drag, seed=1):
 
     def once():
         t = time.perf_counter()
-        res, prob = fit_scheme1(track, rnd, drag=drag)
+        f1 = fit_scheme1(track, rnd, drag=drag)
+        res, prob = f1.ml, f1.problem
         post = LogPosterior(prob, res)
         b = sample_posterior(post, seed=seed)
         return time.perf_counter() - t, b, post.ndim
@@ -78,7 +80,8 @@ def compare_moves(track, rnd, steps):
     from bayesdrag.estimate.bayes import LogPosterior, sample_posterior
     from bayesdrag.estimate.scheme1 import fit_scheme1
 
-    res, prob = fit_scheme1(track, rnd, drag="poly2-split")
+    f1 = fit_scheme1(track, rnd, drag="poly2-split")
+    res, prob = f1.ml, f1.problem
     post = LogPosterior(prob, res)
     out = {}
     D = post.ndim

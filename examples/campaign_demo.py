@@ -16,7 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesdrag.batch import run_campaign
+from bayesdrag.commands.options import FitOptions
+
+from bayesdrag.commands.batch import run_campaign
 from bayesdrag.campaign.pooling import campaign_json, pool_rounds
 from bayesdrag.io.campaign import read_campaign
 from bayesdrag.campaign.synthetic import simulate_campaign
@@ -36,7 +38,7 @@ def main(argv=None):
     d = Path(a.output)
     path, truth = simulate_campaign(d, n_rounds=a.rounds, scatter=a.scatter, rng=np.random.default_rng(a.seed))
     out = d / "out"
-    res = run_campaign(path, out, jobs=("fit",), options={"no_mcmc": not a.mcmc, "seed": a.seed},
+    res = run_campaign(path, out, jobs=("fit",), options=FitOptions(mcmc=a.mcmc, seed=a.seed),
                        executor="sequential" if a.sequential else "dask", workers=a.workers)
     camp = read_campaign(path)
     inputs = [json.loads((out / n / "pooling.json").read_text()) for n in camp.names

@@ -11,7 +11,7 @@ from importlib.resources import files
 
 import numpy as np
 
-from bayesdrag.simulate import add_noise, simulate_round
+from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.io.rounds import read_round
 from bayesdrag.io.tracks import write_track
 

@@ -39,7 +39,7 @@ from bayesdrag.dynamics.pointmass import initial_state
 from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.estimate.scheme2 import fit_scheme2
-from bayesdrag.simulate import add_noise, simulate_round
+from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.io.rounds import read_round
 
 PAPER_TABLE2 = {818: {"a0": (-0.549, 0.0028), "a1": (-0.2137, 0.0026), "a2": (0.0346, 0.0007)},
@@ -67,7 +67,8 @@ def naive_initial_state(track):
 def table2(tracks, rnds, ref):
     out = {}
     for v, tr in tracks.items():
-        res, prob = fit_scheme1(tr, rnds[v], drag="poly2", sigma=NOISE_5PCT)
+        f1 = fit_scheme1(tr, rnds[v], drag="poly2", sigma=NOISE_5PCT)
+        res, prob = f1.ml, f1.problem
         m = np.linspace(res.mach.min(), res.mach.max(), 60)
         err = prob.model.drag.cd(res.drag_params, m) / ref.value(m) - 1
         out[v] = {"params": {n: float(res.theta[i]) for i, n in enumerate(("a0", "a1", "a2"))},
@@ -80,7 +81,8 @@ def table2(tracks, rnds, ref):
 def fig3(clean, rnd, ref, rng, out):
     noisy = add_noise(clean, NOISE_5PCT, rng)
     cases = {}
-    res_a, prob_a = fit_scheme1(clean, rnd, drag="poly2", sigma=NOISE_5PCT)
+    f1_a = fit_scheme1(clean, rnd, drag="poly2", sigma=NOISE_5PCT)
+    res_a, prob_a = f1_a.ml, f1_a.problem
     cases["(a) noise 0 %"] = (res_a, prob_a)
     # (b): ICs frozen at the naive values from the noisy data
     model = prob_a.model
@@ -88,8 +90,10 @@ def fig3(clean, rnd, ref, rng, out):
     free = np.r_[np.ones(3, bool), np.zeros(6, bool)]
     prob_b = OutputErrorProblem(model, noisy, th0, free=free, sigma=NOISE_5PCT)
     cases["(b) noise 5 %, ICs from the first samples"] = (prob_b.fit(), prob_b)
-    cases["(c) noise 5 %, ICs estimated"] = fit_scheme1(noisy, rnd, drag="poly2", sigma=NOISE_5PCT)
-    cases["bayesdrag default: P-spline, noise 5 %"] = fit_scheme1(noisy, rnd, sigma=NOISE_5PCT)
+    f1 = fit_scheme1(noisy, rnd, drag="poly2", sigma=NOISE_5PCT)
+    cases["(c) noise 5 %, ICs estimated"] = (f1.ml, f1.problem)
+    f1 = fit_scheme1(noisy, rnd, sigma=NOISE_5PCT)
+    cases["bayesdrag default: P-spline, noise 5 %"] = (f1.ml, f1.problem)
     fig, axes = plt.subplots(1, 4, figsize=(16, 4), sharey=True)
     summary = {}
     for ax, (name, (res, prob)) in zip(axes, cases.items()):

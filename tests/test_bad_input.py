@@ -14,7 +14,7 @@ from importlib.resources import files
 import pytest
 
 from bayesdrag.cli import main
-from bayesdrag.simulate import simulate_round
+from bayesdrag.synthetic import simulate_round
 from bayesdrag.io.rounds import read_round
 from bayesdrag.io.tracks import write_track
 
@@ -211,7 +211,7 @@ OPTION_CASES = [
      r"reference-scale.*needs a reference drag"),
     ("sim-seed-without-noise", _sim(extra=["--seed", "3"]), r"--seed only makes sense with --noise"),
     ("sim-noise-without-sigma", _sim(_sub("[radar]\nsigma = {x = 1.0, y = 1.0, z = 1.0, v = 0.3}\n", ""), ["--noise"]),
-     r"round\.toml: --noise needs \[radar\] sigma"),
+     r"round\.toml: noise needs \[radar\] sigma"),
     ("sim-negative-dt", _sim(extra=["--dt", "-0.1"]), r"--dt.*positive"),
     ("sim-bad-seed", _sim(extra=["--noise", "--seed", "abc"]), r"--seed must be a non-negative integer, got 'abc'"),
     ("sim-unknown-model", _sim(extra=["--model", "3dof"]), r"invalid choice: '3dof'"),

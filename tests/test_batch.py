@@ -1,5 +1,6 @@
 """``bayesdrag batch``: rounds as Dask tasks on a LocalCluster, failing rounds reported, finished
 rounds skipped, a killed batch resumed with identical results."""
+import dataclasses
 import json
 import os
 import signal
@@ -10,7 +11,9 @@ import time
 import numpy as np
 import pytest
 
-from bayesdrag.batch import WORKER_ENV, fingerprint, job_done, marker_path, round_task, run_campaign
+from bayesdrag.commands.options import FitOptions
+
+from bayesdrag.commands.batch import WORKER_ENV, fingerprint, job_done, marker_path, round_task, run_campaign
 from bayesdrag.campaign.synthetic import simulate_campaign
 from bayesdrag.io.campaign import write_campaign
 from bayesdrag.cli import main
@@ -80,14 +83,14 @@ def test_worker_processes_run_one_numba_thread(cluster):
 def test_changed_inputs_or_options_are_redone_not_skipped(campaign, tmp_path):
     d, _ = campaign
     out = tmp_path / "r1"
-    opts = {"no_mcmc": True, "drag": "reference-scale"}
+    opts = FitOptions(mcmc=False, drag="reference-scale")
     rep = round_task("r1", str(d / "r1.csv"), str(d / "r1.toml"), str(out), options=opts)
     assert rep["jobs"]["fit"]["status"] == "done"
     assert round_task("r1", str(d / "r1.csv"), str(d / "r1.toml"), str(out), options=opts)["jobs"]["fit"]["status"] \
         == "skipped"
     fp = fingerprint(str(d / "r1.csv"), str(d / "r1.toml"), "fit", opts)
     assert job_done(out, "fit", fp)
-    assert not job_done(out, "fit", fingerprint(str(d / "r1.csv"), str(d / "r1.toml"), "fit", dict(opts, drag="spline")))
+    assert not job_done(out, "fit", fingerprint(str(d / "r1.csv"), str(d / "r1.toml"), "fit", dataclasses.replace(opts, drag="spline")))
     # the same track with one sample changed is another input
     track2 = tmp_path / "r1_changed.csv"
     lines = (d / "r1.csv").read_text().splitlines()
@@ -104,7 +107,7 @@ def test_changed_inputs_or_options_are_redone_not_skipped(campaign, tmp_path):
 def test_unknown_job_is_exit_2(campaign, capsys):
     d, path = campaign
     assert main(["batch", str(path), "-o", str(d / "x"), "--jobs", "fit,plot"]) == 2
-    assert "allowed jobs are fit, diagnose" in capsys.readouterr().err
+    assert "use a non-empty subset of fit, diagnose" in capsys.readouterr().err
 
 
 def test_killed_batch_resumes_without_redoing_finished_rounds(tmp_path):
@@ -139,7 +142,7 @@ def test_killed_batch_resumes_without_redoing_finished_rounds(tmp_path):
         assert {f.name: f.stat().st_mtime_ns for f in (out / n).iterdir()} == stamp[n]
         assert (out / n / "result.json").read_text() == saved[n]
     # identical to an uninterrupted run of the same campaign (in this process, no Dask)
-    ref = run_campaign(path, tmp_path / "ref", jobs=("fit",), options={"no_mcmc": True, "drag": "reference-scale"},
+    ref = run_campaign(path, tmp_path / "ref", jobs=("fit",), options=FitOptions(mcmc=False, drag="reference-scale"),
                        executor="sequential",
                        quiet=True, echo=lambda *a: None)
     a = json.loads((out / "campaign.json").read_text())

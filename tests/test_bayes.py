@@ -11,7 +11,7 @@ from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.bayes import (LogPosterior, cd_draws, cd_posterior_rows, independence_move,
                                       sample_posterior, split_rank_rhat, to_inference_data)
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
-from bayesdrag.simulate import add_noise
+from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 
@@ -134,7 +134,8 @@ def data(m101):
 def synthetic(data):
     """The default Scheme 1 fit (spline Cd) of the synthetic track (slow: tens of seconds)."""
     track, rnd = data
-    res, prob = fit_scheme1(track, rnd, drag="spline")
+    f1 = fit_scheme1(track, rnd, drag="spline")
+    res, prob = f1.ml, f1.problem
     assert res.success, res.message
     return track, rnd, res, prob
 
@@ -143,7 +144,8 @@ def synthetic(data):
 def quick(data):
     """A fast fit of the same track: reference-scale drag (1 coefficient + 6 ICs)."""
     track, rnd = data
-    res, prob = fit_scheme1(track, rnd, drag="reference-scale")
+    f1 = fit_scheme1(track, rnd, drag="reference-scale")
+    res, prob = f1.ml, f1.problem
     assert res.success, res.message
     return track, rnd, res, prob
 
@@ -263,11 +265,12 @@ def test_resume_refuses_other_settings(quick, tmp_path):
 def test_student_t_likelihood_resists_outliers(quick):
     """With 2 % gross outliers (30 sd) in every channel, the Student-t posterior keeps the noise
     sd near the truth (a Gaussian fit inflates it several-fold) and Ux0 near its clean value."""
-    from bayesdrag.simulate import add_outliers
+    from bayesdrag.synthetic import add_outliers
 
     track, rnd, res, prob = quick
     bad, _ = add_outliers(track, 0.02, 30.0, SIGMA, np.random.default_rng(9))
-    res2, prob2 = fit_scheme1(bad, rnd, drag="reference-scale")
+    f1_2 = fit_scheme1(bad, rnd, drag="reference-scale")
+    res2, prob2 = f1_2.ml, f1_2.problem
     post = LogPosterior(prob2, res2, likelihood="student-t", nu=4.0)
     b = sample_posterior(post, seed=2, max_steps=1500)
     for c, s in SIGMA.items():

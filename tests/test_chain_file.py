@@ -19,7 +19,7 @@ from bayesdrag.estimate.posterior import LogPosterior
 from bayesdrag.estimate.sampler import sample_posterior
 from bayesdrag.estimate.scheme1 import fit_scheme1
 from bayesdrag.io.chain import FORMAT, MT_KEY_SIZE, ChainFile
-from bayesdrag.simulate import add_noise
+from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 from bayesdrag.io.tracks import write_track
@@ -61,7 +61,8 @@ def short_track(m101):
 @pytest.fixture(scope="module")
 def post(short_track):
     track, rnd = short_track
-    res, prob = fit_scheme1(track, rnd, drag="reference-scale")
+    f1 = fit_scheme1(track, rnd, drag="reference-scale")
+    res, prob = f1.ml, f1.problem
     assert res.success, res.message
     return LogPosterior(prob, res)
 

@@ -20,7 +20,7 @@ import pytest
 from bayesdrag.drag import Spline
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.problem import OutputErrorProblem
-from bayesdrag.simulate import add_noise
+from bayesdrag.synthetic import add_noise
 from bayesdrag.track import RadarTrack
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}

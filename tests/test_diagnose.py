@@ -9,7 +9,7 @@ from bayesdrag.cli import main
 from bayesdrag.diagnose import (autocovariance, colored_inflation, diagnose, hf_residual,
                                 noise_and_outliers, where_segments)
 from bayesdrag.io.drag_tables import load_m101
-from bayesdrag.simulate import add_noise, add_outliers, ar1_noise, simulate_round
+from bayesdrag.synthetic import add_noise, add_outliers, ar1_noise, simulate_round
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.io.rounds import write_round
 from bayesdrag.io.tracks import write_track

@@ -15,7 +15,7 @@ pbc = pytest.importorskip("py_ballisticcalc")
 
 from bayesdrag.estimate.scheme1 import fit_scheme1  # noqa: E402
 from bayesdrag.io.export import PBC_STANDARD_DENSITY, density_match, drag_table, export_fit, export_result, load_pbc_drag_model, pbc_ballistic_coefficient
-from bayesdrag.simulate import add_noise, simulate_round  # noqa: E402
+from bayesdrag.synthetic import add_noise, simulate_round  # noqa: E402
 from bayesdrag.round import Launch, Projectile, Radar, Round  # noqa: E402
 
 #: noise of the synthetic radar [m], [m/s]
@@ -66,7 +66,8 @@ def fitted(m101, tmp_path_factory):
     launch = Launch(elevation_deg=15.0, velocity=818.0)
     truth = Round(Projectile("155", 42.6, 0.155, reference_drag=m101), launch, radar=Radar(SIGMA))
     track = add_noise(simulate_round(truth, dt=0.1), SIGMA, np.random.default_rng(2))
-    res, prob = fit_scheme1(track, truth)
+    f1 = fit_scheme1(track, truth)
+    res, prob = f1.ml, f1.problem
     return d, track, truth, res, prob
 
 

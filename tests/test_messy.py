@@ -13,7 +13,7 @@ import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.scheme1 import cd_table, determined_range, fit_scheme1
-from bayesdrag.simulate import add_noise, drop_samples
+from bayesdrag.synthetic import add_noise, drop_samples
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 
@@ -68,7 +68,8 @@ def fits(full, truth, round_):
     out = {}
     for name, tr in _cases(full, truth).items():
         noisy = add_noise(tr, SIGMA, np.random.default_rng(11))
-        out[name] = (noisy, *fit_scheme1(noisy, round_, drag="spline"))
+        f1 = fit_scheme1(noisy, round_, drag="spline")
+        out[name] = (noisy, f1.ml, f1.problem)
     return out
 
 

@@ -10,7 +10,7 @@ from bayesdrag.drag import ReferenceTable, make_drag_model
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
-from bayesdrag.simulate import add_noise
+from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 
@@ -35,7 +35,8 @@ def round_(m101):
 
 
 def test_spline_recovers_m101(noisy_track, round_, m101):
-    res, prob = fit_scheme1(noisy_track, round_, drag="spline")
+    f1 = fit_scheme1(noisy_track, round_, drag="spline")
+    res, prob = f1.ml, f1.problem
     assert res.success and res.converged, res.message
     m = np.linspace(1.2, 2.3, 23)
     rows = cd_table(res, prob.model.drag, m, m101)
@@ -49,11 +50,12 @@ def test_spline_recovers_m101(noisy_track, round_, m101):
 def test_error_over_crb_of_order_one(noisy_track, round_, m101):
     """The penalised spline's error is of the order of its own bound (its bounds include the
     smoothing prior), and the choice of smoothing is reported."""
-    res, prob = fit_scheme1(noisy_track, round_, drag="spline")
+    f1 = fit_scheme1(noisy_track, round_, drag="spline")
+    res, prob = f1.ml, f1.problem
     rows = cd_table(res, prob.model.drag, np.linspace(1.2, 2.3, 23), m101)
     z = np.array([(r["ml"] - r["reference"]) / r["crb_sd"] for r in rows])
     assert np.max(np.abs(z)) < Z_ORDER_ONE, np.round(z, 2)
-    sm = prob.smoothing
+    sm = f1.smoothing
     assert 0 < sm["edf_drag"] < prob.model.drag.n_params
     assert not sm["at_grid_end"] or sm["sd"] == min(g["sd"] for g in sm["grid"])
 
@@ -61,10 +63,11 @@ def test_error_over_crb_of_order_one(noisy_track, round_, m101):
 def test_fixed_knots_leave_representation_error(noisy_track, round_, m101):
     """Why the default spline is penalised on fine knots: the plain spline on the sparse
     default knots misses M101 near Mach 1.25 by many of its own bounds."""
-    res, prob = fit_scheme1(noisy_track, round_, drag="spline", penalise=False)
+    f1 = fit_scheme1(noisy_track, round_, drag="spline", penalise=False)
+    res, prob = f1.ml, f1.problem
     rows = cd_table(res, prob.model.drag, np.linspace(1.2, 2.3, 23), m101)
     z = np.array([(r["ml"] - r["reference"]) / r["crb_sd"] for r in rows])
-    assert prob.smoothing is None
+    assert f1.smoothing is None
     assert np.max(np.abs(z)) > Z_ORDER_ONE
 
 
@@ -80,7 +83,8 @@ def test_spline_follows_a_moved_drag_rise(m101):
     noisy = add_noise(clean, SIGMA, np.random.default_rng(11))
     rnd = Round(Projectile("155", 42.6, 0.155, m101, None), Launch(15.0, 818.0), radar=Radar(dict(SIGMA)),
                 path="test.toml")
-    res, prob = fit_scheme1(noisy, rnd, drag="spline")
+    f1 = fit_scheme1(noisy, rnd, drag="spline")
+    res, prob = f1.ml, f1.problem
     rows = cd_table(res, prob.model.drag, np.linspace(1.2, 2.3, 23), truth_tab)
     err = np.array([r["ml"] / r["reference"] - 1 for r in rows])
     assert np.max(np.abs(err)) < CD_RECOVERY_RTOL, np.round(100 * err, 2)
@@ -101,7 +105,8 @@ def test_relaxation_estimates_noise(noisy_track, m101, round_):
 
 @pytest.mark.parametrize("channels", [("x", "z"), ("v",), ("x", "v")])
 def test_channel_subsets(noisy_track, round_, m101, channels):
-    res, prob = fit_scheme1(noisy_track, round_, drag="spline", channels=channels)
+    f1 = fit_scheme1(noisy_track, round_, drag="spline", channels=channels)
+    res, prob = f1.ml, f1.problem
     assert res.converged, res.message
     rows = cd_table(res, prob.model.drag, np.linspace(1.3, 2.2, 10), m101)
     err = np.array([r["ml"] / r["reference"] - 1 for r in rows])
@@ -112,7 +117,8 @@ def test_channel_subsets(noisy_track, round_, m101, channels):
 
 def test_poly2_misfit_reported(noisy_track, round_):
     """The quadratic cannot follow the transonic rise: the fit says so by its residuals."""
-    res, _ = fit_scheme1(noisy_track, round_, drag="poly2")
+    f1 = fit_scheme1(noisy_track, round_, drag="poly2")
+    res = f1.ml
     rms_x = np.sqrt(np.mean(res.residuals["x"] ** 2))
     assert rms_x > 5 * SIGMA["x"]
 
@@ -165,13 +171,14 @@ def test_six_dof_track_within_two_percent():
     gives Cd within 2 % of M101 over Mach 1.2-2.3 (issue 4). The 6-DOF's yaw-of-repose lift,
     absent from the point mass, shows up in the initial conditions instead: the fitted muzzle
     moves sideways by tens of metres against a 1 m launch prior (docs/ml.md explains)."""
-    from bayesdrag.demo import demo_inputs
+    from bayesdrag.commands.demo import demo_inputs
     from bayesdrag.io.rounds import read_round
     from bayesdrag.io.tracks import read_track
 
     tp, rp = demo_inputs()
     track, rnd = read_track(tp), read_round(rp)
-    res, prob = fit_scheme1(track, rnd)
+    f1 = fit_scheme1(track, rnd)
+    res, prob = f1.ml, f1.problem
     assert res.converged, res.message
     rows = cd_table(res, prob.model.drag, np.linspace(1.2, 2.3, 23), rnd.reference_drag)
     err = np.array([r["ml"] / r["reference"] - 1 for r in rows])

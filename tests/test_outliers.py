@@ -6,7 +6,7 @@ import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.estimate.scheme1 import fit_scheme1
-from bayesdrag.simulate import add_noise, add_outliers
+from bayesdrag.synthetic import add_noise, add_outliers
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 
@@ -24,24 +24,27 @@ def tracks(m101):
     bad, _ = add_outliers(clean, 0.02, 50.0, SIGMA, np.random.default_rng(9))
     rnd = Round(Projectile("155", 42.6, 0.155, m101, None), Launch(15.0, 818.0), radar=Radar(dict(SIGMA)),
                 path="t.toml")
-    res, prob = fit_scheme1(clean, rnd)
+    f1 = fit_scheme1(clean, rnd)
+    res, prob = f1.ml, f1.problem
     return clean, bad, rnd, prob.model.drag.cd(res.drag_params, MACH)
 
 
 def test_student_t_keeps_cd_and_flags_outliers(tracks):
     clean, bad, rnd, cd_clean = tracks
-    res, prob = fit_scheme1(bad, rnd, likelihood="student-t")
+    f1 = fit_scheme1(bad, rnd, likelihood="student-t")
+    res, prob = f1.ml, f1.problem
     assert res.converged, res.message
     rel = np.max(np.abs(prob.model.drag.cd(res.drag_params, MACH) / cd_clean - 1))
     assert rel < ROBUST_RTOL, rel
     truth = set(np.flatnonzero(np.any([bad.channels[c] != clean.channels[c] for c in "xyzv"], axis=0)))
-    flagged = {i for v in prob.rejected.values() for i in v}
+    flagged = {i for v in f1.rejected.values() for i in v}
     assert truth == flagged
 
 
 def test_gaussian_fit_is_dragged_by_outliers(tracks):
     clean, bad, rnd, cd_clean = tracks
-    res, prob = fit_scheme1(bad, rnd)
+    f1 = fit_scheme1(bad, rnd)
+    res, prob = f1.ml, f1.problem
     rel = np.max(np.abs(prob.model.drag.cd(res.drag_params, MACH) / cd_clean - 1))
     assert rel > ROBUST_RTOL, rel
 

@@ -14,7 +14,7 @@ import pytest
 
 from bayesdrag.cli import main
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-from bayesdrag.simulate import add_noise
+from bayesdrag.synthetic import add_noise
 from bayesdrag.track import RadarTrack
 from bayesdrag.io.tracks import write_track
 

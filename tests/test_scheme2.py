@@ -6,7 +6,7 @@ import pytest
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
 from bayesdrag.errors import InputError
 from bayesdrag.estimate.scheme2 import MIN_WINDOW, fit_scheme2, smoothed_state, window_slices, windows_table
-from bayesdrag.simulate import add_noise
+from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bayesdrag.cli import main
-from bayesdrag.simulate import add_noise, add_outliers, ar1_noise, drop_samples, simulate_round
+from bayesdrag.synthetic import add_noise, add_outliers, ar1_noise, drop_samples, simulate_round
 from bayesdrag.io.rounds import read_round
 from bayesdrag.io.tracks import read_track
 

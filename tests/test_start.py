@@ -18,7 +18,7 @@ from bayesdrag.estimate.basis import adaptive_knots, rise_regions
 from bayesdrag.estimate.quality import CHI2_LIMIT
 from bayesdrag.estimate.scheme1 import cd_grid, cd_table, fit_scheme1
 from bayesdrag.estimate.start import check_gravity_units, data_start, smooth_kinematics
-from bayesdrag.simulate import add_noise, simulate_round
+from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 
@@ -131,17 +131,19 @@ def test_track_in_feet_is_refused_by_the_physics(m101):
 def test_no_table_fit_recovers_cd(name, mass, diameter, v0, qe):
     ref = _table(name)
     track, rnd = _track(ref, mass, diameter, v0, qe)
-    res, prob = fit_scheme1(track, _without_table(rnd))
+    f1 = fit_scheme1(track, _without_table(rnd))
+    res, prob = f1.ml, f1.problem
     assert res.converged, res.message
-    _assert_recovers(res, prob, ref, track, rnd)
+    _assert_recovers(f1, ref, track, rnd)
 
 
-def _assert_recovers(res, prob, ref, track, rnd):
+def _assert_recovers(f1, ref, track, rnd):
     from bayesdrag.estimate.quality import assess
 
+    res, prob = f1.ml, f1.problem
     lo, hi = float(res.mach.min()), float(res.mach.max())
     rows = cd_table(res, prob.model.drag, cd_grid(lo, hi))
-    assess(res, prob, rows, track, rnd.radar.sigma)
+    assess(f1, rows, track, rnd.radar.sigma)
     w = hi - lo
     for r in rows:
         if lo + 0.05 * w <= r["mach"] <= hi - 0.05 * w:
@@ -156,43 +158,47 @@ def _assert_recovers(res, prob, ref, track, rnd):
 def test_a_wrong_launch_velocity_is_reported_not_obeyed(m101, velocity):
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0)
     wrong = dataclasses.replace(rnd, launch=dataclasses.replace(rnd.launch, velocity=velocity))
-    res, prob = fit_scheme1(track, wrong)
+    f1 = fit_scheme1(track, wrong)
+    res, prob = f1.ml, f1.problem
     assert res.converged, res.message
-    conflicts = {c["prior"]: c for c in prob.launch_check["conflicts"]}
+    conflicts = {c["prior"]: c for c in f1.launch_check["conflicts"]}
     assert "launch_speed" in conflicts
     assert conflicts["launch_speed"]["track"] == pytest.approx(818.0, abs=1.0)
-    assert "launch_speed" not in prob.launch_check["applied"]
-    _assert_recovers(res, prob, m101, track, rnd)
+    assert "launch_speed" not in f1.launch_check["applied"]
+    _assert_recovers(f1, m101, track, rnd)
 
 
 def test_an_ordinary_lot_difference_is_a_prior(m101):
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0)
     near = dataclasses.replace(rnd, launch=dataclasses.replace(rnd.launch, velocity=810.0))
-    res, prob = fit_scheme1(track, near)
+    f1 = fit_scheme1(track, near)
+    res, prob = f1.ml, f1.problem
     assert res.converged
-    assert prob.launch_check["conflicts"] == []
-    assert "launch_speed" in prob.launch_check["applied"]
+    assert f1.launch_check["conflicts"] == []
+    assert "launch_speed" in f1.launch_check["applied"]
 
 
 def test_time_origin_at_the_first_radar_sample_is_reported(m101):
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0)
     late = track.subset(track.t >= 0.5)
     shifted = RadarTrack(late.t - late.t[0], late.channels)
-    res, prob = fit_scheme1(shifted, rnd)
+    f1 = fit_scheme1(shifted, rnd)
+    res, prob = f1.ml, f1.problem
     assert res.converged
-    first = prob.launch_check["conflicts"][0]
+    first = f1.launch_check["conflicts"][0]
     assert "time origin is not the launch" in first["message"]
-    assert prob.launch_check["time_origin_offset"] == pytest.approx(0.5, abs=0.05)
-    assert prob.launch_check["applied"] == []
+    assert f1.launch_check["time_origin_offset"] == pytest.approx(0.5, abs=0.05)
+    assert f1.launch_check["applied"] == []
 
 
 def test_quality_gate_flags_a_withheld_cross_wind(m101):
     from bayesdrag.estimate.quality import assess
 
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0, wind=(0.0, 6.0, 0.0))
-    res, prob = fit_scheme1(track, rnd)
+    f1 = fit_scheme1(track, rnd)
+    res, prob = f1.ml, f1.problem
     rows = cd_table(res, prob.model.drag, cd_grid(float(res.mach.min()), float(res.mach.max())))
-    q = assess(res, prob, rows, track, rnd.radar.sigma)
+    q = assess(f1, rows, track, rnd.radar.sigma)
     assert not q["ok"]
     assert q["channels"]["y"]["chi2_per_sample"] > CHI2_LIMIT
     assert any(p.startswith("channel y") for p in q["problems"])
@@ -204,9 +210,10 @@ def test_white_noise_fit_is_clean_and_keeps_the_cramer_rao_band(m101):
     from bayesdrag.estimate.quality import assess
 
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0)
-    res, prob = fit_scheme1(track, rnd)
+    f1 = fit_scheme1(track, rnd)
+    res, prob = f1.ml, f1.problem
     rows = cd_table(res, prob.model.drag, cd_grid(float(res.mach.min()), float(res.mach.max())))
-    q = assess(res, prob, rows, track, rnd.radar.sigma)
+    q = assess(f1, rows, track, rnd.radar.sigma)
     assert q["ok"], q["problems"]
     assert q["band"] == "cramer-rao"
     assert all(r["band_sd"] == r["crb_sd"] for r in rows)

@@ -12,7 +12,7 @@ from ..io.drag_tables import load_m101
 from ..io.rounds import write_round
 from ..io.tracks import write_track
 from ..round import Launch, Projectile, Radar, Round
-from ..simulate import add_noise, simulate_round
+from ..synthetic import add_noise, simulate_round
 
 __all__ = ["simulate_campaign"]
 

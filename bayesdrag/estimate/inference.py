@@ -107,3 +107,35 @@ def _constant_data(post, mach, reference):
     if reference is not None:
         const["reference_cd"] = np.asarray(reference.value(mach), float)
     return const
+
+
+def windows_inference_data(windows, ok, draws, track, channels):
+    """ArviZ InferenceData of a Scheme 2 fit: Cd per window (``cd`` over a ``window`` dim) with
+    the windows' Mach, Cramér-Rao sd and times, and the track as observed data.
+
+    Parameters
+    ----------
+    windows : list of dict
+        ``result.json`` ``windows`` rows.
+    ok : sequence of int
+        Windows that converged (and were sampled).
+    draws : dict int -> (chains, draws) ndarray
+        Cd draws per window.
+    track : RadarTrack
+    channels : sequence of str
+    """
+    ok = list(ok)
+    S = min(d.shape[1] for d in draws.values())
+    W = min(d.shape[0] for d in draws.values())
+    cd = np.stack([draws[k][:W, :S] for k in ok], axis=-1)
+    per = ["window"]
+    return az.from_dict(
+        posterior={"cd": cd},
+        observed_data={c: track.channels[c] for c in channels},
+        constant_data={"mach": np.array([windows[k]["mach"] for k in ok]),
+                       "crb_sd": np.array([windows[k]["crb_sd"] for k in ok]),
+                       "t_start": np.array([windows[k]["t_start"] for k in ok]),
+                       "t_end": np.array([windows[k]["t_end"] for k in ok]), "t": track.t},
+        coords={"window": np.array(ok), "time": track.t},
+        dims={"cd": per, "mach": per, "crb_sd": per, "t_start": per, "t_end": per, "t": ["time"],
+              **{c: ["time"] for c in channels}})

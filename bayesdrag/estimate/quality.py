@@ -138,14 +138,14 @@ def _at_bound_support(res, drag_model, mach, lower, upper):
     return hit, [res.names[j] for j in np.flatnonzero(at)]
 
 
-def assess(res, prob, rows, track, sigma_given=None):
+def assess(fit1, rows, track, sigma_given=None):
     """Quality of a Scheme 1 ML fit.
 
     Parameters
     ----------
-    res : MLResult
-    prob : OutputErrorProblem
-        Its ``start`` (DataStart), ``smoothing``, ``launch_check`` are read when present.
+    fit1 : Scheme1Fit
+        The fit (:func:`bayesdrag.estimate.scheme1.fit_scheme1`): its ML result, problem, start,
+        smoothing and launch check are read.
     rows : list of dict
         ``cd`` rows (``mach``, ``ml``, ``crb_sd``, ``crb_sd_colored``); updated in place with
         ``band_sd`` and ``determined``.
@@ -158,6 +158,7 @@ def assess(res, prob, rows, track, sigma_given=None):
     dict
         ``ml.quality`` of result.json.
     """
+    res, prob = fit1.ml, fit1.problem
     chans = prob.channels
     fit = channel_fit(res, track, chans, sigma_given or {})
     problems = []
@@ -180,7 +181,7 @@ def assess(res, prob, rows, track, sigma_given=None):
     dm = prob.model.drag
     clamped = _clamped(dm, mach)
     bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
-    start = getattr(prob, "start", None)
+    start = fit1.start
     lo, hi = (float(np.nanmin(res.mach)), float(np.nanmax(res.mach)))
     inside = (mach >= lo - 1e-4) & (mach <= hi + 1e-4)  # the grid is rounded to 1e-4
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -199,11 +200,11 @@ def assess(res, prob, rows, track, sigma_given=None):
                             f"({', '.join(bound_names)}): not determined there")
     ic_bound = [w for w in res.warnings if "is at its bound" in w and not any(n in w for n in bound_names)]
     problems += ic_bound
-    sm = getattr(prob, "smoothing", None)
+    sm = fit1.smoothing
     if sm and sm.get("at_grid_end") == "flexible":
         problems.append("the smoothing weight is at the flexible end of its grid: the data ask for more "
                         "freedom than the drag model has (the band may be too narrow where Cd bends)")
-    lc = getattr(prob, "launch_check", None) or {}
+    lc = fit1.launch_check or {}
     for c in lc.get("conflicts", []):
         if not c.get("secondary"):
             problems.append(c["message"])

@@ -43,7 +43,7 @@ How a fit is set up and run (each choice with its reason):
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,85 +51,83 @@ from .._threads import single_blas
 from ..drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default_spline_knots, make_drag_model
 from ..dynamics.pointmass import PointMassModel, initial_state
 from ..errors import FitError, InputError
-from .basis import (KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, curvature_weights, rise_regions,
-                    second_difference_rows)
-from .problem import OutputErrorProblem, Prior
-from .start import check_gravity_units, data_start
+from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, rise_regions
+from .launch import checked_launch_priors, launch_state_priors, unseen_launch_priors
+from .ml import MLResult
+from .problem import OutputErrorProblem
+from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
+from .start import DataStart, check_gravity_units, data_start
+
+__all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "cd_grid", "cd_table",
+           "determined_range", "coriolis_of"]
 
 #: relative CRB sd of Cd below which Cd counts as determined by the data
 DETERMINED_REL_SD = 0.01
-#: initial-condition parameters after the drag coefficients (X0, Y0, Z0, Ux0, Uy0, Uz0)
-_N_IC = 6
 #: Student-t degrees of freedom of the robust fit (4: heavy tails, finite variance)
 ROBUST_NU = 4.0
 #: reweighting passes of the robust fit
 ROBUST_ITERATIONS = 6
 #: a sample more than this many noise scales off the robust curve is listed as rejected
 REJECT_K = 5.0
-#: candidate sd of the correction's second derivative, integral (s'')^2 dM ~ 1/sd^2 [Mach^-1.5]
-#: (the penalty weight is 1/sd^2); a 5 % change over 0.05 Mach needs ~20, a 1 % tilt over the
-#: whole flight ~0.05
-SMOOTHING_GRID = tuple(10.0 ** np.arange(-3.0, 3.01, 0.5))
 #: the knots follow the start's shape to no finer than this many times its own noise
 KNOT_NOISE_FACTOR = 2.0
 #: the Mach span of the drag model extends the data's by this much at each end (the fitted
 #: trajectory may reach a little beyond the smoothed speed's extremes)
 SPAN_MARGIN = 0.02
-#: a launch prior that disagrees with the track by more than this many combined sd is dropped
-LAUNCH_CONFLICT_K = 4.0
 
 
-def _initial_state(track, rnd):
-    """State at the first sample read off the track (:func:`bayesdrag.estimate.start.data_start`)."""
-    return data_start(track, rnd).state0
+@dataclass(frozen=True, eq=False)
+class Scheme1Fit:
+    """A Scheme 1 maximum-likelihood fit and what it chose on the way.
+
+    Attributes
+    ----------
+    ml : MLResult
+        The fit: parameters, Cramér-Rao bounds, residuals, convergence.
+    problem : OutputErrorProblem
+        The problem as finally defined (drag model, priors including the chosen smoothness
+        penalty and the launch priors kept, per-sample weights of a robust fit, noise): the
+        posterior samples exactly this problem.
+    start : DataStart
+        What the track said before any fit (:mod:`bayesdrag.estimate.start`).
+    smoothing : dict or None
+        The penalty's choice (sd, edf, evidence over the grid, ``at_grid_end``); None for an
+        unpenalised model.
+    launch_check : dict
+        The launch priors applied, those left out (``conflicts``, with messages) and, for a
+        late track, its state extrapolated back to t = 0.
+    rejected : dict or None
+        Samples a Student-t fit rejected, per channel (None for a Gaussian fit).
+    base : tuple or None
+        ``(table, shape)`` the smoothness penalty is relative to (:func:`build_drag_model`).
+    """
+
+    ml: MLResult
+    problem: OutputErrorProblem
+    start: DataStart
+    smoothing: dict | None
+    launch_check: dict
+    rejected: dict | None = None
+    base: tuple | None = None
+
+    @property
+    def drag_model(self):
+        """The fitted drag model (:class:`~bayesdrag.drag.DragModel`)."""
+        return self.problem.model.drag
+
+    @property
+    def success(self):
+        return self.ml.success
+
+    @property
+    def message(self):
+        return self.ml.message
 
 
-def _coriolis(rnd):
+def coriolis_of(rnd):
+    """Coriolis geometry ``(latitude_deg, azimuth_deg)`` of a round, or None without a latitude."""
     L = rnd.launch
     return (L.latitude_deg, L.azimuth_deg) if L.latitude_deg is not None else None
-
-
-def mach_span(track, rnd, state0=None):
-    """Mach range the track flies, from its smoothed speed and height (``state0`` is ignored;
-    kept for callers of the earlier simulation-based version)."""
-    return data_start(track, rnd).mach_span
-
-
-def launch_state_priors(L, P, heading=False, names=None):
-    """Gaussian priors on the state at launch (t = 0) from a round's ``[launch]`` ``L``, for a
-    parameter vector whose initial state starts at index ``P``: muzzle at the origin
-    (``position_sd`` per axis), launch speed (``velocity_sd``), elevation (``elevation_sd``) and,
-    with ``heading``, a heading along +x with the elevation's sd (the diagnosis); ``names``
-    keeps only the priors of those names.
-
-    The functions take one parameter vector (n,) or many (W, n): the sampler evaluates all
-    walkers at once.
-    """
-    from .problem import Prior
-
-    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., P + k]), 0.0, L.position_sd)
-           for k, n in enumerate(("X0", "Y0", "Z0"))]
-    pri.append(Prior("launch_speed", lambda th: np.sqrt(th[..., P + 3] ** 2 + th[..., P + 4] ** 2
-                                                        + th[..., P + 5] ** 2), L.velocity, L.velocity_sd))
-    pri.append(Prior("elevation", lambda th: np.degrees(np.arctan2(th[..., P + 5], np.hypot(th[..., P + 3],
-                                                                                           th[..., P + 4]))),
-                     L.elevation_deg, L.elevation_sd_deg))
-    if heading:
-        pri.append(Prior("heading", lambda th: np.degrees(np.arctan2(th[..., P + 4], th[..., P + 3])),
-                         0.0, L.elevation_sd_deg))
-    if names is not None:
-        pri = [p for p in pri if p.name in names]
-    return tuple(pri)
-
-
-def launch_priors(track, rnd, P):
-    """The round's launch priors (:func:`launch_state_priors`) when the track starts at the
-    muzzle (t = 0) and the launch is known, else none. They are weak against a full x, y, z, v
-    track but keep a speed-only (Doppler) track's elevation where the gun put it."""
-    L = rnd.launch
-    if abs(float(track.t[0])) > 1e-9 or L.velocity is None or L.elevation_deg is None:
-        return ()
-    return launch_state_priors(L, P)
 
 
 def model_span(span):
@@ -209,7 +207,7 @@ def _free_mask(P, n, chans, free_ic, drag_name, span):
 
 
 @single_blas
-def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
+def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
                 penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None):
     """Scheme 1 ML fit of one track.
 
@@ -239,9 +237,7 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
 
     Returns
     -------
-    (MLResult, OutputErrorProblem)
-        The problem carries ``smoothing`` (dict or None), ``start`` (DataStart), ``launch_check``
-        (dict: the priors used, those left out and why) and ``base`` (the penalty's base curve).
+    Scheme1Fit
     """
     if likelihood not in ("gaussian", "student-t"):
         raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
@@ -261,7 +257,7 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
         s0[:3] = 0.0 if abs(t0) < 1e-9 else s0[:3]
     # launch values the channels cannot see (no z: the muzzle height and the elevation) are
     # priors from the start; the others are checked against the track first
-    unseen = _unseen_launch_priors(track, rnd, chans)
+    unseen = unseen_launch_priors(track, rnd, chans)
     if unseen and abs(t0) < 1e-9 and "z" not in chans:
         s0 = s0.copy()
         s0[2] = 0.0
@@ -269,7 +265,7 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
     # Mach span better than the smoothed speed, whose ends are the least certain part of it
     table = ReferenceTable(tuple(start.mach), tuple(start.cd), source="start curve from the track")
     base_model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ReferenceScale(table),
-                                rnd.atmosphere, coriolis=_coriolis(rnd))
+                                rnd.atmosphere, coriolis=coriolis_of(rnd))
     ic_free = _free_mask(0, 6, chans, free_ic, "", (0, 0))
     state, scale, span_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood,
                                         launch_state_priors(L, 1, names=unseen) if unseen else ())
@@ -289,11 +285,9 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
         # start from a fit whose noise sd is estimated (relaxation inflates it over the
         # outliers instead of bending the curve to them), then reweight
         prob.sigma_fixed = {}
-    prob.start = start
-    prob.base = base
     pen = None
     if base is not None:
-        pen = _penalty(dm, base)
+        pen = penalty(dm, base)
         prob.priors = fixed_pri + pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0]
     # stage B: the full curve without the checked launch priors, then check them against it
     res_b = prob.fit(fallback=True)
@@ -315,31 +309,28 @@ def fit_scheme1(track, rnd, drag="spline", channels=None, sigma=None, free_ic=Tr
         prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans, priors=fixed_pri)
         if likelihood == "student-t":
             prob.sigma_fixed = {}
-        prob.start = start
-        prob.base = base
-        pen = _penalty(dm, base) if base is not None else None
+        pen = penalty(dm, base) if base is not None else None
         if pen is not None:
             prob.priors = fixed_pri + pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0]
         res_b = prob.fit(fallback=True)
         if np.all(np.isfinite(res_b.theta)):
             prob.theta0 = res_b.theta.copy()
-    used, check = _checked_launch_priors(track, rnd, model, res_b, P, skip=unseen)
+    used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen)
     used = fixed_pri + tuple(used)
     if unseen:
         check["applied"] = list(unseen) + check["applied"]
         check["unchecked"] = list(unseen)
-    prob.launch_check = check
+    smoothing = rejected = None
     if pen is not None:
-        res, prob = _fit_penalised(prob, used, P, pen)
+        res, smoothing = fit_penalised(prob, used, P, pen)
     else:
-        prob.smoothing = None
         prob.priors = tuple(used)
         res = prob.fit(fallback=True) if used else res_b
     if likelihood == "student-t":
-        res = robust_refit(prob, res, sigma=sig, nu=nu)
+        res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
     if pen is not None:
-        res = _drop_coefficient_correlations(res, P)
-    return res, prob
+        res = drop_coefficient_correlations(res, P)
+    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base)
 
 
 def _wider_span(dm, res, span):
@@ -352,21 +343,6 @@ def _wider_span(dm, res, span):
     if lo >= k[0] + 0.5 * SPAN_MARGIN and hi <= k[-1] - 0.5 * SPAN_MARGIN:
         return None
     return min(span[0], lo), max(span[1], hi)
-
-
-def _unseen_launch_priors(track, rnd, chans):
-    """Names of the launch priors on quantities the channels do not observe (no ``z``: the
-    muzzle height and the elevation; no ``x``: the muzzle's downrange position): the data
-    cannot check them, so they are applied as given. Empty when no launch priors apply."""
-    L = rnd.launch
-    if abs(float(track.t[0])) > 1e-9 or L.velocity is None or L.elevation_deg is None:
-        return ()
-    out = []
-    if "x" not in chans:
-        out.append("X0_muzzle")
-    if "z" not in chans:
-        out += ["Z0_muzzle", "elevation"]
-    return tuple(out)
 
 
 def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=()):
@@ -390,100 +366,7 @@ def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=()
     return res.theta[1:], float(res.theta[0]), span
 
 
-def _prior_value_sd(prior, theta, cov, steps):
-    """A prior's function at theta and its sd under ``cov`` (delta method)."""
-    v = float(prior.fn(theta))
-    g = np.zeros(theta.size)
-    for j in np.flatnonzero((np.diag(cov) > 0) & (np.asarray(steps) > 0)):
-        tp, tm = theta.copy(), theta.copy()
-        tp[j] += steps[j]
-        tm[j] -= steps[j]
-        g[j] = (float(prior.fn(tp)) - float(prior.fn(tm))) / (2 * steps[j])
-    return v, float(np.sqrt(max(g @ cov @ g, 0.0)))
-
-
-def _checked_launch_priors(track, rnd, model, res, P, skip=()):
-    """The round's launch priors (except those named in ``skip``) that agree with a fit made
-    without them.
-
-    Returns (priors to use, check dict for result.json)."""
-    L = rnd.launch
-    t0 = float(track.t[0])
-    check = {"applied": [], "conflicts": [], "extrapolated": None}
-    if L.velocity is None or L.elevation_deg is None:
-        check["note"] = "no [launch] velocity and elevation: no launch priors"
-        return (), check
-    if abs(t0) > 1e-9:
-        check["note"] = (f"the track starts at t = {t0:g} s: the state is fitted at its first sample "
-                         f"without launch priors")
-        back = model.state_at(res.drag_params, res.state0, t0, 0.0) if np.all(np.isfinite(res.theta)) else None
-        if back is not None:
-            v = float(np.linalg.norm(back[3:]))
-            el = math.degrees(math.atan2(back[5], math.hypot(back[3], back[4])))
-            check["extrapolated"] = {"t": 0.0, "velocity": v, "elevation": el,
-                                     "position": [float(x) for x in back[:3]]}
-            # the extrapolation is only as good as the Cd it assumes above the data's Mach:
-            # a generous sd (1 % of the speed) on top of the round's
-            sd_v = math.hypot(L.velocity_sd, 0.01 * v)
-            if abs(v - L.velocity) > LAUNCH_CONFLICT_K * sd_v:
-                check["conflicts"].append({
-                    "prior": "launch_speed", "round": L.velocity, "track": v, "sd": sd_v,
-                    "message": f"the track extrapolated back to t = 0 left the muzzle at {v:.1f} m/s; "
-                               f"the round says {L.velocity:g} +- {L.velocity_sd:g} m/s"})
-        return (), check
-    cands = [p for p in launch_state_priors(L, P) if p.name not in skip]
-    cov = res.cov_colored if np.all(np.isfinite(res.cov_colored)) else res.cov
-    vals = {}
-    for p in cands:
-        v, sd_fit = _prior_value_sd(p, res.theta, cov, np.r_[np.zeros(P), [0.01] * 3, [0.001] * 3])
-        vals[p.name] = (v, sd_fit)
-    muzzle = [n for n in ("X0_muzzle", "Y0_muzzle", "Z0_muzzle") if n in vals]
-    r0 = math.sqrt(sum(vals[n][0] ** 2 for n in muzzle))
-    pos_conflict = any(abs(vals[n][0]) > LAUNCH_CONFLICT_K * math.hypot(L.position_sd, vals[n][1])
-                       for n in muzzle if vals[n][1] > 0 or True)
-    used = []
-    for p in cands:
-        v, sd_fit = vals[p.name]
-        sd = math.hypot(p.sd, sd_fit)
-        z = (v - p.mean) / sd if sd > 0 else 0.0
-        if pos_conflict or abs(z) > LAUNCH_CONFLICT_K:
-            unit = {"launch_speed": "m/s", "elevation": "deg"}.get(p.name, "m")
-            msg = (f"the round's {p.name.replace('_', ' ')} {p.mean:g} +- {p.sd:g} {unit} disagrees with the "
-                   f"track ({v:.4g} {unit}, {z:+.1f} sd): left out of the fit")
-            if pos_conflict and p.name in muzzle:
-                speed = float(np.linalg.norm(res.state0[3:]))
-                msg = (f"the first sample is {r0:.1f} m from the muzzle at t = {t0:g} s: the track's time origin "
-                       f"is not the launch (it looks about {r0 / max(speed, 1.0):.2f} s late); launch priors "
-                       f"left out; shift t so that t = 0 is the launch to use them")
-            entry = {"prior": p.name, "round": p.mean, "track": v, "sd": sd, "z": z, "message": msg}
-            if pos_conflict and p.name not in muzzle:
-                # left out with the muzzle position (the launch values hold at the launch, which
-                # is not at t = 0): not a finding of its own, one line says it
-                entry["message"] = f"left out with the muzzle position (time origin): {msg}"
-                entry["secondary"] = True
-            check["conflicts"].append(entry)
-        else:
-            used.append(p)
-            check["applied"].append(p.name)
-    # one message for the time origin is enough
-    if pos_conflict:
-        first = next(c for c in check["conflicts"] if c["prior"] in muzzle)
-        check["conflicts"] = [first] + [c for c in check["conflicts"] if c["prior"] not in muzzle]
-        check["time_origin_offset"] = r0 / max(float(np.linalg.norm(res.state0[3:])), 1.0)
-    return tuple(used), check
-
-
-def _drop_coefficient_correlations(res, P):
-    """Neighbouring coefficients of a penalised spline are strongly correlated by design; only
-    correlations that involve an initial condition (e.g. Cd at the top Mach vs Ux0) are news."""
-    drag_names = set(res.names[:P])
-    kept = tuple(w for w in res.warnings
-                 if not (w.startswith("parameters ") and "strongly correlated" in w
-                         and set(w.split()[1:4:2]) <= drag_names))
-    return replace(res, warnings=kept)
-
-
-def robust_refit(prob, res, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERATIONS):
+def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERATIONS):
     """Student-t maximum likelihood by iteratively reweighted least squares.
 
     The t likelihood's EM weights ``w = (nu + 1) / (nu + r^2 / s^2)`` (``s`` the noise scale:
@@ -492,9 +375,13 @@ def robust_refit(prob, res, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERATIO
     weights; this rescales the noise by a constant) and the fit is repeated from the previous
     estimate with the same priors (and smoothing weight) a few times. Samples more than
     :data:`REJECT_K` scales from the curve end with a weight below 0.15: they are listed as
-    rejected in ``prob.rejected`` (channel -> sample indices).
+    rejected (channel -> sample indices). The problem's ``weights`` and ``sigma_fixed`` end at
+    the final ones (the posterior samples the reweighted problem).
 
-    Returns the final MLResult; ``prob.weights`` keeps the weights.
+    Returns
+    -------
+    (MLResult, dict)
+        The final fit and the rejected samples per channel.
     """
     chans = prob.channels
     for _ in range(iterations):
@@ -517,117 +404,9 @@ def robust_refit(prob, res, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERATIO
         if np.all(step <= 1e-3 * np.where(res.crb[res.free] > 0, res.crb[res.free], np.inf)):
             break
     r = np.stack([res.residuals[c] for c in chans], axis=-1)
-    prob.rejected = {c: [int(i) for i in np.flatnonzero(np.abs(r[:, j]) > REJECT_K * scale[j])]
-                     for j, c in enumerate(chans)}
-    return res
-
-
-def _penalty(dm, base):
-    """A function ``sd -> (priors, D, sds)``: the smoothness pseudo-priors of
-    :mod:`bayesdrag.estimate.basis` on the relative correction of ``dm``.
-
-    With a table (:class:`TableSpline`) the coefficients *are* the correction; without one the
-    penalty is on Cd's own second derivative over its typical level (the median of the data's
-    shape): a wiggly start must not become the prior's mean. The weights allow more bending
-    where the table or the data's shape bend.
-    """
-    table, shape = base
-    knots = np.asarray(dm.knots)
-    D = second_difference_rows(knots)
-    if table is not None:
-        w = curvature_weights(knots, table, shape)
-        level = 1.0
-    else:
-        w = curvature_weights(knots, shape)
-        level = float(np.median(shape(np.linspace(knots[0], knots[-1], 200))))
-    Dc = D / level
-    P = dm.n_params
-
-    def priors(sd):
-        sds = sd * w
-        return tuple(Prior(f"smooth{i}", (lambda th, d=d: th[..., :P] @ d), 0.0, float(sds[i]),
-                           row=np.concatenate([d, np.zeros(_N_IC)]))
-                     for i, d in enumerate(Dc)), Dc, sds
-
-    return priors
-
-
-def smoothness_priors(dm, base, sd):
-    """The smoothness pseudo-priors of a penalised Scheme 1 drag model at penalty sd ``sd``
-    (``prob.smoothing["sd"]`` of a fit): a tuple of linear :class:`Prior` on the drag
-    coefficients (the first ``dm.n_params`` parameters). ``base`` is ``prob.base`` of the fit."""
-    return _penalty(dm, base)(sd)[0]
-
-
-def _fit_penalised(prob, base_priors, P, penalty):
-    """Choose the penalty by the Laplace evidence and return the fit at the best one.
-
-    ``sd`` is walked uphill in the Laplace evidence over :data:`SMOOTHING_GRID` from its middle;
-    every fit starts from the previous one. When the best value is at an end of the grid the
-    smoothing record says so (``at_grid_end``): at the stiff end the data ask for no more than
-    a linear (in knot position) correction of the base curve, which with a table means the
-    table's shape fits; at the flexible end the penalty no longer smooths. The choice is
-    recorded in ``prob.smoothing``.
-    """
-    grid = SMOOTHING_GRID
-    cache = {}
-    state = {"theta": prob.theta0.copy()}
-
-    def evaluate(i):
-        if i in cache:
-            return cache[i][0]
-        pen, D, sds = penalty(grid[i])
-        prob.priors = tuple(base_priors) + pen
-        prob.theta0 = state["theta"]
-        res = prob.fit(fallback=True)
-        idx = np.flatnonzero(res.free)
-        ok = np.all(np.isfinite(res.theta)) and np.all(np.isfinite(res.cov))
-        sign, logdet_cov = np.linalg.slogdet(res.cov[np.ix_(idx, idx)]) if ok else (0, 0.0)
-        if sign <= 0:
-            cache[i] = (-np.inf, res, prob.priors, np.nan)
-            return -np.inf
-        # log evidence (+ const): -1/2 chi2_penalised - 1/2 log|F| + 1/2 log|Lambda D'D|_+
-        ev = -0.5 * res.cost + 0.5 * logdet_cov - float(np.sum(np.log(sds)))
-        edf = float(idx.size - np.trace(res.cov[:P, :P] @ (D.T @ (D / sds[:, None] ** 2))))
-        if not res.converged:
-            ev = -np.inf
-        cache[i] = (float(ev), res, prob.priors, edf)
-        if res.converged:
-            state["theta"] = res.theta.copy()
-        return float(ev)
-
-    i = len(grid) // 2
-    best = evaluate(i)
-    for step in (1, -1):
-        moved = False
-        while 0 <= i + step < len(grid):
-            ev = evaluate(i + step)
-            if not ev > best:
-                break
-            i, best, moved = i + step, ev, True
-        if moved:
-            break
-    if not np.isfinite(best):
-        # no smoothing gave a converged fit: the best finite-evidence or the last tried
-        finite = [k for k, v in cache.items() if v[1].success]
-        if finite:
-            i = max(finite, key=lambda k: cache[k][0] if np.isfinite(cache[k][0]) else -1e300)
-    ev, res, pri, edf = cache[i]
-    if not res.success and not any(v[1].success for v in cache.values()):
-        prob.priors = pri
-        prob.smoothing = None
-        return res, prob
-    prob.priors = pri
-    table = [{"sd": float(grid[k]), "log_evidence": v[0], "edf": v[3], "converged": v[1].converged}
-             for k, v in sorted(cache.items())]
-    n_ic = int(res.free[P:].sum())
-    end = "stiff" if i == 0 else ("flexible" if i == len(grid) - 1 else None)
-    prob.smoothing = {"method": "P-spline: integral of the relative correction's second derivative squared, "
-                                "weighted by the base curve's curvature; Laplace evidence",
-                      "base": "table" if isinstance(prob.model.drag, TableSpline) else "start curve from the track",
-                      "sd": float(grid[i]), "edf": edf, "edf_drag": edf - n_ic,
-                      "at_grid_end": end, "fits": len(cache), "grid": table}
-    return res, prob
+    rejected = {c: [int(i) for i in np.flatnonzero(np.abs(r[:, j]) > REJECT_K * scale[j])]
+                for j, c in enumerate(chans)}
+    return res, rejected
 
 
 #: largest Mach step of the result's ``cd`` grid (the kernel's Mach grid: a steep drag rise is

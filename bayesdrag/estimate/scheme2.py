@@ -43,6 +43,7 @@ from ..errors import InputError
 from .problem import OutputErrorProblem
 from .noise import noise_and_outliers
 from .quality import assess_window
+from .scheme1 import coriolis_of
 from .start import data_start
 
 #: fewest samples a window may have (7 free parameters, >= 4 samples per parameter per channel)
@@ -227,10 +228,8 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
         smooth = max(window | 1, 4 * polyorder + 1)
     if smooth <= polyorder + 1:
         raise InputError(f"Scheme 2: smoothing block of {smooth} samples is too short for order {polyorder}")
-    from .scheme1 import _coriolis
-
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, Constant(), rnd.atmosphere,
-                           coriolis=_coriolis(rnd))
+                           coriolis=coriolis_of(rnd))
     ref = rnd.reference_drag
     sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
     positions = [track.channels.get(c) for c in ("x", "y", "z")]

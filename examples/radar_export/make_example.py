@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesdrag.simulate import simulate_round
+from bayesdrag.synthetic import simulate_round
 from bayesdrag.io.rounds import read_round
 
 HERE = Path(__file__).resolve().parent

@@ -46,7 +46,8 @@ def check(bullet, write=True):
     d = HERE / bullet
     track, rnd = read_track(d / "track.csv"), read_round(d / "round.toml")
     ref = rnd.reference_drag
-    res, _ = fit_scheme1(track, rnd, drag="reference-scale")
+    f1 = fit_scheme1(track, rnd, drag="reference-scale")
+    res = f1.ml
     factor = float(res.params["factor"])
     thin = dataclasses.replace(rnd, atmosphere=dataclasses.replace(rnd.atmosphere, density_ratio=factor))
     if write:
@@ -58,7 +59,8 @@ def check(bullet, write=True):
     curves = []
     for drag, knots in FITS:
         for ch in CHANNELS:
-            r, prob = fit_scheme1(track, thin, drag=drag, channels=ch, knots=knots)
+            f1 = fit_scheme1(track, thin, drag=drag, channels=ch, knots=knots)
+            r, prob = f1.ml, f1.problem
             lo, hi, rows = _errors(r, prob, ref)
             err = [100 * (row["ml"] / row["reference"] - 1) for row in rows]
             out["fits"].append({"drag": drag, "channels": ",".join(ch), "converged": bool(r.converged),

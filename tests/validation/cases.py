@@ -27,7 +27,7 @@ import numpy as np
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
-from bayesdrag.simulate import add_noise, add_outliers
+from bayesdrag.synthetic import add_noise, add_outliers
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 

@@ -15,7 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
+from ..io.outputs import write_figure
+from .fit import run_fit
+from .options import FitOptions
+
+__all__ = ["demo_inputs", "run_demo"]
 
 
 def demo_inputs():
@@ -31,17 +36,13 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     outputs (``result.json``, ``posterior.nc``, ``chain.h5``, figures, ``report.html``) and
     ``summary.json`` into ``outdir`` (created if needed) and returns the summary dict.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .dynamics.pointmass import PointMassModel, initial_state
-    from .plots.track import plot_differences, plot_track
-    from .plots.cd import plot_drag_curve
-    from .track import RadarTrack
-    from .io.rounds import read_round
-    from .io.tracks import read_track
+    from ..dynamics.pointmass import PointMassModel, initial_state
+    from ..io.rounds import read_round
+    from ..io.tracks import read_track
+    from ..plots.cd import plot_cd_ml, plot_drag_curve
+    from ..plots.residuals import plot_residuals
+    from ..plots.track import plot_differences, plot_track
+    from ..track import RadarTrack
 
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
@@ -62,50 +63,31 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     fig = plot_track(track, label="radar track (6-DOF + noise)", style=".")
     plot_track(sim_track, fig=fig, label="point mass, M101 drag")
     fig.suptitle("bayesdrag demo: paper Table 1 shell, 818 m/s, QE 15 deg")
-    fig.savefig(outdir / "track_vs_pointmass.png", dpi=110)
-    plt.close(fig)
+    write_figure(outdir / "track_vs_pointmass.png", fig)
     ax = plot_differences(track.t, diffs, title="radar track minus point-mass simulation")
-    ax.figure.savefig(outdir / "differences.png", dpi=110)
-    plt.close(ax.figure)
+    write_figure(outdir / "differences.png", ax.figure)
     m = np.linspace(0.5, 2.6, 400)
     ax = plot_drag_curve(m, rnd.reference_drag.value(m), label="M101 (BRL MR-1167)")
     mach = sim.mach
     ax.axvspan(mach.min(), mach.max(), color="C1", alpha=0.15, label="Mach range of the flight")
     ax.legend(fontsize="small")
-    ax.figure.savefig(outdir / "reference_cd.png", dpi=110)
-    plt.close(ax.figure)
+    write_figure(outdir / "reference_cd.png", ax.figure)
 
     # the whole fit pipeline (ML + emcee + report), as `bayesdrag fit` runs it
-    from types import SimpleNamespace
-
-    from .fitting import run_fit
-
-    args = SimpleNamespace(track=str(track_path), round=str(round_path), output=str(outdir), scheme=1,
-                           drag="spline", channels=None, no_mcmc=False, fix_ic=False, seed=seed,
-                           resume=(outdir / "chain.partial.h5").exists(), quiet=quiet, walkers=None,
-                           max_steps=20000,
-                           likelihood="gaussian", nu="4")
-    kept = {}
-    run_fit(args, echo=lambda *a: None, on_fit=lambda **kw: kept.update(kw))
-    with open(outdir / "result.json") as fh:
-        result = json.load(fh)
+    fitted = run_fit(track_path, round_path, outdir, FitOptions(seed=seed),
+                     resume=(outdir / "chain.partial.h5").exists(), quiet=quiet, echo=lambda *a: None)
+    result = fitted.to_dict()
     det = result["ml"]["mach_range_determined"]
     rows = result["cd"]
     in_range = [r for r in rows if det and det[0] <= r["mach"] <= det[1]]
     worst = max(abs(r["mean"] / r["reference"] - 1) for r in in_range) if in_range else None
     worst_ml = max(abs(r["ml"] / r["reference"] - 1) for r in in_range) if in_range else None
     # the ML figures of the earlier demo (kept: users and tests know them)
-    from .plots.cd import plot_cd_ml
-    from .plots.residuals import plot_residuals
-
-    res = kept["res"]
+    res = fitted.ml
     ax = plot_cd_ml(rows, label="ML, spline (from the 6-DOF track)")
     ax.set_title("Cd from the shipped 6-DOF track vs the M101 firing table (ML)")
-    ax.figure.savefig(outdir / "cd_ml.png", dpi=110)
-    plt.close(ax.figure)
-    fig = plot_residuals(track.t, res.residuals, res.sigma)
-    fig.savefig(outdir / "residuals_ml.png", dpi=110)
-    plt.close(fig)
+    write_figure(outdir / "cd_ml.png", ax.figure)
+    write_figure(outdir / "residuals_ml.png", plot_residuals(track.t, res.residuals, res.sigma))
     summary = {
         "track": str(track_path), "round": str(round_path), "samples": track.n,
         "rms_track_minus_pointmass": rms, "final_track_minus_pointmass": final,

@@ -5,8 +5,7 @@ Decisions written down:
 
 * **One task per round** (:func:`round_task`): it reads the round's files itself, runs the
   jobs (``fit``: the same pipeline and outputs as ``bayesdrag fit`` for one round, through
-  :func:`bayesdrag.fitting.run_fit`; ``diagnose``: :func:`bayesdrag.diagnose.diagnose` and
-  :func:`bayesdrag.diagnose_report.write_diagnosis`) into ``DIR/<name>/`` and returns a small
+  :func:`bayesdrag.commands.fit.run_fit`; ``diagnose``: :func:`bayesdrag.commands.diagnose.run_diagnose`) into ``DIR/<name>/`` and returns a small
   dict (status, seconds, message). Nothing big crosses the scheduler: the campaign pooling
   reads each round's ``pooling.json`` (Cd and its covariance on the campaign nodes, a few kB).
 * **Done means a marker**: a job is finished when ``DIR/<name>/done.<job>.json`` exists. It is
@@ -28,7 +27,6 @@ Decisions written down:
 """
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -36,12 +34,11 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import InputError
+from ..errors import InputError
+from ..io.outputs import ensure_output_dir, write_json
+from .options import JOBS, FitOptions
 
-JOBS = ("fit", "diagnose")
-#: options of ``fit`` that change its results (part of the done-marker fingerprint)
-FIT_OPTIONS = ("scheme", "drag", "channels", "no_mcmc", "fix_ic", "seed", "walkers", "max_steps",
-               "likelihood", "nu")
+__all__ = ["run_campaign", "round_task", "pool_campaign", "summarise", "fingerprint", "job_done"]
 #: environment of every worker process: one thread per numeric library
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
               "MKL_NUM_THREADS": "1"}
@@ -65,7 +62,7 @@ def fingerprint(track, round_path, job, options):
     """Fingerprint of a job's inputs: file hashes (track, round, reference drag, met profile)
     and the options that change its results. Paths are not part of it (moving a campaign
     folder keeps its results valid)."""
-    from .io.rounds import read_round
+    from ..io.rounds import read_round
 
     files = {"track": _sha256(track), "round": _sha256(round_path)}
     try:
@@ -79,7 +76,7 @@ def fingerprint(track, round_path, job, options):
         prof = getattr(rnd.atmosphere, "source", "")
         if prof and Path(prof).is_file():
             files["met_profile"] = _sha256(prof)
-    opts = {k: options.get(k) for k in FIT_OPTIONS} if job == "fit" else {}
+    opts = options.to_dict() if job == "fit" else {}
     return {"job": job, "files": files, "options": opts}
 
 
@@ -94,54 +91,28 @@ def job_done(outdir, job, fp):
         return False
 
 
-def _fit_namespace(track, round_path, outdir, options):
-    ns = argparse.Namespace(scheme=1, drag="spline", channels=None, no_mcmc=False, fix_ic=False, seed=None,
-                            resume=False, quiet=True, walkers=None, max_steps=20000, likelihood="gaussian",
-                            nu="4")
-    for k, v in options.items():
-        setattr(ns, k, v)
-    ns.track, ns.round, ns.output, ns.quiet = str(track), str(round_path), str(outdir), True
-    # a round killed while sampling left its chain: continue it (run_fit refuses to start over it;
-    # the sampler checks the chain belongs to the same problem, walkers, moves and seed)
-    ns.resume = (Path(outdir) / "chain.partial.h5").exists()
-    return ns
-
-
 def run_fit_job(track, round_path, outdir, options, covariance="colored"):
-    """The ``fit`` job of one round: :func:`bayesdrag.fitting.run_fit` into ``outdir`` plus
-    ``pooling.json`` (:func:`bayesdrag.campaign.pooling_input`). Returns a message."""
-    from .campaign.pooling import pooling_input
-    from .fitting import run_fit
-    from .io.outputs import write_json
+    """The ``fit`` job of one round: :func:`bayesdrag.commands.fit.run_fit` into ``outdir`` plus
+    ``pooling.json`` (:func:`bayesdrag.campaign.pooling.pooling_input`, Scheme 1 only). A round
+    killed while sampling left its chain: it is continued (the sampler checks the chain belongs
+    to the same problem, walkers, moves and seed). Returns a message."""
+    from ..campaign.pooling import pooling_input
+    from .fit import run_fit
 
-    kept = {}
-
-    def keep(res, prob, rnd, track, result):
-        kept["input"] = pooling_input(res, prob.model.drag, rnd.reference_drag, covariance=covariance,
-                                      name=Path(outdir).name)
-        kept["message"] = res.message
-
-    lines = []
-    run_fit(_fit_namespace(track, round_path, outdir, options), echo=lines.append, on_fit=keep)
-    write_json(Path(outdir) / POOLING, kept["input"])
-    return kept["message"]
+    resume = (Path(outdir) / "chain.partial.h5").exists()
+    result = run_fit(track, round_path, outdir, options, resume=resume, quiet=True, echo=lambda *a: None)
+    if result.scheme1 is not None:
+        write_json(Path(outdir) / POOLING, pooling_input(result.ml, result.scheme1.drag_model,
+                                                         result.round.reference_drag, covariance=covariance,
+                                                         name=Path(outdir).name))
+    return result.message
 
 
 def run_diagnose_job(track, round_path, outdir):
     """The ``diagnose`` job of one round (as ``bayesdrag diagnose``). Returns the verdict text."""
-    from .diagnose import diagnose
-    from .diagnose_report import write_diagnosis
-    from .io.rounds import read_round
-    from .io.tracks import read_track
+    from .diagnose import run_diagnose
 
-    tr = read_track(track)
-    rnd = read_round(round_path)
-    from .diagnose import MIN_DIAGNOSIS_SAMPLES
-
-    if tr.n < MIN_DIAGNOSIS_SAMPLES:
-        raise InputError(f"{track}: {tr.n} samples are too few for a diagnosis (need >= {MIN_DIAGNOSIS_SAMPLES})")
-    d = diagnose(tr, rnd)
-    write_diagnosis(outdir, d, track_name=str(track), round_name=str(round_path))
+    d = run_diagnose(track, round_path, outdir, quiet=True, echo=lambda *a: None)
     return f"verdict {d.summary['verdict'] or 'none'}"
 
 
@@ -156,8 +127,7 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
     outdir : str
         ``DIR/<name>``; created.
     jobs : sequence of {"fit", "diagnose"}
-    options : dict
-        ``fit`` options (attributes of the ``fit`` command line).
+    options : FitOptions
     covariance : {"colored", "crb"}
         Stage-1 covariance kept for pooling.
 
@@ -168,12 +138,7 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
         (done jobs also ``cpu_seconds``: CPU time of the worker process, to tell contention apart),
         ``pid`` (the worker process).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from .io.outputs import ensure_output_dir, write_json
-
-    options = dict(options or {})
+    options = options if options is not None else FitOptions()
     report = {"name": name, "jobs": {}, "pid": os.getpid()}
     try:
         out = ensure_output_dir(outdir)
@@ -237,7 +202,7 @@ class _Dask:
             try:
                 client = Client(self.scheduler, timeout="20s")
             except (OSError, TimeoutError) as exc:
-                raise InputError(f"command line: --scheduler {self.scheduler}: cannot connect ({exc})") from None
+                raise InputError(f"Dask scheduler {self.scheduler}: cannot connect ({exc})") from None
         else:
             cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
                                    dashboard_address=None, env=dict(WORKER_ENV),
@@ -267,13 +232,12 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
     Parameters
     ----------
     campaign_path : path
-        Campaign TOML (:func:`bayesdrag.campaign.read_campaign`).
+        Campaign TOML (:func:`bayesdrag.io.campaign.read_campaign`).
     output : path
         ``DIR``: rounds go to ``DIR/<name>/``, the campaign to ``DIR/campaign.json``,
         ``campaign.html`` and figures.
     jobs : sequence of {"fit", "diagnose"}
-    options : dict
-        ``fit`` options.
+    options : FitOptions
     executor : {"dask", "sequential"}
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``); default a LocalCluster.
@@ -295,15 +259,14 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
     """
     from tqdm import tqdm
 
-    from .io.campaign import read_campaign
-    from .io.outputs import ensure_output_dir
+    from ..io.campaign import read_campaign
 
     bad = [j for j in jobs if j not in JOBS]
     if bad or not jobs:
-        raise InputError(f"command line: --jobs {','.join(jobs)!r}: allowed jobs are {', '.join(JOBS)}")
+        raise InputError(f"jobs {','.join(jobs)!r} are not allowed; use a non-empty subset of {', '.join(JOBS)}")
     camp = read_campaign(campaign_path)
     out = ensure_output_dir(output)
-    options = dict(options or {})
+    options = options if options is not None else FitOptions()
     calls = [dict(name=r.name, track=str(r.track), round_path=str(r.round), outdir=str(out / r.name),
                   jobs=tuple(jobs), options=options, covariance=covariance) for r in camp.rounds]
     ex = _Sequential() if executor == "sequential" else _Dask(scheduler, workers)
@@ -332,8 +295,8 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print):
     round was fitted."""
     import numpy as np
 
-    from .campaign.pooling import campaign_json, pool_rounds
-    from .report.campaign import write_campaign_report
+    from ..campaign.pooling import campaign_json, pool_rounds
+    from ..report.campaign import write_campaign_report
 
     inputs = []
     for r in camp.rounds:
@@ -353,42 +316,7 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print):
     return doc
 
 
-# ----------------------------------------------------------------------------------------------
-# command line
-def add_batch_parser(sub, helpers):
-    """Register ``bayesdrag batch`` on the CLI's subparsers. ``helpers``: the CLI's argument
-    type functions (``seed``, ``walkers``, ``nu``)."""
-    b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
-    b.add_argument("campaign", help="campaign file (TOML)")
-    b.add_argument("-o", "--output", required=True, help="output folder")
-    b.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="address of a running Dask scheduler (default: a local cluster)")
-    b.add_argument("--workers", type=helpers["walkers"], default=None,
-                   help="local cluster worker processes (default: the number of CPUs, at most the rounds)")
-    b.add_argument("--jobs", default="fit", help="comma-separated jobs per round among fit,diagnose (default fit)")
-    b.add_argument("--drag", choices=("poly2", "poly2-split", "spline", "reference-scale"), default="spline")
-    b.add_argument("--channels", default=None, help="comma-separated subset of the tracks' x,y,z,v")
-    b.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (no posterior sampling)")
-    b.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at the launch values")
-    b.add_argument("--seed", type=helpers["seed"], default=None, help="seed of each round's sampler and of the pooling")
-    b.add_argument("--covariance", choices=("colored", "crb"), default="colored",
-                   help="round covariance pooled: colored-residual corrected (default) or plain CRB")
-    b.add_argument("--quiet", action="store_true", help="no progress bar")
-    return b
-
-
-def cmd_batch(args):
-    """``bayesdrag batch``; returns the exit status (1 when a round failed)."""
-    jobs = tuple(j.strip() for j in args.jobs.split(",") if j.strip())
-    workers = args.workers or max(1, min(os.cpu_count() or 1, 64))
-    options = {k: getattr(args, k) for k in ("drag", "channels", "no_mcmc", "fix_ic", "seed")}
-    res = run_campaign(args.campaign, args.output, jobs=jobs, options=options, executor="dask",
-                       scheduler=args.scheduler, workers=workers, covariance=args.covariance, quiet=args.quiet,
-                       pool_seed=args.seed or 0)
-    return _summarise(res)
-
-
-def _summarise(res, echo=print):
+def summarise(res, echo=print):
     done = sum(1 for r in res["reports"] for v in r["jobs"].values() if v["status"] == "done")
     skipped = sum(1 for r in res["reports"] for v in r["jobs"].values() if v["status"] == "skipped")
     echo(f"batch: {len(res['reports'])} rounds, {done} jobs run, {skipped} skipped (done earlier), "
@@ -396,13 +324,3 @@ def _summarise(res, echo=print):
     for f in res["failed"]:
         print(f"bayesdrag: round {f['name']} ({f['job']}) failed: {f['message']}", file=sys.stderr)
     return 1 if res["failed"] else 0
-
-
-def run_campaign_fit(args):
-    """``bayesdrag fit CAMPAIGN.toml -o DIR [fit options]``: every round fitted in this process,
-    one after the other, then pooled. Finished rounds are skipped as in ``batch``."""
-    options = {k: getattr(args, k) for k in FIT_OPTIONS if hasattr(args, k)}
-    res = run_campaign(args.track, args.output, jobs=("fit",), options=options, executor="sequential",
-                       covariance=getattr(args, "covariance", "colored"), quiet=getattr(args, "quiet", False),
-                       pool_seed=getattr(args, "seed", None) or 0)
-    return _summarise(res)

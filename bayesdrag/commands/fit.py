@@ -1,0 +1,322 @@
+"""The fit: a track and a round in, a :class:`~bayesdrag.results.FitResult` out.
+
+:func:`fit` is the Python API (``bayesdrag.fit``): no files read or written except the sampler's
+chain file when one is named. :func:`run_fit` is the ``bayesdrag fit`` command: it reads the files,
+calls :func:`fit` and writes the output folder. Scheme 1 (Cd(M) over the whole flight, the
+default) and Scheme 2 (a constant Cd per window) share both.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FitError, InputError
+from ..estimate.quality import assess, check_against_flexible, intervals
+from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1
+from ..estimate.scheme2 import fit_scheme2, windows_table
+from ..results import CHAIN, PARTIAL, FitResult
+from .options import FitOptions
+
+__all__ = ["fit", "run_fit", "summary_line"]
+
+
+def _echo_err(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, progress=False, **kwargs):
+    """Estimate Cd(M) from a track.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    options : FitOptions, optional
+        Everything that changes the result (default :class:`FitOptions`); keyword arguments
+        (``mcmc=False``, ``drag="poly2"``, ...) override single fields.
+    chain_path : path, optional
+        Scheme 1 with sampling: write the emcee chain to this HDF5 file as it runs (a killed run
+        can then be resumed).
+    resume : bool
+        Continue the unfinished chain in ``chain_path``.
+    log : callable, optional
+        ``log(str)`` receives status lines of long work (the sampler's progress).
+    progress : bool
+        Show a progress bar on stderr while sampling.
+
+    Returns
+    -------
+    FitResult
+        Frozen; ``to_dict()`` is the content of ``result.json``.
+
+    Raises
+    ------
+    InputError
+        Options or inputs that do not fit together (a channel the track lacks).
+    FitError
+        No solution: the message says why.
+    """
+    t_start = time.perf_counter()
+    opts = options if options is not None else FitOptions()
+    if kwargs:
+        opts = FitOptions(**{**opts.to_dict(), **kwargs})
+    chans = opts.channels
+    if chans is not None:
+        missing = [c for c in chans if c not in track.names]
+        if missing:
+            raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
+                             f"track (it has {', '.join(track.names)})")
+    if opts.scheme == 2:
+        return _fit_scheme2(track, rnd, opts, chans, log, t_start)
+    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start)
+
+
+def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start):
+    f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
+                     likelihood=opts.likelihood, nu=opts.ml_nu)
+    res = f1.ml
+    if not res.success:
+        raise FitError(f"{track.source or 'track'}: {res.message}")
+    dm = f1.drag_model
+    lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
+    grid = cd_grid(lo, hi)
+    rows = cd_table(res, dm, grid, rnd.reference_drag)
+    quality = assess(f1, rows, track, rnd.radar.sigma)
+    if dm.name != "spline":
+        # a rigid model's band holds no shape error: check its curve against the flexible fit
+        ff = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not opts.fix_ic,
+                         likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start)
+        if ff.success:
+            rows_f = cd_table(ff.ml, ff.drag_model, grid, rnd.reference_drag)
+            assess(ff, rows_f, track, rnd.radar.sigma)
+            check_against_flexible(rows, rows_f, quality, dm.name)
+    summary = _ml_summary(f1, rows, quality, lo, hi, opts)
+    warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
+    bayes = post = None
+    if opts.mcmc:
+        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress)
+        summary["cd"] = rows
+        summary["posterior"] = _posterior_json(bayes)
+        summary["mcmc"] = _mcmc_json(bayes, post)
+        warnings += list(bayes.warnings)
+        info = [r for r in rows if r["crb_sd"] > 0 and r["ml"] > 0 and r["crb_sd"] / r["ml"] < 0.01]
+        ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
+        if ratios:
+            summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
+    return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
+                     log_posterior=post, grid=grid, warnings=tuple(warnings),
+                     seconds=time.perf_counter() - t_start)
+
+
+def _ml_summary(f1, rows, quality, lo, hi, opts):
+    """The ``scheme``, ``drag_model``, ``ml`` and ``cd`` parts of result.json."""
+    res = f1.ml
+    det = determined_range(rows)
+    free = [n for n, f in zip(res.names, res.free) if f]
+    smoothing = None
+    if f1.smoothing:
+        smoothing = {k: v for k, v in f1.smoothing.items() if isinstance(v, (int, float, str))}
+    return {
+        "scheme": 1, "drag_model": f1.drag_model.name,
+        "ml": {"params": res.params,
+               "crb": {n: float(s) for n, s, f in zip(res.names, res.crb, res.free) if f},
+               "crb_colored": {n: float(s) for n, s, f in zip(res.names, res.crb_colored, res.free) if f},
+               "fixed": [n for n in res.names if n not in free],
+               "converged": res.converged, "iterations": res.iterations, "cost": res.cost,
+               "message": res.message, "sigma": res.sigma,
+               "rms": {c: float(np.sqrt(np.mean(r**2))) for c, r in res.residuals.items()},
+               "warnings": list(res.warnings),
+               "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None,
+               "likelihood": opts.likelihood, "rejected_samples": f1.rejected, "smoothing": smoothing,
+               "quality": quality},
+        "cd": rows,
+    }
+
+
+def _sample(f1, rows, grid, opts, chain_path, resume, log, progress):
+    from ..estimate.posterior import LogPosterior
+    from ..estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior
+
+    post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu)
+    walkers = opts.walkers
+    if opts.moves != "auto" and walkers is None:
+        walkers = 2 * post.ndim + 2
+    bayes = sample_posterior(post, nwalkers=walkers, moves=opts.moves, max_steps=opts.max_steps, seed=opts.seed,
+                             backend_path=chain_path, resume=bool(resume and chain_path and Path(chain_path).exists()),
+                             progress=progress, log=log)
+    cd = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
+    return bayes, post, cd_posterior_rows(rows, cd)
+
+
+def _posterior_json(b):
+    s = b.summary
+    col = lambda k: {n: float(v) for n, v in zip(s.index, s[k])}  # noqa: E731
+    return {"mean": col("mean"), "sd": col("sd"), "r_hat": col("r_hat"), "ess_bulk": col("ess_bulk"),
+            "ess_tail": col("ess_tail"), "q05": col("q05"), "q95": col("q95")}
+
+
+def _mcmc_json(b, post):
+    def sig(c):
+        x = b.draws[..., b.names.index(f"log_sigma_{c}")]
+        return {"median": float(np.exp(np.median(x))), "q05": float(np.exp(np.quantile(x, 0.05))),
+                "q95": float(np.exp(np.quantile(x, 0.95)))}
+
+    return {"converged": b.converged, "message": b.message, "steps": b.steps, "burn": b.burn,
+            "thin": b.thin, "walkers": b.nwalkers, "draws": int(b.draws.shape[0] * b.draws.shape[1]),
+            "tau_max": float(np.max(b.tau)), "tau_mean": float(np.mean(b.tau)),
+            "acceptance": b.acceptance, "moves": b.moves, "likelihood": b.likelihood,
+            "nu": post.nu, "resumed_from": b.resumed_from, "seconds": round(b.elapsed, 3),
+            "sigma": {c: sig(c) for c in post.channels}}
+
+
+def _fit_scheme2(track, rnd, opts, chans, log, t_start):
+    """Scheme 2: ML per window, then (with sampling) the same posterior in each window (Cd,
+    initial state, noise). Windows are sampled one after the other: each window's batch already
+    runs on both cores (numba threads); a process pool would only add start-up and contention on
+    a 2-core machine. Scheme 2 chains are kept in memory (one window takes a few seconds)."""
+    from ..estimate.posterior import LogPosterior
+    from ..estimate.sampler import sample_posterior
+
+    r2 = fit_scheme2(track, rnd, window=opts.window, overlap=opts.overlap, channels=chans, free_ic=not opts.fix_ic)
+    ok = [k for k, r in enumerate(r2.results) if r.success]
+    if not ok:
+        raise FitError(f"{track.source or 'track'}: no Scheme 2 window converged ({r2.results[0].message})")
+    rows = windows_table(r2)
+    warnings = [f"window {k} ({rows[k]['t_start']:.2f}-{rows[k]['t_end']:.2f} s): {r2.results[k].message}"
+                for k in range(len(rows)) if k not in ok]
+    draws = {}
+    if opts.mcmc:
+        for k in ok:
+            post = LogPosterior(r2.problems[k], r2.results[k])
+            b = sample_posterior(post, nwalkers=opts.walkers, max_steps=opts.max_steps,
+                                 seed=None if opts.seed is None else opts.seed + k)
+            cd = b.draws[..., 0]
+            flat = cd.reshape(-1)
+            q = np.quantile(flat, [0.05, 0.5, 0.95])
+            rows[k].update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
+                           q95=float(q[2]),
+                           sd_over_crb=float(flat.std(ddof=1) / rows[k]["crb_sd"]) if rows[k]["crb_sd"] else None,
+                           r_hat_max=float(b.summary["r_hat"].max()), ess_bulk_min=float(b.summary["ess_bulk"].min()),
+                           mcmc_converged=b.converged, steps=b.steps)
+            draws[k] = cd
+            if not b.converged:
+                warnings.append(f"window {k}: {b.message}")
+            if log:
+                log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
+    mach = np.array([w["mach"] for w in rows])
+    lo, hi = float(min(w["mach_min"] for w in rows)), float(max(w["mach_max"] for w in rows))
+    grid = np.round(np.linspace(lo, hi, 81), 4)
+    cd_rows, quality = _stitched_rows(rows, ok, mach, grid, rnd, bool(draws))
+    warnings += quality["problems"]
+    summary = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
+               "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
+                      "windows": len(rows), "notes": list(r2.notes), "quality": quality},
+               "cd": cd_rows, "windows": rows}
+    if draws:
+        summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
+                           "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
+    return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme2=r2,
+                     window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
+                     seconds=time.perf_counter() - t_start)
+
+
+def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
+    """Scheme 2's ``cd`` rows on a Mach grid through the windows, and its ``ml.quality``: a grid
+    point is determined when the windows on both sides of it are."""
+    order = np.argsort(mach[ok])
+    mk = mach[ok][order]
+
+    def interp(key):
+        v = np.array([rows[k][key] for k in ok], float)[order]
+        return np.interp(grid, mk, v)
+
+    cols = {key: interp(key) for key in ("ml", "crb_sd", "band_sd") + (("mean", "q05", "q95") if sampled else ())}
+    det_w = np.array([rows[k]["determined"] for k in ok], bool)[order]
+    j_hi = np.clip(np.searchsorted(mk, grid), 0, len(mk) - 1)
+    j_lo = np.clip(j_hi - 1, 0, len(mk) - 1)
+    inside = (grid >= mk[0]) & (grid <= mk[-1])
+    cd_rows = []
+    for i, m in enumerate(grid):
+        r = {key: float(v[i]) for key, v in cols.items()}
+        r["mach"] = float(m)
+        r["determined"] = bool(inside[i] and det_w[j_lo[i]] and det_w[j_hi[i]])
+        r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
+        cd_rows.append(r)
+    problems = [f"window {k} (Mach {rows[k]['mach']:.2f}): {p}" for k in ok for p in rows[k]["quality"]["problems"]]
+    quality = {"ok": not problems and len(ok) == len(rows),
+               "undetermined": intervals(grid, ~np.array([r["determined"] for r in cd_rows])),
+               "windows_determined": int(det_w.sum()), "problems": problems}
+    return cd_rows, quality
+
+
+def summary_line(result):
+    """The one-line outcome the command prints (converged, determined range, caveat)."""
+    s = result.summary
+    if s["scheme"] == 2:
+        m = s["ml"]
+        lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]
+        return (f"fit (Scheme 2): {m['windows_converged']}/{m['windows']} windows of {s['window']} samples "
+                f"converged, Mach {lo:.2f}-{hi:.2f}")
+    ml = s["ml"]
+    det = ml["mach_range_determined"]
+    caveat = "" if ml["quality"]["ok"] else " -- NOT a clean answer: the model misses the track (warnings above)"
+    head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}"
+            if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
+    return head + caveat
+
+
+def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print):
+    """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
+
+    Outputs (DESIGN.md): ``result.json``, ``report.html`` and figures; with sampling also
+    ``posterior.nc`` (ArviZ) and ``chain.h5`` (the emcee chain). While sampling, the chain is
+    written to ``chain.partial.h5``; ``resume`` continues it after a kill, and it becomes
+    ``chain.h5`` when the run finishes. A fresh run refuses to start over an unfinished chain (it
+    would destroy it): resume it or delete it.
+
+    Returns
+    -------
+    FitResult
+    """
+    from ..io.rounds import read_round
+    from ..io.tracks import read_track
+
+    opts = options if options is not None else FitOptions()
+    track = read_track(track_path)
+    rnd = read_round(round_path)
+    if not quiet:
+        for note in track.notes:
+            _echo_err(f"bayesdrag: note: {note}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: output path exists and is not a folder")
+    partial = out / PARTIAL
+    sampling = opts.mcmc and opts.scheme == 1
+    if sampling and partial.exists() and not resume:
+        raise InputError(f"{partial}: an unfinished chain from an earlier run is there; resume it (fit --resume) "
+                         f"or delete the file to start afresh")
+    if resume and sampling and not partial.exists() and not quiet:
+        _echo_err(f"bayesdrag: note: --resume: no unfinished chain in {out}; starting afresh")
+    out.mkdir(parents=True, exist_ok=True)
+    show_bar = (not quiet) and sys.stderr.isatty()
+    log = None if (quiet or show_bar) else _echo_err
+    result = fit(track, rnd, opts, chain_path=partial if sampling else None, resume=resume, log=log,
+                 progress=show_bar)
+    written = result.write(out, sources={"track": str(track_path), "round": str(round_path)})
+    if not quiet:
+        for w in result.warnings:
+            _echo_err(f"bayesdrag: warning: {w}")
+    echo(summary_line(result))
+    if result.posterior is not None:
+        b = result.posterior
+        echo(f"mcmc: {b.message}; {b.steps} steps x {b.nwalkers} walkers in {b.elapsed:.1f} s")
+    echo(f"  wrote {out / 'result.json'}, " + ", ".join(p.name for p in written if p.name != "result.json"))
+    return result
+
+
+def _finite(x):
+    return x is not None and math.isfinite(x)

@@ -1,0 +1,226 @@
+"""Every option of every command with its default, written once.
+
+The command line (:mod:`bayesdrag.cli`) builds these from its flags, the Python API
+(:func:`bayesdrag.fit`, ...) from keyword arguments, the batch runner from a campaign's settings;
+nothing else holds a default. Construction checks each value and raises
+:class:`~bayesdrag.errors.InputError` naming the option, what was given and what is allowed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+from ..drag import DRAG_MODEL_NAMES
+from ..errors import InputError
+from ..track import CHANNELS
+
+__all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "LIKELIHOODS", "MOVES",
+           "SIMULATION_MODELS", "JOBS"]
+
+#: noise models of the likelihood
+LIKELIHOODS = ("gaussian", "student-t")
+#: emcee move sets (auto: independence proposal from the ML fit + a local move)
+MOVES = ("auto", "de", "stretch")
+#: trajectory models of ``simulate``
+SIMULATION_MODELS = ("pointmass", "6dof")
+#: jobs a batch runs per round
+JOBS = ("fit", "diagnose")
+#: the Student-t likelihood's default degrees of freedom (heavy tails, finite variance)
+DEFAULT_NU = 4.0
+
+
+def _bad(name, value, allowed):
+    raise InputError(f"option {name} = {value!r} is not allowed; {allowed}")
+
+
+def _int(name, value, minimum):
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        _bad(name, value, f"use an integer >= {minimum}")
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Options of a fit (``bayesdrag fit``, :func:`bayesdrag.fit`).
+
+    Attributes
+    ----------
+    scheme : {1, 2}
+        1: Cd(M) over the whole flight (default); 2: a constant Cd per window.
+    drag : str
+        Scheme 1 drag model: ``spline`` (default: the only one that follows any transonic
+        rise; with a firing table it is the table times a smooth correction), ``poly2``,
+        ``poly2-split``, ``reference-scale``.
+    channels : tuple of str or None
+        Subset of the track's x, y, z, v (default all it has).
+    mcmc : bool
+        Sample the posterior with emcee after the ML fit (default True).
+    fix_ic : bool
+        Keep the initial state at its starting values (the paper's Fig. 3b).
+    likelihood : {"gaussian", "student-t"}
+        Noise model; ``student-t`` is robust to gross outliers.
+    nu : float or "sample"
+        Student-t degrees of freedom (default 4), or ``"sample"`` to sample them.
+    window, overlap : int
+        Scheme 2: samples per window (default 50) and shared by consecutive windows (0).
+    walkers : int or None
+        emcee walkers (default: 16 with the ``auto`` moves, else 2 x parameters + 2).
+    max_steps : int
+        Hard limit of sampler steps (the run stops earlier at convergence).
+    moves : {"auto", "de", "stretch"}
+        emcee moves.
+    seed : int or None
+        Seed of the sampler's random generator (reproducible chains).
+    """
+
+    scheme: int = 1
+    drag: str = "spline"
+    channels: tuple | None = None
+    mcmc: bool = True
+    fix_ic: bool = False
+    likelihood: str = "gaussian"
+    nu: float | str = DEFAULT_NU
+    window: int = 50
+    overlap: int = 0
+    walkers: int | None = None
+    max_steps: int = 20000
+    moves: str = "auto"
+    seed: int | None = None
+
+    def __post_init__(self):
+        if self.scheme not in (1, 2):
+            _bad("scheme", self.scheme, "use 1 (Cd over the whole flight) or 2 (a constant Cd per window)")
+        if self.drag not in DRAG_MODEL_NAMES:
+            _bad("drag", self.drag, f"use one of {', '.join(DRAG_MODEL_NAMES)}")
+        if self.channels is not None:
+            ch = tuple(self.channels) if not isinstance(self.channels, str) else tuple(
+                c.strip() for c in self.channels.split(",") if c.strip())
+            bad = [c for c in ch if c not in CHANNELS]
+            if bad or not ch:
+                _bad("channels", self.channels, f"use a non-empty subset of {', '.join(CHANNELS)}")
+            object.__setattr__(self, "channels", ch)
+        if self.likelihood not in LIKELIHOODS:
+            _bad("likelihood", self.likelihood, f"use one of {', '.join(LIKELIHOODS)}")
+        if self.nu != "sample":
+            try:
+                nu = float(self.nu)
+            except (TypeError, ValueError):
+                nu = float("nan")
+            if not (nu > 0 and math.isfinite(nu)):
+                _bad("nu", self.nu, "use a positive number or 'sample'")
+            object.__setattr__(self, "nu", nu)
+        _int("window", self.window, 1)
+        _int("overlap", self.overlap, 0)
+        if self.walkers is not None:
+            _int("walkers", self.walkers, 1)
+        _int("max_steps", self.max_steps, 1)
+        if self.moves not in MOVES:
+            _bad("moves", self.moves, f"use one of {', '.join(MOVES)}")
+        if self.seed is not None:
+            _int("seed", self.seed, 0)
+
+    @property
+    def ml_nu(self):
+        """Degrees of freedom of the robust ML fit (the default when the posterior samples them)."""
+        return DEFAULT_NU if self.nu == "sample" else float(self.nu)
+
+    def to_dict(self):
+        """The options as a plain dict (for fingerprints and records)."""
+        d = asdict(self)
+        if d["channels"] is not None:
+            d["channels"] = list(d["channels"])
+        return d
+
+    @classmethod
+    def names(cls):
+        return tuple(f.name for f in fields(cls))
+
+
+@dataclass(frozen=True)
+class SimulateOptions:
+    """Options of ``bayesdrag simulate`` / :func:`bayesdrag.simulate`.
+
+    Attributes
+    ----------
+    model : {"pointmass", "6dof"}
+    dt : float
+        Sample interval [s] (default 0.027, the paper's radar).
+    noise : bool
+        Add Gaussian noise with the round's ``[radar] sigma``.
+    seed : int or None
+        Seed of the noise generator.
+    clock_offset : float
+        The radar clock is late by this much [s] (recorded time = true time - offset).
+    """
+
+    model: str = "pointmass"
+    dt: float = 0.027
+    noise: bool = False
+    seed: int | None = None
+    clock_offset: float = 0.0
+
+    def __post_init__(self):
+        if self.model not in SIMULATION_MODELS:
+            _bad("model", self.model, f"use one of {', '.join(SIMULATION_MODELS)}")
+        if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and 1e-4 <= self.dt <= 5.0):
+            _bad("dt", self.dt, "use a sample interval in [0.0001, 5] s")
+        if not (isinstance(self.clock_offset, (int, float)) and math.isfinite(self.clock_offset)
+                and abs(self.clock_offset) <= 1.0):
+            _bad("clock_offset", self.clock_offset, "use a finite offset within +-1 s")
+        if self.seed is not None:
+            _int("seed", self.seed, 0)
+            if not self.noise:
+                raise InputError("option seed only makes sense with noise (it seeds the noise generator)")
+
+
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    """Options of ``bayesdrag diagnose`` / :func:`bayesdrag.diagnose`.
+
+    Attributes
+    ----------
+    channels : tuple of str or None
+        Subset of the track's channels (default all).
+    """
+
+    channels: tuple | None = None
+
+    def __post_init__(self):
+        if self.channels is not None:
+            ch = tuple(self.channels)
+            if not ch or any(c not in CHANNELS for c in ch):
+                _bad("channels", self.channels, f"use a non-empty subset of {', '.join(CHANNELS)}")
+            object.__setattr__(self, "channels", ch)
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """Options of ``bayesdrag batch`` and of fitting a campaign.
+
+    Attributes
+    ----------
+    jobs : tuple of str
+        Jobs per round: ``fit`` and/or ``diagnose``.
+    fit : FitOptions
+    scheduler : str or None
+        Address of a Dask scheduler (default: a local cluster).
+    workers : int or None
+        Local cluster worker processes (default 2).
+    covariance : {"colored", "crb"}
+        Stage-1 covariance of each round's Cd for the pooling.
+    """
+
+    jobs: tuple = ("fit",)
+    fit: FitOptions = FitOptions()
+    scheduler: str | None = None
+    workers: int | None = None
+    covariance: str = "colored"
+
+    def __post_init__(self):
+        jobs = tuple(self.jobs)
+        if not jobs or any(j not in JOBS for j in jobs):
+            _bad("jobs", self.jobs, f"use a non-empty subset of {', '.join(JOBS)}")
+        object.__setattr__(self, "jobs", jobs)
+        if self.workers is not None:
+            _int("workers", self.workers, 1)
+        if self.covariance not in ("colored", "crb"):
+            _bad("covariance", self.covariance, "use colored or crb")

@@ -1,0 +1,181 @@
+"""Figures and ``report.html`` of a fit (:class:`~bayesdrag.results.FitResult`), both schemes."""
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+
+import numpy as np
+
+from ..io.outputs import write_bytes
+from ..plots.cd import plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative, plot_windows
+from ..plots.mcmc import plot_corner, plot_traces
+from ..plots.residuals import plot_residuals, plot_residuals_acf
+from .render import figure_png, png_base64, render_report, versions
+
+__all__ = ["write_fit_report", "fit_figures"]
+
+#: resolution of the corner plot [dpi] (many panels)
+CORNER_DPI = 80
+
+
+def fit_figures(result):
+    """The figures of a fit: ``[(file name, title, caption, Figure, dpi)]``."""
+    if result.summary["scheme"] == 2:
+        rnd = result.round
+        rows = [result.summary["windows"][k] for k in result.windows_ok]
+        ax = plot_windows(rows, reference=rnd.reference_drag.value if rnd.reference_drag is not None else None)
+        return [("windows.png", "Cd per window", "Each window's Cd at its mean Mach number with its 90 % interval; "
+                 "the reference curve dashed.", ax.figure, None)]
+    f1, bayes, post = result.scheme1, result.posterior, result.log_posterior
+    res, prob, dm = f1.ml, f1.problem, f1.drag_model
+    rows = result.summary["cd"]
+    track = result.track
+    if bayes is None:
+        return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (the band sd of each row) and "
+                 "the reference.", plot_cd_ml(rows, label=f"ML ({dm.name})").figure, None),
+                ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.",
+                 plot_residuals(track.t, res.residuals, res.sigma), None)]
+    figs = [("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
+             "Cramér-Rao band (dotted) and the reference firing table (dashed).",
+             plot_cd_posterior(rows, label=f"posterior ({dm.name})").figure, None)]
+    if all(r.get("reference") for r in rows):
+        figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
+                     "reference curve, where their widths are visible.", plot_cd_posterior_relative(rows).figure, None))
+    figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the bound; "
+                 "above 1 where the noise is estimated larger than the round's or the data are weak.",
+                 plot_cd_relative(rows).figure, None))
+    flat = bayes.thetas.reshape(-1, bayes.thetas.shape[-1])
+    det = [r["mach"] for r in rows if r.get("determined")] or [r["mach"] for r in rows]
+    ms = np.quantile(det, [0.1, 0.5, 0.9]).round(2)
+    B = dm.jacobian(ms)
+    sel = {f"Cd(M{m:.2f})": flat[:, :prob.P] @ B[i] for i, m in enumerate(ms)}
+    for n in ("X0", "Z0", "Ux0", "Uz0", "Uy0"):
+        if n in bayes.names:
+            sel[n] = flat[:, list(prob.names).index(n)]
+    figs.append(("corner.png", "Corner plot", "Cd at three Mach numbers of the determined range and the initial "
+                 "state; lines at the 5, 50 and 95 % quantiles.", plot_corner(sel), CORNER_DPI))
+    picks = [n for n in ("Ux0", "Uz0", "log_sigma_x", "log_sigma_v") if n in post.names]
+    chains = {n: bayes.chain[:, :, post.names.index(n)] for n in picks}
+    mid = prob.names[prob.P // 2]
+    if mid in post.names:
+        chains[mid] = bayes.chain[:, :, list(post.names).index(mid)]
+    if chains:
+        fig = plot_traces(chains)
+        for ax in fig.axes:
+            ax.axvline(bayes.burn, color="k", lw=0.8, ls="--")
+        figs.append(("traces.png", "Traces", f"Walkers against step; burn-in ({bayes.burn} steps) left of the "
+                     "dashed line.", fig, None))
+    y, _ = prob.predict(flat.mean(axis=0)[None])
+    resid = {c: prob.z[:, j] - y[0, :, j] for j, c in enumerate(prob.channels)}
+    sig = {c: float(np.exp(np.median(bayes.draws[..., bayes.names.index(f"log_sigma_{c}")]))) for c in prob.channels}
+    figs.append(("residuals.png", "Residuals and their autocorrelation",
+                 "Measured minus the posterior-mean trajectory with ±σ (posterior median noise sd); right: "
+                 "autocorrelation with the white-noise band ±2/√N. Correlated residuals mean model error: the "
+                 "bands are then too narrow (compare the colored CRB).", plot_residuals_acf(track.t, resid, sig), None))
+    return figs
+
+
+def write_fit_report(out, result, sources=None):
+    """Write the figures (PNG) and ``report.html`` of ``result`` into ``out``.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    out = Path(out)
+    sources = sources or {}
+    written, embedded = [], []
+    for name, title, caption, fig, dpi in fit_figures(result):
+        png = figure_png(fig, dpi) if dpi else figure_png(fig)
+        write_bytes(out / name, png)
+        written.append(out / name)
+        embedded.append({"title": title, "caption": caption, "png": png_base64(png)})
+    ctx = _context_scheme2(result, sources) if result.summary["scheme"] == 2 else _context_scheme1(result, sources)
+    ctx["figures"] = embedded
+    render_report(out / "report.html", ctx)
+    written.append(out / "report.html")
+    return written
+
+
+def _common(result, sources, title_kind):
+    track_name = Path(sources.get("track", result.track.source or "track")).name
+    return {"title": f"bayesdrag fit{title_kind}: {track_name}",
+            "created": datetime.datetime.now().isoformat(timespec="seconds"),
+            "warnings": list(result.warnings), "versions": versions(),
+            "quality": result.summary["ml"].get("quality")}
+
+
+def _context_scheme1(result, sources):
+    s = result.summary
+    f1, bayes = result.scheme1, result.posterior
+    res, prob = f1.ml, f1.problem
+    crb_c = dict(zip(res.names, res.crb_colored))
+    mlrows = []
+    for n, v, sd, f in zip(res.names, res.theta, res.crb, res.free):
+        r = {"name": n + ("" if f else " (fixed)"), "value": v, "crb": sd if f else None,
+             "crb_colored": crb_c[n] if f else None, "mean": None, "sd": None, "ratio": None}
+        if bayes is not None and n in bayes.summary.index:
+            r["mean"] = bayes.summary.loc[n, "mean"]
+            r["sd"] = bayes.summary.loc[n, "sd"]
+            r["ratio"] = r["sd"] / sd if sd > 0 else None
+        mlrows.append(r)
+    det = s["ml"]["mach_range_determined"]
+    track, rnd = result.track, result.round
+    inputs = [("track", f"{sources.get('track', track.source)} ({track.n} samples, channels "
+                        f"{', '.join(prob.channels)}, t = {track.t[0]:.3f} .. {track.t[-1]:.3f} s)"),
+              ("round", f"{sources.get('round', rnd.path)}: {rnd.projectile.name}, {rnd.projectile.mass} kg, "
+                        f"{rnd.projectile.diameter} m"),
+              ("drag model", f"{f1.drag_model.name} ({prob.P} coefficients)"),
+              ("Mach range of the data", f"{s['ml']['mach_range_data'][0]:.3f} - {s['ml']['mach_range_data'][1]:.3f}"),
+              ("Mach range determined (band sd < 1 % of Cd, inside the data, not clamped)",
+               f"{det[0]:.2f} - {det[1]:.2f}" if det else "none"),
+              ("noise sd used by the ML fit", ", ".join(f"{c} {v:.3g}" for c, v in res.sigma.items())),
+              ("wall-clock time", f"{result.seconds:.1f} s")]
+    conv = post_ctx = None
+    if bayes is not None:
+        m = s["mcmc"]
+        lik = m["likelihood"] + (f" (nu = {m['nu']})" if m["likelihood"] != "gaussian" else "")
+        conv = {"converged": bayes.converged, "message": bayes.message,
+                "rows": [("likelihood", lik), ("moves", m["moves"]), ("walkers", m["walkers"]), ("steps", m["steps"]),
+                         ("burn-in / thinning", f"{m['burn']} / {m['thin']}"),
+                         ("autocorrelation time tau (max, mean)", f"{m['tau_max']:.2f}, {m['tau_mean']:.2f} steps"),
+                         ("acceptance", f"{m['acceptance']:.3f}"), ("retained draws", m["draws"]),
+                         ("resumed from step", m["resumed_from"]),
+                         ("max r_hat", f"{bayes.summary['r_hat'].max():.4f}"),
+                         ("min ESS bulk / tail",
+                          f"{bayes.summary['ess_bulk'].min():.0f} / {bayes.summary['ess_tail'].min():.0f}"),
+                         ("noise sd (posterior median)",
+                          ", ".join(f"{c} {v['median']:.3g}" for c, v in m["sigma"].items())),
+                         ("sampling time", f"{m['seconds']:.1f} s")]}
+        cols = ["mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk", "ess_tail", "mcse_mean"]
+        post_ctx = {"columns": cols,
+                    "rows": [(n, [bayes.summary.loc[n, c] for c in cols]) for n in bayes.summary.index]}
+    headline = (f"Scheme 1, {f1.drag_model.name} drag. ML: {res.message}. "
+                + (f"Posterior: {bayes.message}." if bayes is not None else "No sampling (maximum likelihood only)."))
+    ctx = _common(result, sources, "")
+    ctx.update(headline=headline, inputs=inputs, convergence=conv, posterior=post_ctx, windows=None,
+               ml={"message": res.message, "iterations": res.iterations, "cost": res.cost, "rows": mlrows},
+               cd_rows=s["cd"][::2])
+    return ctx
+
+
+def _context_scheme2(result, sources):
+    s = result.summary
+    rows = s["windows"]
+    inputs = [("track", f"{sources.get('track', result.track.source)} ({result.track.n} samples)"),
+              ("round", str(sources.get("round", result.round.path))),
+              ("windows", f"{len(rows)} of {s['window']} samples"), ("wall-clock time", f"{result.seconds:.1f} s")]
+    conv = None
+    if "mcmc" in s:
+        m = s["mcmc"]
+        conv = {"converged": m["windows_converged"] == s["ml"]["windows_converged"],
+                "message": f"{m['windows_converged']} of {s['ml']['windows_converged']} windows converged "
+                           f"(max r_hat {m['r_hat_max']:.4f})", "rows": []}
+    ctx = _common(result, sources, " (Scheme 2)")
+    ctx.update(headline="Scheme 2: a constant Cd per window, ML with Cramér-Rao bounds"
+                        + (" and a posterior per window." if conv else "."),
+               inputs=inputs, convergence=conv, posterior=None, windows=rows, cd_rows=s["cd"][::2],
+               ml={"message": f"{s['ml']['windows_converged']} windows converged", "iterations": "—", "cost": None,
+                   "rows": []})
+    return ctx
