@@ -230,7 +230,8 @@ def _launch_priors(L, P):
 def make_setup(track, rnd, sigma=None, channels=None):
     """Baseline problem definition for a track and a round (see the module docstring)."""
     from .drag import make_drag_model
-    from .dynamics.pointmass import PointMassModel, initial_state
+    from .dynamics.pointmass import PointMassModel
+    from .dynamics.trajectory import initial_state
     from .estimate.start import data_start
 
     chans = tuple(channels) if channels is not None else tuple(track.names)

@@ -54,8 +54,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .atmosphere import Atmosphere
-from .dynamics import _kernel as K
-from .dynamics.pointmass import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
+from .dynamics import kernel as K
+from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from .estimate.problem import ExtraParam, SimInputs
 
 #: induced-drag factor k in Cd (1 + k delta^2) [1/rad^2] (C_D_delta2 / C_D0 of a typical shell)

@@ -10,9 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from .atmosphere import Atmosphere, MetProfile
+from .atmosphere import Atmosphere
 from .drag import ReferenceTable
 from .track import CHANNELS, UNITS
 from .validate import number, positive, type_name

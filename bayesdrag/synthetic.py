@@ -78,7 +78,8 @@ def _sample_times(t_impact, dt, clock_offset):
 
 
 def _pointmass(rnd, ref, L, dt, clock_offset, wind, max_time):
-    from .dynamics.pointmass import PointMassModel, initial_state
+    from .dynamics.pointmass import PointMassModel
+    from .dynamics.trajectory import initial_state
 
     cor = (L.latitude_deg, L.azimuth_deg) if L.latitude_deg is not None else None
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ref, rnd.atmosphere,
@@ -94,13 +95,13 @@ def _pointmass(rnd, ref, L, dt, clock_offset, wind, max_time):
 
 
 def _sixdof(rnd, ref, L, dt, clock_offset, wind, max_time):
-    from .dynamics import sixdof
+    from .dynamics import shell as shells, sixdof
 
-    base = sixdof.table1_shell()
+    base = shells.table1_shell()
     # Another projectile: Table 1 inertias scaled as m d^2 (geometrically similar shell) and the
     # same M107-like aerodynamics; its own mass, diameter and zero-yaw drag.
     k = (rnd.projectile.mass / base.mass) * (rnd.projectile.diameter / base.diameter) ** 2
-    shell = sixdof.Shell(mass=rnd.projectile.mass, diameter=rnd.projectile.diameter,
+    shell = shells.Shell(mass=rnd.projectile.mass, diameter=rnd.projectile.diameter,
                          Ix=base.Ix * k, Iy=base.Iy * k, aero=base.aero, cd0=ref,
                          name=rnd.projectile.name)
     res = sixdof.simulate_6dof(shell, L.velocity, L.elevation_deg, dt=dt, atmosphere=rnd.atmosphere,

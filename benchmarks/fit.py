@@ -35,7 +35,8 @@ SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 
 def round_and_track(dt=0.0217):
     from bayesdrag.io.drag_tables import load_m101
-    from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+    from bayesdrag.dynamics.pointmass import PointMassModel
+    from bayesdrag.dynamics.trajectory import initial_state
     from bayesdrag.synthetic import add_noise
     from bayesdrag.round import Launch, Projectile, Radar, Round
     from bayesdrag.track import RadarTrack

@@ -30,7 +30,8 @@ def main(argv=None):
     import numba
 
     from bayesdrag.io.drag_tables import load_m101
-    from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+    from bayesdrag.dynamics.pointmass import PointMassModel
+    from bayesdrag.dynamics.trajectory import initial_state
 
     if args.threads:
         numba.set_num_threads(args.threads)

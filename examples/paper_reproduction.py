@@ -35,7 +35,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from bayesdrag.dynamics.pointmass import initial_state
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.estimate.scheme2 import fit_scheme2

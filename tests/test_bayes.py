@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.bayes import (LogPosterior, cd_draws, cd_posterior_rows, independence_move,
                                       sample_posterior, split_rank_rhat, to_inference_data)
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from bayesdrag.cli import main
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
 from bayesdrag.estimate.posterior import LogPosterior
 from bayesdrag.estimate.sampler import sample_posterior

@@ -4,7 +4,8 @@ import pytest
 
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.io.drag_tables import load_m101
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.effects import EFFECTS, K_YAW, EffectContext, get_effect, simulate_with_effects
 
 V0, EL = 818.0, 30.0

@@ -11,7 +11,8 @@ error / CRB sd 2.0.
 import numpy as np
 import pytest
 
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.scheme1 import cd_table, determined_range, fit_scheme1
 from bayesdrag.synthetic import add_noise, drop_samples
 from bayesdrag.round import Launch, Projectile, Radar, Round

@@ -9,7 +9,8 @@ import pytest
 
 from bayesdrag.atmosphere import Atmosphere, geopotential_altitude, MetProfile, R_AIR, R_EARTH, standard_atmosphere
 from bayesdrag.io.met import read_met_profile, write_met_profile
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.errors import InputError
 from bayesdrag.io.rounds import read_round, write_round

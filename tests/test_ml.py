@@ -7,7 +7,8 @@ import pytest
 
 from bayesdrag.cli import main
 from bayesdrag.drag import ReferenceTable, make_drag_model
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.synthetic import add_noise

@@ -4,7 +4,8 @@ round's noise sd is dragged far off."""
 import numpy as np
 import pytest
 
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.scheme1 import fit_scheme1
 from bayesdrag.synthetic import add_noise, add_outliers
 from bayesdrag.round import Launch, Projectile, Radar, Round

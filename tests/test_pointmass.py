@@ -5,10 +5,10 @@ import pytest
 
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.drag import make_drag_model
-from bayesdrag.dynamics import _kernel as K
-from bayesdrag.dynamics.pointmass import (LIFT_REF_FRACTION, LIFT_VERTICAL_FRACTION, PointMassModel, coriolis_matrix,
-                                          initial_state, lift_parameter, output_schedule,
-                                          step_schedule)
+from bayesdrag.dynamics import kernel as K
+from bayesdrag.dynamics.forces import LIFT_REF_FRACTION, LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state, output_schedule, step_schedule
 
 KERNEL_VS_SCIPY_M = 1e-3      # m, issue 3: kernel vs solve_ivp over a full 155 mm trajectory
 PBC_M = 1.0                   # m, issue 3: vs py-ballisticcalc over the whole flight
@@ -267,7 +267,8 @@ def test_lift_drifts_right_growing_and_mirrors(m101):
 def test_lift_matches_6dof_drift_order():
     """factor 1 with the Table 1 shell at 818 m/s, QE 15 deg: drift of the order of the full
     6-DOF's (which has Ix, spin, C_La and C_Ma of its own)."""
-    from bayesdrag.dynamics.sixdof import simulate_6dof, table1_shell
+    from bayesdrag.dynamics.sixdof import simulate_6dof
+    from bayesdrag.dynamics.shell import table1_shell
     shell = table1_shell()
     six = simulate_6dof(shell, 818.0, 15.0)
     model = PointMassModel(shell.mass, shell.diameter, shell.cd0, lift_factor=1.0)
@@ -288,7 +289,8 @@ def test_lift_shape_follows_the_6dof_drift_and_rise():
     point mass (Magnus force and lift on the vertical yaw of repose) to LIFT_6DOF_DZ_REL, with
     the factor near 1 (Table 1 shell, 818 m/s, QE 15 deg). The constant-L model of session 2
     (no Mach shape, no spin decay, no vertical part) misses the drift shape by more."""
-    from bayesdrag.dynamics.sixdof import simulate_6dof, table1_shell
+    from bayesdrag.dynamics.sixdof import simulate_6dof
+    from bayesdrag.dynamics.shell import table1_shell
     shell = table1_shell()
     t = np.arange(0.0, 32.01, 2.0)
     six = simulate_6dof(shell, 818.0, 15.0, t_out=t, stop_at_impact=False)
@@ -340,7 +342,7 @@ def test_serial_and_threaded_kernels_have_separate_disk_caches():
     """numba keys its on-disk cache by the function's qualified name and line, not by
     ``parallel``: the serial copy of the kernel must carry its own name, or whichever variant is
     compiled first is loaded for both (the threaded kernel then ran on one thread)."""
-    from bayesdrag.dynamics import _kernel as K
+    from bayesdrag.dynamics import kernel as K
 
     assert K.integrate_batch_serial.py_func.__qualname__ == "integrate_batch_serial"
     assert K.integrate_batch.py_func.__qualname__ == "integrate_batch"

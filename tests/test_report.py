@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from bayesdrag.cli import main
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.synthetic import add_noise
 from bayesdrag.track import RadarTrack
 from bayesdrag.io.tracks import write_track

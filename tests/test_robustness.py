@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from bayesdrag.drag import Poly2
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import FitError, InputError
 from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.synthetic import add_noise, simulate_round

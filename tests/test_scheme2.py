@@ -3,7 +3,8 @@ the M101 Cd within its Cramér-Rao bound window by window, and bad input."""
 import numpy as np
 import pytest
 
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
 from bayesdrag.estimate.scheme2 import MIN_WINDOW, fit_scheme2, smoothed_state, window_slices, windows_table
 from bayesdrag.synthetic import add_noise

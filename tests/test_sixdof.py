@@ -12,9 +12,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from bayesdrag.atmosphere import G0, Atmosphere
-from bayesdrag.dynamics.sixdof import (
-    Shell, gyroscopic_stability, linear_theory, m107_aero, simulate_6dof, table1_shell,
-)
+from bayesdrag.dynamics.shell import Shell, gyroscopic_stability, linear_theory, m107_aero, table1_shell
+from bayesdrag.dynamics.sixdof import simulate_6dof
 
 # named tolerances -----------------------------------------------------------------------------
 RANGE_VS_POINT_MASS_REL = 0.03     # full 6-DOF vs point mass, same Cd0 [-] (task requirement)

@@ -12,7 +12,8 @@ import pytest
 
 from bayesdrag.drag import ReferenceTable, Spline, TableSpline
 from bayesdrag.io.drag_tables import load_m101
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
 from bayesdrag.estimate.basis import adaptive_knots, rise_regions
 from bayesdrag.estimate.quality import CHI2_LIMIT

@@ -45,8 +45,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
-
 
 #: node spacing of the pooled curve [Mach]
 NODE_SPACING = 0.05

@@ -36,7 +36,8 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     outputs (``result.json``, ``posterior.nc``, ``chain.h5``, figures, ``report.html``) and
     ``summary.json`` into ``outdir`` (created if needed) and returns the summary dict.
     """
-    from ..dynamics.pointmass import PointMassModel, initial_state
+    from ..dynamics.pointmass import PointMassModel
+    from ..dynamics.trajectory import initial_state
     from ..io.rounds import read_round
     from ..io.tracks import read_track
     from ..plots.cd import plot_cd_ml, plot_drag_curve

@@ -7,7 +7,6 @@ default) and Scheme 2 (a constant Cd per window) share both.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
@@ -18,7 +17,7 @@ from ..errors import FitError, InputError
 from ..estimate.quality import assess, check_against_flexible, intervals
 from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1
 from ..estimate.scheme2 import fit_scheme2, windows_table
-from ..results import CHAIN, PARTIAL, FitResult
+from ..results import PARTIAL, FitResult
 from .options import FitOptions
 
 __all__ = ["fit", "run_fit", "summary_line"]
@@ -316,7 +315,3 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         echo(f"mcmc: {b.message}; {b.steps} steps x {b.nwalkers} walkers in {b.elapsed:.1f} s")
     echo(f"  wrote {out / 'result.json'}, " + ", ".join(p.name for p in written if p.name != "result.json"))
     return result
-
-
-def _finite(x):
-    return x is not None and math.isfinite(x)

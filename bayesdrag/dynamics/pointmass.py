@@ -25,7 +25,7 @@ Two backends compute the same trajectories:
     :func:`scipy.integrate.solve_ivp` (DOP853, tight tolerances) with the exact drag model and
     the exact atmosphere; it supports the impact event and is the reference in the tests.
 ``backend="kernel"``
-    :mod:`bayesdrag.dynamics._kernel`, classic RK4 with a uniform step (see
+    :mod:`bayesdrag.dynamics.kernel`, classic RK4 with a uniform step (see
     :func:`output_schedule`: at most ``max_step``, by default 0.1 s or 1 % of the drag time
     scale, whichever is smaller) and cubic Hermite interpolation of the states between steps
     at the output times, run for a whole batch of parameter sets at once (vectorised lanes,
@@ -47,277 +47,32 @@ from scipy.integrate import solve_ivp
 
 from ..atmosphere import G0, Atmosphere
 from ..drag import DragModel, MachGrid
-from . import _kernel as K
+from . import kernel as K
+from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT_VERTICAL_MACH_SAT,
+                     SPIN_DECAY, coriolis_matrix, lift_parameter)
+from .trajectory import DEFAULT_MAX_STEP, STEP_DRAG_FRACTION, Trajectory, output_schedule
 
-#: Earth's rotation rate [rad/s] (sidereal)
-OMEGA_EARTH = 7.292115e-5
-
-#: Lift constant L = Ix p C_La / (m d C_Ma) of a typical spin-stabilised shell as a fraction of
-#: its muzzle velocity [-] (effect ``lift`` with ``factor = 1``); see :func:`lift_parameter`.
-LIFT_REF_FRACTION = 0.02
-#: Mach shape of the lift-to-overturning ratio C_La / C_Ma of a spin-stabilised shell,
-#: ``s(M) = 1 + A x / (1 + B x)`` with ``x = max(M - 1, 0)`` (1 subsonic): A, B fitted to the
-#: representative 155 mm M107 coefficients (:func:`bayesdrag.dynamics.sixdof.m107_aero`: C_La /
-#: C_Ma = 0.42 subsonic, 0.72 at Mach 1.5, 0.88 at 2, 0.98 at 2.5; this formula gives 0.42,
-#: 0.71, 0.89, 1.01). The rise is general for spinning shells and bullets -- C_La grows and C_Ma
-#: falls with supersonic Mach (McCoy 1999, ch. 2 and 10) -- its size is not: see the lift notes.
-LIFT_MACH_RISE = 1.79
-LIFT_MACH_SAT = 0.6
-#: spin damping kappa = -C_lp / k_a^2 [-] of a typical shell (C_lp = -0.010 to -0.016, axial
-#: radius of gyration squared k_a^2 = Ix / (m d^2) ~ 0.12-0.15): the spin fraction q = p / p0
-#: obeys dq/dt = -kappa k_ref rho |u| q, i.e. it decays over the path in air; 155 mm at 818 m/s:
-#: q = 0.76 / 0.70 / 0.65 at impact at QE 10 / 20 / 45 deg (6-DOF: 0.78 / 0.70 / 0.64), and the
-#: drift with factor 1 is 93 / 253 / 863 m (6-DOF 89 / 245 / 832 m).
-SPIN_DECAY = 0.09
-#: Vertical force on the yaw of repose as a fraction of its horizontal lift, ``(p d / |u|) nu``.
-#: Two parts, both up for a right-hand spin (McCoy 1999, ch. 10: the yaw of repose
-#: ``xi_R = i P G / (M + i P T)`` is not purely horizontal):
-#:
-#: * the Magnus force, ``|C_Npa| / C_La`` of the lift: 0.18 subsonic, 0.05 at Mach 2 (M107
-#:   representative values, :func:`bayesdrag.dynamics.sixdof.m107_aero`);
-#: * lift on the vertical part of the yaw of repose, ``P T / M = (p d / V) (k_a^2 C_La +
-#:   C_npa) / C_Ma`` of the horizontal yaw: 0.14 subsonic, 0.17 at Mach 2.4.
-#:
-#: Their sum nu = 0.21-0.33 over Mach 0.6-2.4 is nearly flat, so nu = 0.25 is taken constant
-#: (``LIFT_VERTICAL_MACH_SAT = 0``; a fall-off ``1 / (1 + C max(M - 0.8, 0))`` is available).
-#: With p0 = 2 pi v0 / (n d) the fraction is ``m q / |u|`` with the speed
-#: ``m = LIFT_VERTICAL_FRACTION * v0``, ``LIFT_VERTICAL_FRACTION = nu 2 pi / n`` = 0.0785 for a
-#: 1-in-20-calibre twist. The force is normal to the airspeed in its vertical plane; 5-10 % of
-#: the lift, it raises a 155 mm shell by ~15 m at QE 20 deg, which a fit without it puts into a
-#: muzzle 4-8 m below the gun (6-DOF: docs/diagnosis.md).
-LIFT_VERTICAL_FRACTION = 0.25 * 2.0 * math.pi / 20.0
-LIFT_VERTICAL_MACH_SAT = 0.0
+__all__ = ["PointMassModel"]
 
 
-def lift_parameter(factor, v0):
-    """Kernel column ``P_LIFT`` (the subsonic lift constant L [m/s]) for the ``lift`` effect.
-
-    Physics (McCoy, *Modern Exterior Ballistics*, 1999, ch. 9 and 11, modified point mass): a
-    spinning shell flies with its yaw of repose
-    ``alpha_R = -(2 Ix p / (rho S d v^4 C_Ma)) (v x dv/dt)`` (right-handed axes), and the lift
-    on it is ``a_L = (rho S v^2 C_La / 2m) alpha_R = -(Ix p C_La / (m d C_Ma)) (v x dv/dt) / v^2``.
-    Drag is along v and drops out of the cross product; with dv/dt replaced by gravity
-    ``(0, 0, -g)`` and v by the airspeed vector u, this becomes, in the DESIGN.md frame
-    (x downrange, y right, z up -- left-handed, so the cross product is taken with y flipped
-    and flipped back)::
-
-        a_L = L(t) g / |u|^2 * (-u_y, u_x, 0),      |a_L| = L(t) g cos(theta) / |u|,
-
-    horizontal and to the right of the airspeed for L > 0 (right-hand spin drifts right), with
-    ``L(t) = Ix p(t) C_La(M) / (m d C_Ma(M))``. Neither factor of L is constant: the ratio
-    C_La / C_Ma more than doubles from subsonic speed to Mach 2.5 and the spin decays by a
-    quarter to a third over a long flight, so L falls by a factor ~3 between muzzle and
-    impact (155 mm, 818 m/s). A constant L fitted to such a drift leaves a misfit of metres,
-    which a cross wind (2 parameters) then explains better than the lift itself (measured on
-    the 6-DOF: docs/diagnosis.md). So ``L(t) = L q(t) s(M)``: q the spin fraction (its own
-    state, damping ``kappa``, :data:`SPIN_DECAY`), s(M) the Mach shape of C_La / C_Ma
-    (:func:`lift_mach_shape`, 1 subsonic), and L, the *subsonic* constant at the initial spin,
-    ``Ix p0 (C_La / C_Ma)_sub / (m d)``. None of Ix, p0, C_La, C_Ma comes with a round file,
-    so it is parametrised as ``L = factor * LIFT_REF_FRACTION * v0``: for a spin-stabilised
-    shell Ix = k_a^2 m d^2 with k_a^2 ~ 0.12-0.15, spin p0 = 2 pi v0 / (n d) with a twist of
-    n ~ 20-35 calibres, and (C_La / C_Ma)_sub ~ 0.4-0.5 give L ~ 0.01-0.02 v0 whatever the
-    calibre; ``factor`` absorbs the shell's actual values (the paper's Table 1 shell: 0.94).
-    This is the modified point mass's "lift factor" (STANAG 4355 fits one to firing data the
-    same way). Neglected: the Coriolis and lift parts of dv/dt in alpha_R, and a shell whose
-    Mach shape differs from the generic one (what is left then shows in the remaining gap).
-
-    Parameters
-    ----------
-    factor : float or array_like, shape (B,)
-        Effect parameter [-]; 1 is the typical shell, 0 no lift, < 0 a left-hand spin.
-    v0 : float or array_like, shape (B,)
-        Speed [m/s] that sets the spin: the muzzle velocity (:class:`PointMassModel` uses its
-        ``lift_v0`` or, by default, the speed of each trajectory's initial state).
-
-    Returns
-    -------
-    float or ndarray, shape (B,)
-        L [m/s], for ``simulate_batch(..., overrides={_kernel.P_LIFT: L})``.
-    """
-    return np.asarray(factor, dtype=float) * LIFT_REF_FRACTION * np.asarray(v0, dtype=float)
 
 
-def lift_mach_shape(mach, rise=LIFT_MACH_RISE, sat=LIFT_MACH_SAT):
-    """Mach shape s(M) of the yaw-of-repose lift, ``1 + rise x / (1 + sat x)``, ``x = max(M - 1, 0)``.
-
-    Parameters
-    ----------
-    mach : float or array_like
-        Mach number [-].
-    rise, sat : float
-        Shape constants (defaults :data:`LIFT_MACH_RISE`, :data:`LIFT_MACH_SAT`; 0, 0 = constant).
-
-    Returns
-    -------
-    float or ndarray
-        s(M) [-], 1 at and below Mach 1.
-    """
-    x = np.maximum(np.asarray(mach, dtype=float) - 1.0, 0.0)
-    return 1.0 + rise * x / (1.0 + sat * x)
 
 
-def coriolis_matrix(latitude_deg, azimuth_deg, omega=OMEGA_EARTH):
-    """Matrix C [1/s] with Coriolis acceleration ``a = C @ v`` in the DESIGN.md frame.
-
-    ``a = -2 Omega x v`` evaluated in east-north-up axes and projected on x (downrange, along
-    ``azimuth_deg`` clockwise from north), y (to the right) and z (up). Note that (x, y, z) is
-    left-handed, which is why the cross product is taken in ENU axes.
-
-    Parameters
-    ----------
-    latitude_deg : float
-        Geodetic latitude, north positive [deg].
-    azimuth_deg : float
-        Firing azimuth clockwise from true north [deg].
-
-    Returns
-    -------
-    ndarray, shape (3, 3)
-    """
-    lat, az = math.radians(latitude_deg), math.radians(azimuth_deg)
-    om = omega * np.array([0.0, math.cos(lat), math.sin(lat)])  # ENU
-    ex = np.array([math.sin(az), math.cos(az), 0.0])
-    ey = np.array([math.cos(az), -math.sin(az), 0.0])
-    ez = np.array([0.0, 0.0, 1.0])
-    E = np.stack([ex, ey, ez])  # rows: local axes in ENU
-    C = np.empty((3, 3))
-    for j in range(3):
-        a_enu = -2.0 * np.cross(om, E[j])  # acceleration for a unit velocity along local axis j
-        C[:, j] = E @ a_enu
-    return C
 
 
-@dataclass(frozen=True)
-class Trajectory:
-    """States of one or many trajectories at common times.
-
-    Attributes
-    ----------
-    t : ndarray, shape (N,), s
-    state : ndarray, shape (N, 6) or (B, N, 6)
-        ``[x, y, z, vx, vy, vz]`` in m and m/s.
-    mach : ndarray, shape (N,) or (B, N)
-        Mach number (airspeed over local speed of sound).
-    success : bool
-    message : str
-    t_impact : float or None
-        Time at which z returned to 0 on descent (scipy backend with ``stop_at_impact``).
-    """
-
-    t: np.ndarray
-    state: np.ndarray
-    mach: np.ndarray
-    success: bool = True
-    message: str = ""
-    t_impact: float | None = None
-
-    @property
-    def position(self):
-        return self.state[..., :3]
-
-    @property
-    def velocity(self):
-        return self.state[..., 3:]
-
-    @property
-    def speed(self):
-        """Ground speed |dr/dt| [m/s] (the radar's ``v`` channel)."""
-        return np.linalg.norm(self.state[..., 3:], axis=-1)
-
-    def channel(self, name):
-        """One radar channel ``x``, ``y``, ``z`` or ``v`` as an array."""
-        idx = {"x": 0, "y": 1, "z": 2}
-        if name == "v":
-            return self.speed
-        return self.state[..., idx[name]]
 
 
-def initial_state(velocity, elevation_deg, heading_deg=0.0, position=(0.0, 0.0, 0.0)):
-    """State vector from muzzle velocity [m/s], elevation [deg] and heading relative to the
-    firing azimuth [deg, positive to the right]."""
-    el, hd = math.radians(elevation_deg), math.radians(heading_deg)
-    v = velocity * np.array([math.cos(el) * math.cos(hd), math.cos(el) * math.sin(hd), math.sin(el)])
-    return np.concatenate([np.asarray(position, dtype=float), v])
 
 
-def step_schedule(t_out, t_start, max_step):
-    """RK4 steps that land exactly on every output time (the schedule of the first kernel,
-    kept for callers that want steps on the samples; the kernel now uses
-    :func:`output_schedule`).
-
-    Parameters
-    ----------
-    t_out : (N,) increasing times [s], all >= ``t_start``.
-    t_start : float, s
-    max_step : float, s
-
-    Returns
-    -------
-    step_h : (S,) step sizes; step_out : (S,) output row after each step or -1;
-    out_first : int, row of an output at ``t_start`` itself or -1.
-    """
-    t_out = _check_times(t_out, t_start)
-    out_first = 0 if abs(t_out[0] - t_start) <= 1e-12 else -1
-    edges = np.concatenate([[t_start], t_out[1:] if out_first == 0 else t_out])
-    rows = np.arange(1, len(t_out)) if out_first == 0 else np.arange(len(t_out))
-    gaps = np.diff(edges)
-    nsub = np.maximum(1, np.ceil(gaps / max_step - 1e-9).astype(np.int64))
-    step_h = np.repeat(gaps / nsub, nsub)
-    step_out = np.full(step_h.size, -1, dtype=np.int64)
-    step_out[np.cumsum(nsub) - 1] = rows
-    return step_h, step_out, out_first
 
 
-#: largest default kernel RK4 step [s]
-DEFAULT_MAX_STEP = 0.1
-#: default step as a fraction of the drag time scale (:meth:`PointMassModel.drag_time_scale`)
-STEP_DRAG_FRACTION = 0.008
 
 
-def output_schedule(t_out, t_start, max_step):
-    """Uniform RK4 steps from ``t_start`` to the last output and where each output falls.
-
-    The kernel steps with ``h = (t_out[-1] - t_start) / n_steps`` and interpolates each output
-    inside its step with a cubic Hermite polynomial through the states and accelerations at
-    both ends (error O(h^4), far below the RK4 error for smooth flight). Decoupling the steps
-    from the outputs lets a 0.027 s radar track be integrated with ~0.1 s steps.
-
-    Parameters
-    ----------
-    t_out : (N,) increasing times [s], all >= ``t_start``.
-    t_start : float, s
-    max_step : float, s
-
-    Returns
-    -------
-    h : float, s
-    n_steps : int
-    out_step : (N,) int64, step holding each output
-    out_theta : (N,) float64, position in [0, 1] of each output inside its step
-    """
-    t_out = _check_times(t_out, t_start)
-    if not max_step > 0:
-        raise ValueError(f"max_step must be positive, got {max_step}")
-    span = float(t_out[-1] - t_start)
-    if span <= 0.0:
-        return 0.0, 1, np.zeros(t_out.size, dtype=np.int64), np.zeros(t_out.size)
-    n_steps = max(1, int(math.ceil(span / max_step - 1e-9)))
-    h = span / n_steps
-    r = (t_out - t_start) / h
-    out_step = np.clip(np.floor(r), 0, n_steps - 1).astype(np.int64)
-    out_theta = np.clip(r - out_step, 0.0, 1.0)
-    return h, n_steps, out_step, out_theta
 
 
-def _check_times(t_out, t_start):
-    t_out = np.asarray(t_out, dtype=float)
-    if t_out.ndim != 1 or t_out.size == 0:
-        raise ValueError("t_out must be a non-empty 1-D array of times")
-    if np.any(np.diff(t_out) <= 0):
-        raise ValueError("t_out must increase strictly")
-    if t_out[0] < t_start - 1e-12:
-        raise ValueError(f"output times start at {t_out[0]} s, before the initial state at {t_start} s")
-    return t_out
+
+
 
 
 @dataclass(frozen=True, eq=False)

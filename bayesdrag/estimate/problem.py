@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import FitError, InputError
+from ..errors import InputError
 from ..track import CHANNELS
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
@@ -68,7 +68,7 @@ class SimInputs:
     Attributes
     ----------
     overrides : dict kernel column -> (B,) array
-        Per-trajectory kernel parameters (``dynamics._kernel.P_*``).
+        Per-trajectory kernel parameters (``dynamics.kernel.P_*``).
     atmospheres : list of Atmosphere (length B) or None
     time_shift : (B,) array or None, s
         Radar clock offset: the model is evaluated at ``track.t + time_shift``.

@@ -49,7 +49,8 @@ import numpy as np
 
 from .._threads import single_blas
 from ..drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default_spline_knots, make_drag_model
-from ..dynamics.pointmass import PointMassModel, initial_state
+from ..dynamics.pointmass import PointMassModel
+from ..dynamics.trajectory import initial_state
 from ..errors import FitError, InputError
 from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, rise_regions
 from .launch import checked_launch_priors, launch_state_priors, unseen_launch_priors

@@ -26,7 +26,8 @@ import numpy as np
 
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.io.drag_tables import load_m101
-from bayesdrag.dynamics.pointmass import PointMassModel, initial_state
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.synthetic import add_noise, add_outliers
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
@@ -108,9 +109,9 @@ def truth_track(case):
                        latitude_deg=case.latitude if case.effect == "coriolis" else None),
                 atmosphere=atm)
     if case.sim == "6dof":
-        from bayesdrag.dynamics import sixdof
+        from bayesdrag.dynamics import shell as shells, sixdof
 
-        base = sixdof.table1_shell()
+        base = shells.table1_shell()
         sh = SHELLS[case.shell]
         shell = replace(base, cd0=ref, mass=sh["mass"], diameter=sh["diameter"], Ix=sh["Ix"], Iy=sh["Iy"])
         kw = dict(atmosphere=atm, wind=wind, twist_calibres=sh["twist"], initial_yaw_deg=case.initial_yaw_deg)

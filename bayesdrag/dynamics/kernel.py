@@ -17,7 +17,7 @@ with ``u = v - w`` the airspeed vector, ``k_ref = pi d^2 / (8 m)``,
 ``Cd_eff = cd_scale * Cd(M) * (1 + yaw_amp * exp(-2 decay t))``, ``M = |u| / a(z)``,
 ``rho_scale`` a density multiplier (effect ``density``), ``C_cor`` the Coriolis matrix
 (``-2 Omega x``, in the local frame) and ``L`` [m/s] the lift-on-yaw-of-repose constant
-(effect ``lift``, see :func:`bayesdrag.dynamics.pointmass.lift_parameter`): a horizontal
+(effect ``lift``, see :func:`bayesdrag.dynamics.forces.lift_parameter`): a horizontal
 acceleration of size ``L g cos(theta) / |u|`` to the right of the airspeed (+y for a shell
 flying downrange), i.e. McCoy's modified-point-mass drift of a right-hand spinning shell,
 scaled by the Mach shape ``s(M) = 1 + A x / (1 + B x)``, ``x = max(M - 1, 0)`` of the
@@ -153,7 +153,7 @@ def _acc(z, vx, vy, vz, q, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     kc = CDO[blk, l] + 4 * k
     cd = cdf[kc] + u * (cdf[kc + 1] + u * (cdf[kc + 2] + u * cdf[kc + 3]))
     kd = LP[blk, _L_KREF, l] * fac * rho * cd * V
-    # yaw-of-repose lift L q s(M) g / |u|^2 (-u_y, u_x, 0) (pointmass.lift_parameter); the floor
+    # yaw-of-repose lift L q s(M) g / |u|^2 (-u_y, u_x, 0) (forces.lift_parameter); the floor
     # on |u|^2 keeps a shell at rest in still air finite (0 * g / 0 would poison the trajectory)
     xs = max(mach - 1.0, 0.0)
     shape = 1.0 + LP[blk, _L_LRISE, l] * xs / (1.0 + LP[blk, _L_LSAT, l] * xs)
