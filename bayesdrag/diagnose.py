@@ -16,7 +16,10 @@ Method (each decision with its reason; docs/diagnosis.md has the long form):
    then too small; the significance rule below is invariant to that scale (it uses the residual
    autocovariance measured against the assumed sigma), but ``chi2_per_sample`` and the gap are
    inflated — the output says which sigma was estimated.
-2. **Baseline** = the round's reference drag (or, without one, a spline Cd as nuisance) in the
+2. **Baseline** = the round's reference drag (or, without one, a fitted Cd as nuisance: the
+   penalised spline of a Scheme 1 fit of the same track and channels, :func:`nuisance_drag`,
+   with its smoothness penalty at the evidence-chosen sd as linear pseudo-priors; the Scheme 1
+   fit supplies only the drag model, the penalty and the starting coefficients and state) in the
    round's atmosphere, without Earth rotation and without any effect, with the initial state as
    nuisance parameters. When the round gives launch velocity and elevation the state is the one
    *at launch, t = 0*, with Gaussian priors: muzzle at the origin (``position_sd``), launch speed
@@ -26,8 +29,9 @@ Method (each decision with its reason; docs/diagnosis.md has the long form):
    clock is a symptom, not absorbed). Without launch data the state is at the first sample and
    ``radar_time`` is not identifiable.
 3. **Gap** = chi2 (noise-weighted residuals plus prior misfit) minus its noise-only expectation
-   (number of weighted samples + priors - free parameters); ``shrink`` = fraction of it an
-   effect removes, clipped to [0, 1].
+   (number of weighted samples + launch priors - effective parameters: the free ones less what
+   the nuisance spline's penalty takes, :func:`_edf`); ``shrink`` = fraction of it an effect
+   removes, clipped to [0, 1].
 4. **Which**: every candidate is fitted by ML with its parameters and the initial state.
    Significance: the chi2 drop ``d`` is divided by the colored-noise inflation
    ``g' Rvv g / g' R g`` of the fitted output change ``g`` (residual autocovariance measured on
@@ -58,6 +62,16 @@ Method (each decision with its reason; docs/diagnosis.md has the long form):
    share of the systematic residual energy.
 8. **Cd shift**: the output change an effect causes, refitted by a Scheme 1 spline Cd plus the
    initial state (linearised), shows what a Cd fit that ignored the effect would have absorbed.
+9. **Materiality** (DESIGN.md): a detected effect is material when ignoring it would shift a
+   fitted Cd by more than ``material_cd_shift`` (0.1 %) anywhere in the flown Mach range or move
+   the track's last sample by more than ``material_end_sd`` (3) noise sd; both figures of a
+   detected effect come from the detected effects' joint fit (:func:`effect_change`). The
+   verdict lists the material ones; ``immaterial`` the detectable but immaterial ones.
+10. **A table of another shell** is ``drag_shape`` (the table times a correction that
+    ``drag_scale`` cannot mimic) with its level as ``drag_scale`` or its twin ``density``; when
+    it is detected, every other effect is judged against a fitted Cd, as without a table
+    (:func:`_beside_a_wrong_table`): no finite correction makes a wrong table a reference a
+    weather effect could be measured against.
 """
 from __future__ import annotations
 
@@ -68,9 +82,10 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 
 from ._threads import single_blas
-from .effects import EFFECTS, EffectContext, effect_fn, extra_params, static_model
+from .effects import (EFFECTS, EffectContext, drag_shape_free, drag_shape_model, effect_fn, extra_params,
+                      static_model)
 from .errors import FitError
-from .estimate.problem import OutputErrorProblem
+from .estimate.problem import OutputErrorProblem, Prior
 from .estimate.noise import HF_ORDER, HF_WINDOW, OUTLIER_K, _robust_sd, hf_residual, hf_residual_t, noise_and_outliers  # noqa: F401
 
 #: overall false-alarm rate of the verdict on a track the nominal model explains
@@ -113,6 +128,20 @@ YAW_DECAY_MULTIPLICITY = 5
 CD_SHIFT_TOP = 2
 #: apex phase: within this fraction of the flight time of the summit
 APEX_FRACTION = 0.1
+#: Levenberg-Marquardt iterations of a fit with drag_shape before scipy's trust-region
+#: reflective method takes over (``OutputErrorProblem.fit(fallback=True)``): with a coefficient
+#: against its bound the clipped LM steps crawl (a table of another shell: chi2 2.7e5 after 60
+#: iterations where the trust region reaches 1.5e4 in 9 evaluations); where the fit converges it
+#: does so in 5-10
+DRAG_SHAPE_MAX_ITER = 12
+#: ... and the trust region's function evaluations (each a sensitivity batch); a fit that needs
+#: more is one whose effects fight over the same drag change (yaw drag beside the shape)
+DRAG_SHAPE_TRF_NFEV = 15
+#: materiality (DESIGN.md): an effect is material when ignoring it would shift a fitted Cd by
+#: more than this (relative, 0.001 = 0.1 %) anywhere in the flown Mach range ...
+MATERIAL_CD_SHIFT = 0.001
+#: ... or move the track at its last sample by more than this many noise sd (any channel)
+MATERIAL_END_SD = 3.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -214,6 +243,12 @@ class Setup:
     has_reference: bool
     launch_known: bool
     notes: list = field(default_factory=list)
+    #: smoothness pseudo-priors of the nuisance spline (no reference drag), rows of length P + 6
+    smooth: tuple = ()
+    #: their information sum_k r_k r_k' / sd_k^2 on the drag coefficients (P, P), or None
+    pen: np.ndarray | None = None
+    #: how the nuisance drag was made (no reference drag), for the output
+    nuisance: dict | None = None
 
     @property
     def P(self):
@@ -227,9 +262,172 @@ def _launch_priors(L, P):
     return launch_state_priors(L, P, heading=True)
 
 
+def nuisance_drag(track, rnd, channels, sigma, t_ic):
+    """The nuisance drag of a round without a firing table, from a Scheme 1 fit of the track.
+
+    :func:`bayesdrag.estimate.scheme1.fit_scheme1` (``drag="spline"``) reads the Mach span, a
+    start Cd(M) and the state off the track, places the spline's knots where the data's shape
+    bends and chooses the smoothness penalty by its evidence. The diagnosis takes from it only
+    what a baseline needs to be the *same* model as the Cd fit a user would make: the drag
+    model (its knots), the smoothness penalty at the chosen sd (as linear pseudo-priors) and the
+    fitted coefficients and state as the starting point. Its own conventions stay: the state at
+    ``t_ic`` (launch, with the round's launch priors, when the launch is known), its noise sd and
+    its outlier weights, no Earth rotation; its baseline refits all of it.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+        Without ``reference_drag``.
+    channels : tuple of str
+    sigma : dict
+        Noise sd per channel (the diagnosis' own, given or estimated).
+    t_ic : float [s]
+        Time of the diagnosis' initial state.
+
+    Returns
+    -------
+    dict with ``model`` (DragModel), ``params`` (P,), ``state`` ((6,) at ``t_ic`` or None when
+    it could not be carried there), ``smooth`` (tuple of Prior), ``sd`` and ``info`` (for the
+    output) and ``notes`` (list of str).
+
+    Raises
+    ------
+    FitError
+        The Scheme 1 fit gave no finite estimate.
+    """
+    from .dynamics.pointmass import PointMassModel
+    from .estimate.scheme1 import fit_scheme1
+    from .estimate.smoothing import SMOOTHING_GRID, smoothness_priors
+
+    # the whole track: samples the diagnosis weights out as gross outliers are kept here (the
+    # local-cubic rule also flags the first samples of a shell that decelerates fast -- 9-12
+    # speed samples of a sphere or a bullet -- and leaving them out cut the drag model's Mach
+    # span short of the launch, so the held-flat spline put a 10 % "wind" into a G1 bullet's
+    # track); the diagnosis' own fits weight them out
+    tr = track
+    f1 = fit_scheme1(tr, rnd, drag="spline", channels=channels, sigma=sigma)
+    res = f1.ml
+    if not np.all(np.isfinite(res.theta)):
+        raise FitError(f"{track.source or 'track'}: no reference drag, and the Scheme 1 fit that supplies the "
+                       f"diagnosis' nuisance Cd gave no finite estimate ({res.message})")
+    dm = f1.drag_model
+    notes = []
+    sm = f1.smoothing
+    base = f1.base
+    if sm:
+        sd = float(sm["sd"])
+    else:  # no smoothing gave a converged Scheme 1 fit: the grid's middle
+        sd = float(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])
+        notes.append(f"the Scheme 1 fit behind the nuisance Cd chose no smoothing ({res.message}); "
+                     f"its penalty is held at sd {sd:g}")
+    smooth = smoothness_priors(dm, base, sd) if base is not None else ()
+    state = res.state0.copy()
+    t1 = float(tr.t[0])
+    if abs(t1 - t_ic) > 1e-9:
+        back = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, dm, rnd.atmosphere).state_at(
+            res.drag_params, state, t1, t_ic)
+        state = back if back is not None and np.all(np.isfinite(back)) else None
+    for c in (f1.launch_check or {}).get("conflicts", []):
+        if not c.get("secondary"):
+            notes.append(f"Scheme 1 (nuisance Cd): {c['message']}; the diagnosis keeps the round's launch "
+                         f"priors, so this misfit is part of the gap")
+    info = {"model": "penalised spline (Scheme 1 fit of this track)", "coefficients": int(dm.n_params),
+            "knots": [round(float(k), 4) for k in dm.knots], "smoothing_sd": sd,
+            "edf_drag": (sm or {}).get("edf_drag"), "scheme1_converged": bool(res.converged)}
+    return {"model": dm, "params": res.drag_params.copy(), "state": state, "smooth": tuple(smooth), "sd": sd,
+            "info": info, "notes": notes}
+
+
+#: half-width [samples] of the central difference that reads the speed off the positions
+SPEED_HALF_WINDOW = 5
+
+
+def flown_mach_span(setup, mach_model):
+    """Mach range the shell flies at the track's samples, read off the data.
+
+    The speed is the ``v`` channel, else the central difference of the positions over
+    ``2 SPEED_HALF_WINDOW`` samples; the speed of sound is the round's atmosphere at the
+    measured height (``z``), else at the gun. Outliers are left out. Not the baseline's Mach: a
+    baseline flown with a table of another shell can have its speed far off (a sphere with a G1
+    table "flies" at Mach 0.3-0.7 when the track says 0.2-1.7). The model's Mach is the fallback
+    when the data give no speed.
+
+    Parameters
+    ----------
+    setup : Setup
+    mach_model : (N,) Mach numbers of the baseline (the fallback)
+
+    Returns
+    -------
+    (float, float) or None when neither gives a finite range.
+    """
+    ch = setup.channels
+    ok = setup.weights.min(axis=1) > 0
+    t = np.asarray(setup.track.t, float)
+    if "v" in ch:
+        # every sample: a gross speed outlier (15 noise sd, ~1 % of the speed at most) barely
+        # moves the span, while the local-cubic outlier rule flags the first samples of a shell
+        # that decelerates fast (a sphere: 9 samples), and they hold the highest Mach
+        speed = np.asarray(setup.track.channels["v"], float)
+        ok = np.ones(t.size, bool)
+    elif any(c in ch for c in ("x", "y", "z")) and t.size > 2 * SPEED_HALF_WINDOW + 1:
+        h = SPEED_HALF_WINDOW
+        comp = [np.asarray(setup.track.channels[c], float) for c in ("x", "y", "z") if c in ch]
+        speed = np.full(t.size, np.nan)
+        d = np.sqrt(sum((p[2 * h:] - p[:-2 * h]) ** 2 for p in comp)) / (t[2 * h:] - t[:-2 * h])
+        speed[h:-h] = d
+    else:
+        speed = np.full(t.size, np.nan)
+    # without a height channel the air at the gun (the model's Mach span covers the rest)
+    z = np.asarray(setup.track.channels["z"], float) if "z" in ch else np.zeros(t.size)
+    a = setup.rnd.atmosphere.at_height(np.clip(z, -400.0, 20000.0)).speed_of_sound
+    m = np.where(ok, speed / a, np.nan)
+    if not np.any(np.isfinite(m)):
+        m = np.asarray(mach_model, float)
+    if not np.any(np.isfinite(m)):
+        return None
+    lo, hi = float(np.nanmin(m)), float(np.nanmax(m))
+    return (lo, hi) if hi > lo else None
+
+
+def drag_shape_for(setup, base_theta, span):
+    """The ``drag_shape`` drag of this track: knots over the flown Mach ``span``
+    (:func:`bayesdrag.effects.drag_shape_model`) and offsets that make every shape function move
+    the track orthogonally to a constant drag factor once the initial state (with the launch
+    priors) has taken its share (:func:`bayesdrag.effects.level_free_offsets`), at the baseline.
+    So ``drag_shape`` is the part of a table error that ``drag_scale`` cannot mimic, and the two
+    compose into a whole smooth correction of the table."""
+    from .effects import level_free_offsets
+
+    ref = setup.rnd.reference_drag
+    ds0 = drag_shape_model(ref, span)
+    P, Pk = setup.P, ds0.n_params
+    th = np.concatenate([[1.0], np.zeros(Pk - 1), base_theta[P:P + 6]])
+    free = np.concatenate([np.ones(Pk, bool), setup.free[P:P + 6]])
+    pri = _launch_priors(setup.rnd.launch, Pk) if setup.launch_known else ()
+    prob = OutputErrorProblem(setup.model.with_(drag=ds0), setup.track, th, free=free, sigma=setup.sigma,
+                              priors=pri, channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
+    _, _, S = prob.sensitivities(th)
+    sw = np.sqrt(setup.weights) / np.array([setup.sigma[c] for c in setup.channels])[None, :]
+    A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
+    _, pJ = prob.prior_terms(th)
+    if pJ.shape[0]:
+        A = np.vstack([A, pJ])
+    off = level_free_offsets(ds0, A[:, :Pk], A[:, Pk:])
+    return drag_shape_model(ref, span, tuple(off))
+
+
+def _penalty_information(smooth, P):
+    """Information ``sum r r' / sd^2`` (P, P) of linear priors on the drag coefficients."""
+    if not smooth:
+        return None
+    R = np.array([np.asarray(p.row, float)[:P] / p.sd for p in smooth])
+    return R.T @ R
+
+
 def make_setup(track, rnd, sigma=None, channels=None):
     """Baseline problem definition for a track and a round (see the module docstring)."""
-    from .drag import make_drag_model
     from .dynamics.pointmass import PointMassModel
     from .dynamics.trajectory import initial_state
     from .estimate.start import data_start
@@ -250,25 +448,27 @@ def make_setup(track, rnd, sigma=None, channels=None):
     if "y" not in chans:
         notes.append("no y channel: the cross wind wy is held at 0 (not identifiable) and lift/Coriolis "
                      "drift cannot be seen")
+    seen = track.with_channels(chans) if set(chans) != set(track.names) else track
     launch_known = L.velocity is not None and L.elevation_deg is not None
-    if launch_known:
-        t_ic = 0.0
-        s0 = initial_state(L.velocity, L.elevation_deg)
-    else:
-        t_ic = float(track.t[0])
-        s0 = data_start(track, rnd).state0
+    t_ic = 0.0 if launch_known else float(track.t[0])
+    if not launch_known:
         notes.append("no [launch] velocity/elevation: initial state fitted at the first sample without "
                      "priors; a late radar clock (radar_time) cannot be told from a later start")
     ref = rnd.reference_drag
+    smooth, nuis, s0 = (), None, None
     if ref is not None:
         drag = ref
         dparams = np.zeros(0)
     else:
-        lo, hi = data_start(track, rnd).mach_span
-        drag = make_drag_model("spline", mach_range=(lo, hi))
-        dparams = drag.initial_params(None)
-        notes.append("no reference drag in the round: the diagnosis works relative to a fitted Cd "
-                     "(spline as nuisance); effects that only rescale drag are not identifiable")
+        nuis = nuisance_drag(seen, rnd, chans, sig, t_ic)
+        drag, dparams, smooth, s0 = nuis["model"], nuis["params"], nuis["smooth"], nuis["state"]
+        notes.append(f"no reference drag in the round: the diagnosis works relative to a fitted Cd, the "
+                     f"penalised spline of a Scheme 1 fit of this track ({drag.n_params} coefficients, "
+                     f"smoothness sd {nuis['sd']:g}); effects that only rescale or reshape drag are not "
+                     f"identifiable")
+        notes += nuis["notes"]
+    if s0 is None:
+        s0 = initial_state(L.velocity, L.elevation_deg) if launch_known else data_start(seen, rnd).state0
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, drag, rnd.atmosphere)
     P = drag.n_params
     theta0 = np.concatenate([dparams, s0])
@@ -281,13 +481,18 @@ def make_setup(track, rnd, sigma=None, channels=None):
     ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg,
                         azimuth_deg=L.azimuth_deg, v0=L.velocity)
     return Setup(model, track, rnd, chans, theta0, free, priors, t_ic, sig, source, weights, outl,
-                 ctx, ref is not None, launch_known, notes)
+                 ctx, ref is not None, launch_known, notes, smooth=tuple(smooth),
+                 pen=_penalty_information(smooth, P), nuisance=None if nuis is None else nuis["info"])
 
 
 def _extra_free(setup, name):
     """Is an effect parameter estimable from the channels? Without a ``y`` channel the cross
     wind has no lateral signature left (only its small share of the airspeed), so ``wind.wy``
-    is held at 0 and wind is judged by its along-range component."""
+    is held at 0 and wind is judged by its along-range component. ``drag_shape`` uses as many
+    coefficients as its knots over the flown span give (:func:`bayesdrag.effects.drag_shape_knots`);
+    the rest are held at 0."""
+    if name.startswith("drag_shape.s"):
+        return drag_shape_free(setup.ctx, int(name.rsplit("s", 1)[1]) - 1)
     return not (name == "wind.wy" and "y" not in setup.channels)
 
 
@@ -312,20 +517,59 @@ def _problem(setup, effects, theta_start):
         if len(theta_start) == setup.theta0.size else np.asarray(theta_start, float)
     free = np.concatenate([setup.free, [_extra_free(setup, p.name) for p in ex]])
     fn = effect_fn(eff, setup.ctx, setup.theta0[setup.P:]) if eff else None
-    return OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
-                              priors=setup.priors, channels=setup.channels, extras=ex, effect_fn=fn,
-                              t_ic=setup.t_ic, weights=setup.weights)
+    prob = OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
+                              priors=setup.priors + _padded(setup.smooth, len(ex)), channels=setup.channels,
+                              extras=ex, effect_fn=fn, t_ic=setup.t_ic, weights=setup.weights)
+    prob.diag_effects = tuple(e.name for e in effects)  # in the order of the fit's parameters
+    return prob
+
+
+def _padded(priors, n_extra):
+    """Linear priors on the drag coefficients with their rows extended by ``n_extra`` zeros
+    (the effect parameters after the initial state)."""
+    if not n_extra:
+        return tuple(priors)
+    return tuple(Prior(p.name, p.fn, p.mean, p.sd, row=np.concatenate([np.asarray(p.row, float), np.zeros(n_extra)]))
+                 for p in priors)
 
 
 def _fit(setup, effects, theta_start, max_iter=40):
     prob = _problem(setup, effects, theta_start)
-    res = prob.fit(max_iter=max_iter)
+    if not any(e.name == "drag_shape" for e in effects):
+        res = prob.fit(max_iter=max_iter)
+    else:
+        res = prob.fit(max_iter=min(max_iter, DRAG_SHAPE_MAX_ITER))
+        if not res.converged and np.all(np.isfinite(res.theta)):
+            alt = prob.fit_trust_region(res.theta, res.sigma, max_nfev=DRAG_SHAPE_TRF_NFEV)
+            if np.all(np.isfinite(alt.theta)) and alt.cost <= res.cost:
+                res = alt
     y = np.stack([res.fitted[c] for c in setup.channels], axis=-1)
     return res, prob, y
 
 
 def _n_obs(setup):
     return float(setup.weights.sum())
+
+
+def _edf(setup, res):
+    """Effective number of fitted parameters of a fit: the free ones, less what the smoothness
+    penalty of the nuisance spline takes, ``n_free - tr(cov Lambda)`` (Lambda the penalty's
+    information on the drag coefficients; Hastie & Tibshirani's trace of the hat matrix)."""
+    n_free = float(res.free.sum())
+    if setup.pen is None:
+        return n_free
+    P = setup.P
+    tr = float(np.trace(res.cov[:P, :P] @ setup.pen))
+    return n_free - tr if np.isfinite(tr) else n_free - len(setup.smooth)
+
+
+def _floor(setup, res):
+    """Noise-only expectation of a fit's cost: weighted samples + launch priors - effective
+    parameters (:func:`_edf`). With a penalised nuisance spline the penalty's rows are not
+    observations of a random quantity (a smooth truth has zero second differences), so they add
+    nothing and shrink the parameter count instead: E[cost] = n - tr(H) for a penalised linear
+    fit whose truth the penalty does not bias."""
+    return _n_obs(setup) + len(setup.priors) - _edf(setup, res)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -454,55 +698,149 @@ def where_segments(t, resid_norm, weights, mach, z_model, channels, window=None)
 
 
 # ----------------------------------------------------------------------------------------------
-def cd_shift(setup, theta_eff, effects, y_eff, base_theta, n_mach=9):
-    """Cd change a Scheme 1 spline fit would absorb had ``effects`` been ignored (linearised).
+def effect_change(setup, fit, name):
+    """The output change effect ``name`` causes in a fit: the fit's outputs minus those of the
+    same model and parameters with that effect switched off (the others kept).
 
-    The output change the effect causes at the fitted state, ``dy = y(effect) - y(no effect)``,
-    is least-squares fitted (noise-weighted) by spline-Cd and initial-state sensitivities;
-    ``dCd(M) = B(M) d beta``.
+    Parameters
+    ----------
+    setup : Setup
+    fit : (MLResult, OutputErrorProblem, (N, C) outputs)
+        A fit with ``name`` among its effects (a single-effect fit or a verdict's joint fit).
+    name : str
+
+    Returns
+    -------
+    dy : (N, C) array, model units
+    mach : (N,) Mach along the trajectory without the effect
+    """
+    res, prob, y = fit
+    effs = [EFFECTS[n] for n in prob.diag_effects]
+    k0 = setup.P + 6
+    keep, j = [res.theta[:k0]], k0
+    for e in effs:
+        if e.k and e.name != name:
+            keep.append(res.theta[j:j + e.k])
+        j += e.k
+    th = np.concatenate(keep)
+    others = [e for e in effs if e.name != name]
+    y_o, mach_o = _problem(setup, others, th).predict(th[None])
+    return y - y_o[0], mach_o[0]
+
+
+def end_shift(setup, dy):
+    """How far an output change moves the track at its end, in noise sd.
+
+    Parameters
+    ----------
+    setup : Setup
+    dy : (N, C) array
+        Output change (model units) from :func:`effect_change`.
+
+    Returns
+    -------
+    dict with ``per_channel`` (channel -> |dy| / sigma at the channel's last weighted sample) and
+    ``max_sd``: the length of that end displacement in noise units, ``sqrt(sum_c (dy_c /
+    sigma_c)^2)`` (with x, y, z at 1 m noise: how many metres the end point moves). A clock 10 ms
+    late moves a 15-deg shell's end 2.7 m along x and 1.5 m in z: 3.1 sd.
+    """
+    out = {}
+    for j, c in enumerate(setup.channels):
+        w = np.flatnonzero(setup.weights[:, j] > 0)
+        if w.size:
+            out[c] = float(dy[w[-1], j] / setup.sigma[c])
+    norm = math.sqrt(sum(v * v for v in out.values()))
+    return {"per_channel": {c: abs(v) for c, v in out.items()}, "max_sd": norm}
+
+
+def cd_shift(setup, theta_eff, dy, mach, n_mach=9):
+    """Cd change a Scheme 1 fit would absorb had an effect been ignored (linearised).
+
+    The output change the effect causes, ``dy`` (:func:`effect_change`), is least-squares fitted
+    (noise-weighted, zero-weight samples out) by Cd and initial-state sensitivities at the fitted
+    state, with the launch priors as pseudo-measurements (the effect cannot hide in the initial
+    state); ``dCd(M) = B(M) d beta``. The Cd model is the Scheme 1 one: with a reference table the
+    table times a cubic-spline correction on :func:`bayesdrag.drag.default_spline_knots` (a
+    constant or smooth change of the table costs nothing, and relative shifts read straight off
+    the correction); without one the diagnosis' nuisance spline at its fitted coefficients with
+    its smoothness penalty (the penalised refit is what the Scheme 1 fit would do).
+
+    Parameters
+    ----------
+    setup : Setup
+    theta_eff : (P + 6 + ...) array
+        The fit's parameters (drag coefficients and the initial state are used).
+    dy : (N, C) array
+    mach : (N,) Mach along the trajectory (its finite range is the flown range)
 
     Returns
     -------
     dict with ``mach`` (list), ``cd_relative`` (list, dCd / Cd), ``max_abs_relative``.
     """
-    from .drag import make_drag_model
-    from .dynamics.pointmass import PointMassModel
+    from .drag import TableSpline, default_spline_knots
 
     P = setup.P
     s0 = theta_eff[P:P + 6]
-    prob_no = _problem(setup, [], np.concatenate([theta_eff[:P], s0]))
-    y_no, mach_no = prob_no.predict(np.concatenate([theta_eff[:P], s0])[None])
-    dy = y_eff - y_no[0]
-    m = mach_no[0][np.isfinite(mach_no[0])]
+    m = np.asarray(mach, float)
+    m = m[np.isfinite(m)]
     lo, hi = float(m.min()), float(m.max())
-    spl = make_drag_model("spline", mach_range=(lo, hi))
+    if hi - lo < 0.02:  # a (nearly) constant-Mach flight: a 0.02 span around it
+        lo, hi = lo - 0.01, hi + 0.01
     ref = setup.rnd.reference_drag
     if ref is not None:
-        beta = spl.initial_params(ref)
+        dm = TableSpline(ref, tuple(default_spline_knots(lo, hi)))
+        beta = dm.initial_params()
+        model = setup.model.with_(drag=dm)
+        pri = _launch_priors(setup.rnd.launch, dm.n_params) if setup.launch_known else ()
     else:
-        beta = theta_eff[:P] if P == spl.n_params else spl.initial_params(None)
-    model = PointMassModel(setup.model.mass, setup.model.diameter, spl, setup.model.atmosphere)
+        dm, beta, model = setup.model.drag, theta_eff[:P], setup.model
+        pri = setup.priors + setup.smooth
+    Pn = dm.n_params
     th = np.concatenate([beta, s0])
-    free = np.concatenate([np.ones(spl.n_params, bool), setup.free[P:P + 6]])
-    pri = _launch_priors(setup.rnd.launch, spl.n_params) if setup.launch_known else ()
+    free = np.concatenate([np.ones(Pn, bool), setup.free[P:P + 6]])
     prob = OutputErrorProblem(model, setup.track, th, free=free, sigma=setup.sigma, priors=pri,
                               channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
     _, _, S = prob.sensitivities(th)
     sw = np.sqrt(setup.weights) / np.array([setup.sigma[c] for c in setup.channels])[None, :]
     A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
     b = (dy * sw).reshape(-1)
-    # the Scheme 1 fit keeps its launch priors: the effect cannot hide in the initial state
+    # the Scheme 1 fit keeps its launch priors (and, without a table, its smoothness penalty):
+    # linearised about the fit, they enter as pseudo-measurements of a zero change
     _, pJ = prob.prior_terms(th)
     if pJ.shape[0]:
         A = np.vstack([A, pJ])
         b = np.concatenate([b, np.zeros(pJ.shape[0])])
     d, *_ = np.linalg.lstsq(A, b, rcond=None)
     grid = np.linspace(lo, hi, n_mach)
-    cd0 = spl.cd(beta, grid)
-    dcd = spl.jacobian(grid) @ d[:spl.n_params]
-    rel = dcd / cd0
+    cd0 = dm.cd(beta, grid)
+    rel = (dm.jacobian(grid) @ d[:Pn]) / cd0
     return {"mach": [round(float(v), 3) for v in grid], "cd_relative": [float(v) for v in rel],
             "max_abs_relative": float(np.max(np.abs(rel)))}
+
+
+def materiality(cd_shift_max, end_shift_sd, cd_tol=MATERIAL_CD_SHIFT, end_tol=MATERIAL_END_SD):
+    """Is an effect material (DESIGN.md)? Ignoring it would shift a fitted Cd by more than
+    ``cd_tol`` (relative) anywhere in the flown range, or move the track's end by more than
+    ``end_tol`` noise sd.
+
+    Parameters
+    ----------
+    cd_shift_max : float or None
+        Largest |dCd / Cd| (:func:`cd_shift`); None when not computed: an unknown Cd shift
+        counts as material (a detected effect is never called immaterial on half the evidence).
+    end_shift_sd : float
+        :func:`end_shift` ``max_sd``.
+    cd_tol, end_tol : float
+
+    Returns
+    -------
+    (bool, str) : material, and the reason in words.
+    """
+    cd_txt = ("Cd shift not computed" if cd_shift_max is None else
+              f"Cd shift {100 * cd_shift_max:.3g} % ({'>' if cd_shift_max > cd_tol else '<='} {100 * cd_tol:g} %)")
+    end_txt = f"end of track moved {end_shift_sd:.3g} noise sd ({'>' if end_shift_sd > end_tol else '<='} {end_tol:g})"
+    material = cd_shift_max is None or cd_shift_max > cd_tol or end_shift_sd > end_tol
+    return bool(material), f"{'material' if material else 'immaterial'}: {cd_txt}, {end_txt}"
 
 
 # ----------------------------------------------------------------------------------------------
@@ -526,7 +864,8 @@ def _effect_order(name):
 
 
 @single_blas
-def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA, cd_shifts=True):
+def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA, cd_shifts=True,
+             material_cd_shift=MATERIAL_CD_SHIFT, material_end_sd=MATERIAL_END_SD):
     """Diagnose the gap between a radar track and the nominal simulation of its round.
 
     Parameters
@@ -541,12 +880,26 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     alpha : float
         Family-wise false-alarm rate of the verdict.
     cd_shifts : bool
-        Compute the Cd shift of the significant effects (one extra sensitivity batch each).
+        Compute the Cd shift of the detected and the best-ranked effects (one extra sensitivity
+        batch each). Without it the Cd part of materiality is unknown and a detected effect
+        counts as material.
+    material_cd_shift : float
+        An effect is material when ignoring it would shift a fitted Cd by more than this
+        (relative; default :data:`MATERIAL_CD_SHIFT` = 0.001, i.e. 0.1 %) anywhere in the flown
+        Mach range ...
+    material_end_sd : float
+        ... or move the track at its last sample by more than this many noise sd (default
+        :data:`MATERIAL_END_SD` = 3).
 
     Returns
     -------
     Diagnosis
+        ``summary["verdict"]`` lists the detected effects that are material, best first;
+        ``summary["immaterial"]`` those detected but immaterial.
     """
+    if not (material_cd_shift >= 0 and material_end_sd >= 0):
+        raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
+                         f"material_end_sd={material_end_sd!r}")
     setup = make_setup(track, rnd, sigma, channels)
     chans = setup.channels
     sig_vec = np.array([setup.sigma[c] for c in chans])
@@ -556,13 +909,14 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         raise FitError("the nominal simulation of the round does not reach the track's times")
     base_theta = base.theta.copy()
     n_obs = _n_obs(setup)
-    n_free0 = int(base.free.sum())
-    floor0 = n_obs + len(setup.priors) - n_free0
+    floor0 = _floor(setup, base)
     chi2_base = float(base.cost)
     gap = max(chi2_base - floor0, 0.0)
     resid_base = np.stack([base.residuals[c] for c in chans], axis=-1)
     prior_terms = {p.name: float((p.mean - p.fn(base_theta)) / p.sd) for p in setup.priors}
     prior_chi2 = float(sum(v * v for v in prior_terms.values()))
+    mach = np.asarray(base.mach, float)
+    span = flown_mach_span(setup, mach)
 
     # candidates
     names = list(candidates) if candidates is not None else list(EFFECTS)
@@ -571,6 +925,16 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         skipped["coriolis"] = "the round gives no [launch] latitude: Earth rotation cannot be formed"
     if not setup.launch_known and "radar_time" in names:
         skipped["radar_time"] = "no [launch] velocity/elevation: a clock offset is a later start of the same trajectory"
+    if "drag_shape" in names:
+        if not setup.has_reference:
+            skipped["drag_shape"] = ("no reference drag: the fitted nuisance Cd already has any shape, so a "
+                                     "shape error of a table cannot be asked")
+        elif span is None or not span[1] > span[0]:
+            skipped["drag_shape"] = "the nominal trajectory gives no Mach span to shape the table over"
+        else:
+            from dataclasses import replace
+
+            setup.ctx = replace(setup.ctx, drag_shape=drag_shape_for(setup, base_theta, span))
     effs = [EFFECTS[n] for n in names if n not in skipped]
     sigs = signatures(setup, base_theta, effs)
     for e in list(effs):
@@ -594,7 +958,7 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             skipped[e.name] = f"its fit failed ({type(exc).__name__}: {exc})"
             continue
         fits[e.name] = (res, prob, y)
-        rows.append(_candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K))
+        rows.append(_candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K, base))
     # best first: significant effects before the rest (a non-physical or non-converged fit, e.g. a
     # yaw_drag at a negative amplitude, may drop chi2 the most yet cannot be the answer), then by
     # chi2 drop
@@ -623,71 +987,117 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
         corr = r.pop("_corr", {})
         r["signature_corr"] = {k: round(v, 4) for k, v in corr.items()}
 
-    # forward selection, with a look-ahead from the runner-up when it is a real alternative
-    verdict, selected_fit = [], None
+    # forward selection, with a look-ahead from the runners-up when they are real alternatives
+    found, selected_fit, drop_one, wrong_table = [], None, {}, None
     if rows and rows[0]["significant"]:
         starts = [rows[0]]
         for r in rows[1:LOOKAHEAD_STARTS]:
-            twin = any(r["signature_corr"].get(x["name"], 0) >= CONFOUND_CORR
-                       or x["signature_corr"].get(r["name"], 0) >= CONFOUND_CORR for x in starts)
-            if r["significant"] and r["shrink"] >= LOOKAHEAD_SHRINK and not twin:
+            # drag_shape is no start of its own: never kept out of forward selection
+            # (:func:`_blocked`), it enters wherever it adds what the others cannot
+            if (r["significant"] and r["shrink"] >= LOOKAHEAD_SHRINK and r["name"] != "drag_shape"
+                    and not any(_twins(setup, r, x) for x in starts)):
                 starts.append(r)
         best = None
         for r0 in starts:
             v, f = _forward(setup, rows, r0, fits[r0["name"]], gap, sig_vec, alpha)
             if best is None or _better(setup, (v, f), best, sig_vec, alpha, gap, K):
                 best = (v, f)
-        verdict, selected_fit, drop_one = _backward(setup, best[0], best[1], fits, gap, sig_vec, alpha, K)
-        # the verdict is ordered by what each effect explains alone (its single chi2 drop), and
-        # the effects list is "best first": the verdict, then the rest
+        found, selected_fit, drop_one = _backward(setup, best[0], best[1], fits, gap, sig_vec, alpha, K)
+        if "drag_shape" in found and set(found) - set(DRAG_EFFECTS):
+            found, selected_fit, drop_one, wrong_table = _beside_a_wrong_table(
+                setup, rows, found, selected_fit, drop_one, fits, gap, sig_vec, alpha,
+                dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd))
+        # ordered by what each effect explains alone (its single chi2 drop)
         rank = {r["name"]: i for i, r in enumerate(rows)}
-        verdict = sorted(verdict, key=rank.get)
-        order = {n: i for i, n in enumerate(verdict)}
-        rows.sort(key=lambda r: (order.get(r["name"], len(order)),))
-    # Cd shifts
-    if cd_shifts:
-        for i, r in enumerate(rows):  # the verdict and the best few (each costs a batch)
-            if r["name"] in verdict or i < CD_SHIFT_TOP:
-                try:
-                    res, prob, y = fits[r["name"]]
-                    r["cd_shift"] = cd_shift(setup, res.theta, [EFFECTS[r["name"]]], y, base_theta)
-                except Exception as exc:  # noqa: BLE001 - a report item, never the verdict
-                    r["cd_shift"] = {"error": f"{type(exc).__name__}: {exc}"}
+        found = sorted(found, key=rank.get)
+    by_name = {r["name"]: r for r in rows}
+
+    # the joint fit of the detected effects: every figure of a detected effect comes from it
     joint = None
-    if len(verdict) > 1:
+    if len(found) > 1:
         res, _, y = selected_fit
-        joint = {"effects": list(verdict), "params": {k: float(v) for k, v in res.extras.items()},
+        joint = {"effects": list(found), "params": {k: float(v) for k, v in res.extras.items()},
                  "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
                  "shrink_given_others": _conditional_shrinks(setup, res, drop_one)}
         # parameters of different effects that the joint fit can hardly tell apart: their values
         # then rest on the shapes of the models (e.g. a cross wind against the spin drift of a
         # shell whose lift differs from the generic Mach shape) more than on the data
         k0 = res.theta.size - len(joint["params"])
-        names = list(joint["params"])
+        pnames = list(joint["params"])
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = res.correlation()[k0:, k0:]
-        joint["sd"] = {n: float(v) for n, v in zip(names, np.sqrt(np.clip(np.diag(res.cov_colored)[k0:], 0, None)))}
+        joint["sd"] = {n: float(v) for n, v in zip(pnames, np.sqrt(np.clip(np.diag(res.cov_colored)[k0:], 0, None)))}
         joint["strongly_correlated"] = [
-            {"params": [names[i], names[j]], "corr": float(corr[i, j])}
-            for i in range(len(names)) for j in range(i + 1, len(names))
-            if names[i].split(".")[0] != names[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
-        # each verdict member's parameters and sd in the joint fit (its single fit may have
-        # taken up another member's signature, e.g. a cross wind for the spin drift)
-        for r in rows:
-            if r["name"] in verdict:
-                e = EFFECTS[r["name"]]
-                idx = [names.index(f"{e.name}.{p.name}") for p in e.params]
-                vals = np.array([joint["params"][names[i]] for i in idx])
-                cov_e = res.cov_colored[np.ix_([k0 + i for i in idx], [k0 + i for i in idx])]
-                r["params_joint"] = e.report_params(vals) if e.k else {}
-                r["sd_joint"] = e.report_sd(vals, cov_e) if e.k else {}
-                r["shrink_given_others"] = joint["shrink_given_others"].get(r["name"])
+            {"params": [pnames[i], pnames[j]], "corr": float(corr[i, j])}
+            for i in range(len(pnames)) for j in range(i + 1, len(pnames))
+            if pnames[i].split(".")[0] != pnames[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
+        for n in found:
+            e, r = EFFECTS[n], by_name[n]
+            idx = [pnames.index(f"{e.name}.{p.name}") for p in e.params]
+            vals = np.array([joint["params"][pnames[i]] for i in idx])
+            cov_e = res.cov_colored[np.ix_([k0 + i for i in idx], [k0 + i for i in idx])]
+            r["params_joint"] = _report_params(setup, e, vals) if e.k else {}
+            r["sd_joint"] = _report_params(setup, e, vals, cov_e) if e.k else {}
+            r["shrink_given_others"] = joint["shrink_given_others"].get(n)
+
+    # what ignoring each effect would do (detected effects: in their joint fit), and materiality
+    for i, r in enumerate(rows):
+        n = r["name"]
+        fit = selected_fit if (n in found and len(found) > 1) else fits[n]
+        r["impact_from"] = "joint fit" if (n in found and len(found) > 1) else "fitted alone"
+        try:
+            dy, mach_o = effect_change(setup, fit, n)
+            es = end_shift(setup, dy)
+        except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError) as exc:
+            dy, es = None, None
+            r["end_shift"] = {"error": f"{type(exc).__name__}: {exc}"}
+        if es is not None:
+            r["end_shift"] = es
+        r["end_shift_sd"] = None if es is None else es["max_sd"]
+        r["cd_shift_max"] = None
+        if cd_shifts and dy is not None and (n in found or r["significant"] or i < CD_SHIFT_TOP):
+            try:
+                r["cd_shift"] = cd_shift(setup, fit[0].theta, dy, mach_o)
+                r["cd_shift_max"] = r["cd_shift"]["max_abs_relative"]
+            except Exception as exc:  # noqa: BLE001 - a report item, never the verdict
+                r["cd_shift"] = {"error": f"{type(exc).__name__}: {exc}"}
+        if (r["significant"] or n in found) and r["end_shift_sd"] is not None:
+            r["material"], r["materiality"] = materiality(r["cd_shift_max"], r["end_shift_sd"],
+                                                          material_cd_shift, material_end_sd)
+        else:
+            r["material"] = False
+            r["materiality"] = ("not detected: its test statistic is below the threshold" if not r["significant"]
+                                else "impact not computed: " + r["end_shift"].get("error", ""))
+    verdict = [n for n in found if by_name[n]["material"]]
+    immaterial = [n for n in found if not by_name[n]["material"]]
+    for r in rows:
+        r["detected"] = r["name"] in found
+    if wrong_table is not None:
+        # effects beside a table of another shell were judged against a fitted Cd: their rows
+        # (every figure) come from that diagnosis
+        sub = {r["name"]: r for r in wrong_table["effects"]}
+        moved = wrong_table["verdict"] + wrong_table["immaterial"]
+        for k, r in enumerate(rows):
+            if r["name"] in moved:
+                rows[k] = dict(sub[r["name"]], detected=True, judged_against="fitted Cd (the table has another "
+                                                                             "shell's shape)")
+        verdict += wrong_table["verdict"]
+        immaterial += wrong_table["immaterial"]
+        found = found + moved
+        setup.notes.append("the firing table has another shell's shape (drag_shape): the other effects were "
+                           "judged against a fitted Cd, as without a table"
+                           + (f" ({', '.join(moved)} found there)" if moved else " (none found)"))
+    # the effects list is "best first": the verdict, the detected but immaterial, then the rest
+    order = {n: k for k, n in enumerate(verdict + immaterial)}
+    rows.sort(key=lambda r: (order.get(r["name"], len(order)),))
+
     best_name = rows[0]["name"] if rows else None
     y_best = fits[best_name][2] if best_name else None
-    if len(verdict) > 1:  # "after" = the verdict's joint fit
-        best_name, y_best = " + ".join(verdict), selected_fit[2]
+    if len(found) > 1:  # "after" = the detected effects' joint fit
+        best_name, y_best = " + ".join(found), selected_fit[2]
+    elif found:
+        best_name, y_best = found[0], fits[found[0]][2]
     resid_best = (np.stack([track.channels[c] for c in chans], axis=-1) - y_best) if y_best is not None else None
-    mach = np.asarray(base.mach, float)
     rn = resid_base / sig_vec[None, :]
     z_model = y_base[:, chans.index("z")] if "z" in chans else None
     where = where_segments(track.t, rn, setup.weights, mach, z_model, chans)
@@ -717,13 +1127,20 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
             "prior_misfit_sd": prior_terms, "n_samples": int(track.n), "n_weighted": n_obs,
             "sigma": {c: float(setup.sigma[c]) for c in chans}, "sigma_source": setup.sigma_source,
             "drag": "reference" if setup.has_reference else "fitted spline (no reference drag)",
+            "nuisance_drag": setup.nuisance,
+            "edf": float(_edf(setup, base)),
             "initial_state": {n: float(v) for n, v in zip(base.names[setup.P:], base_theta[setup.P:])},
             "ic_time": setup.t_ic, "converged": bool(base.converged), "message": base.message,
         },
         "where": where,
         "effects": rows,
         "verdict": verdict,
+        "immaterial": immaterial,
         "joint": joint,
+        "materiality": {"cd_shift": material_cd_shift, "end_sd": material_end_sd,
+                        "rule": "material when ignoring it would shift a fitted Cd by more than cd_shift "
+                                "(relative) anywhere in the flown Mach range or move the track's last sample by "
+                                "more than end_sd noise sd; detected effects are judged in their joint fit"},
         "skipped": skipped,
         "outliers": {c: [int(i) for i in np.flatnonzero(setup.outliers[:, j])] for j, c in enumerate(chans)},
         "tests": {"alpha": alpha, "candidates": K, "per_test_alpha": alpha / K,
@@ -733,6 +1150,107 @@ def diagnose(track, rnd, candidates=None, sigma=None, channels=None, alpha=ALPHA
     }
     return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), resid_base, resid_best,
                      mach, setup.weights, best_name)
+
+
+#: the effects that are a drag (table) error or cannot be told from one: a table of another
+#: shell is described by these; anything else beside it is judged against a fitted Cd
+DRAG_EFFECTS = ("density", "drag_scale", "drag_shape")
+
+
+def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec, alpha, opts):
+    """When ``drag_shape`` is detected the table is of another shell, and no finite shape
+    correction makes it a good reference: on a precise track what the correction leaves is
+    still far above the noise, and a weather effect that changes the drag along the flight (a
+    head wind changes the air speed, a temperature the Mach number) removes part of it -- a
+    55 m/s head wind beside the shape of a G7 table flown by a G1 bullet. So the explanation
+    keeps the drag: ``drag_scale`` (the level, when it is admitted beside the shape) and
+    ``drag_shape`` in their joint fit, and every other effect is judged as a round without a
+    table is: by a diagnosis against a fitted Cd (the Scheme 1 spline), which sees a wind by
+    what it does to the path, not to the drag.
+
+    The level is the twin the selection found (``density`` or ``drag_scale``; DESIGN.md: a
+    table error is named ``drag_scale`` when the implied air is outside the round's stated
+    atmosphere, and a round that states none bounds it only by ``density``'s physical range), or
+    else the better ranked of the two, kept when :func:`_admits` admits it beside the shape.
+
+    Returns (drag effects, their joint fit, its drop-one fits, that diagnosis' summary)."""
+    from dataclasses import replace
+
+    by = {r["name"]: r for r in rows}
+    level = [n for n in found if n in ("density", "drag_scale")]
+    if not level:
+        level = [r["name"] for r in rows if r["name"] in ("density", "drag_scale")][:1]
+    names = level[:1] + ["drag_shape"]
+    res = fit[0]
+    k0 = setup.P + 6
+    vals = dict(zip(res.names[k0:], res.theta[k0:]))
+    start = [res.theta[:k0]]
+    for n in names:
+        e = EFFECTS[n]
+        start.append([vals.get(f"{n}.{p.name}", s0) for p, s0 in zip(e.params, _fit_starts(e))])
+    try:
+        nfit = _fit(setup, [EFFECTS[n] for n in names], np.concatenate(start))
+        if len(names) == 2 and names[0] not in found and "drag_shape" in fits:
+            ok, _ = _admits(setup, EFFECTS[names[0]], fits["drag_shape"], nfit, gap, sig_vec, alpha / max(len(by), 1))
+            if not ok:
+                names, nfit = ["drag_shape"], fits["drag_shape"]
+    except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return found, fit, drop_one, None
+    subs = _drop_one_fits(setup, names, nfit, fits) if len(names) > 1 else {}
+    rnd = setup.rnd
+    no_table = replace(rnd, projectile=replace(rnd.projectile, reference_drag=None))
+    sub = diagnose(setup.track, no_table, candidates=[n for n in EFFECTS if n not in DRAG_EFFECTS],
+                   sigma=dict(setup.sigma), channels=setup.channels, alpha=alpha, **opts)
+    return names, nfit, subs, sub.summary
+
+
+def _twins(setup, a, b):
+    """Two candidate rows are structural twins when their projected signatures span the same
+    direction (canonical correlation >= CONFOUND_CORR) *and* they have as many parameters:
+    their fits are then the same fit (density and drag_scale), and forward selection need not
+    start from both. A smaller effect inside a larger one's span (temperature inside what
+    drag_shape and a scale can do on a flat flight) is no twin: parsimony must weigh the two."""
+    cc = max(a["signature_corr"].get(b["name"], 0.0), b["signature_corr"].get(a["name"], 0.0))
+    return cc >= CONFOUND_CORR and k_free(setup, EFFECTS[a["name"]]) == k_free(setup, EFFECTS[b["name"]])
+
+
+def _report_params(setup, e, vals, cov=None):
+    """An effect's reported parameters (``cov`` None) or their sd: DESIGN.md names; for
+    ``drag_shape`` only the coefficients this track uses."""
+    out = e.report_params(vals) if cov is None else e.report_sd(vals, cov)
+    if e.name == "drag_shape":
+        out = {k: v for k, v in out.items() if _extra_free(setup, f"drag_shape.{k}")}
+    return out
+
+
+def _track_chi2(setup, res):
+    """A fit's cost without its prior terms (launch priors, smoothness penalty): the track's own
+    noise-weighted residuals."""
+    th = res.theta
+    pri = sum(((p.mean - p.fn(th)) / p.sd) ** 2 for p in setup.priors + setup.smooth)
+    return float(res.cost) - float(pri)
+
+
+def _test_drop(setup, e, d, small_res, big_res):
+    """The chi2 drop a test uses. ``drag_shape`` is a hypothesis about the drag curve, so its
+    evidence must be in the track: its drop counts only as far as the track's residuals fall
+    (a round whose launch velocity is 15 % off leaves a launch-prior misfit that a correction
+    bending the drag to nothing in the first tenths of a second, at the end of the span no speed
+    sample pins, can trade against -- a sphere with its right table was named ``drag_shape``).
+    Other effects keep the whole drop (``radar_time`` is *meant* to explain a start that misses
+    the muzzle)."""
+    if e.name != "drag_shape":
+        return d
+    return min(d, _track_chi2(setup, small_res) - _track_chi2(setup, big_res))
+
+
+def _test_inflation(e, infl):
+    """The colored inflation a test divides by. ``drag_shape``, the library's most flexible
+    effect (up to 8 coefficients), gets no credit for an inflation below 1: white noise at the
+    right sigma scatters the measured inflation by ~10 % either way, and below 1 it would lift
+    an 8-dof chi2 of pure noise over its threshold (a null track did: chi2 drop 19.5 < 19.7,
+    divided by 0.85). It must be significant in plain chi2 units too."""
+    return max(infl, 1.0) if e.name == "drag_shape" else infl
 
 
 def threshold(e, a, k=None):
@@ -768,7 +1286,7 @@ def _better(setup, new, old, sig_vec, alpha, gap, K):
     nested = set(vn) <= set(vo) or set(vo) <= set(vn)
     big_wins = d / infl > _chi2.ppf(1 - alpha / K, abs(kn - ko))
     if nested:  # the bigger set adds effects to the smaller: the forward-selection rule applies
-        left = float(small[0].cost) - (_n_obs(setup) + len(setup.priors) - int(small[0].free.sum()))
+        left = float(small[0].cost) - _floor(setup, small[0])
         big_wins = big_wins and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, big[0], d, left, sig_vec))
     return big_wins if kn > ko else not big_wins
 
@@ -784,17 +1302,16 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
         # every candidate, not only those significant alone: a small effect beside a large one
         # is masked alone (its residuals hold the large one's misfit, which inflates its colored
         # test), and the conditional test below is the right one -- e.g. Coriolis beside a wind
-        if r is first or set(r["confounded_with"]) & set(verdict):
+        if r is first or _blocked(r, verdict):
             continue
-        if any(r["name"] in x["confounded_with"] for x in remaining):
+        if any(_blocked(r, [x["name"]]) for x in remaining):
             continue
         remaining.append(r)
     remaining = remaining[:FORWARD_MAX_CANDIDATES]
-    floor_n = _n_obs(setup) + len(setup.priors)
     while remaining and len(verdict) < MAX_VERDICT:
         sel_res = selected_fit[0]
         # what is left above the noise floor (an addition must remove a share of the gap or of this)
-        left = float(sel_res.cost) - (floor_n - int(sel_res.free.sum()))
+        left = float(sel_res.cost) - _floor(setup, sel_res)
         if left <= 0:
             break
         sel_effs = [EFFECTS[n] for n in verdict]
@@ -816,9 +1333,17 @@ def _forward(setup, rows, first, first_fit, gap, sig_vec, alpha):
             break
         verdict.append(best_add[0])
         selected_fit = best_add[2]
-        remaining = [r for r in remaining if r["name"] != best_add[0]
-                     and not set(r["confounded_with"]) & set(verdict)]
+        remaining = [r for r in remaining if r["name"] != best_add[0] and not _blocked(r, verdict)]
     return verdict, selected_fit
+
+
+def _blocked(r, names):
+    """Is candidate row ``r`` kept out of forward selection by one of ``names`` (confounded with
+    it: a structural twin, or as well supported)? ``drag_shape`` never is: its span *contains*
+    the drag-like effects it is confounded with (a yaw drag is a shape change early in the
+    flight), so after one of them it can still add what they cannot, and the conditional test
+    decides."""
+    return r["name"] != "drag_shape" and bool(set(r["confounded_with"]) & set(names))
 
 
 def _admits(setup, e, small, big, gap, sig_vec, a):
@@ -830,8 +1355,8 @@ def _admits(setup, e, small, big, gap, sig_vec, a):
     d = float(sres.cost - bres.cost)
     resid = np.stack([bres.residuals[c] for c in setup.channels], axis=-1)
     infl = colored_inflation(by - sy, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-    left = float(sres.cost) - (_n_obs(setup) + len(setup.priors) - int(sres.free.sum()))
-    ok = (d / infl > threshold(e, a, k_free(setup, e))
+    left = float(sres.cost) - _floor(setup, sres)
+    ok = (_test_drop(setup, e, d, sres, bres) / _test_inflation(e, infl) > threshold(e, a, k_free(setup, e))
           and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, bres, d, left, sig_vec)))
     return ok, d
 
@@ -860,10 +1385,9 @@ def _conditional_shrinks(setup, joint_res, subs):
     This is "how far the gap shrinks once that effect is added" when the track carries more
     than one effect (e.g. a 6-DOF shell's spin drift besides a withheld clock offset).
     ``subs``: the verdict's drop-one fits (:func:`_drop_one_fits`)."""
-    floor_n = _n_obs(setup) + len(setup.priors)
     out = {}
     for n, (res_o, _, _) in subs.items():
-        left = float(res_o.cost) - (floor_n - int(res_o.free.sum()))
+        left = float(res_o.cost) - _floor(setup, res_o)
         out[n] = float(np.clip((res_o.cost - joint_res.cost) / left, 0.0, 1.0)) if left > 0 else 0.0
     return out
 
@@ -887,33 +1411,33 @@ def _backward(setup, verdict, fit, fits, gap, sig_vec, alpha, K):
         verdict, fit = [m for m in verdict if m != worst[0]], worst[2]
 
 
-def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
+def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K, base_res):
     chans = setup.channels
     sig_vec = np.array([setup.sigma[c] for c in chans])
     d = float(chi2_base - res.cost)
     resid = np.stack([res.residuals[c] for c in chans], axis=-1)
     acov = autocovariance(resid, setup.weights)
     infl = colored_inflation(y - y_base, acov, sig_vec, setup.weights)
-    stat = d / infl
+    stat = _test_drop(setup, e, d, base_res, res) / _test_inflation(e, infl)
     thr = threshold(e, alpha / K, k_free(setup, e))
     n_obs = _n_obs(setup)
     vals = res.theta[-e.k:] if e.k else np.zeros(0)
     idx = slice(res.theta.size - e.k, res.theta.size)
     cov = res.cov[idx, idx] if e.k else np.zeros((0, 0))
     covc = res.cov_colored[idx, idx] if e.k else np.zeros((0, 0))
-    floor_e = n_obs + len(setup.priors) - int(res.free.sum())
+    floor_e = _floor(setup, res)
     remaining = max(float(res.cost) - floor_e, 0.0)
     noise_sd = chi2_noise_sd(acov, sig_vec, setup.weights)
     physical = True
     if e.name == "yaw_drag" and vals[0] < 0:
         physical = False
-    sd_c = e.report_sd(vals, covc) if e.k else {}
+    sd_c = _report_params(setup, e, vals, covc) if e.k else {}
     # inflate the white sd by the colored factor where the Morelli-Klein bound is smaller
     row = {
         "name": e.name,
-        "params": e.report_params(vals) if e.k else {},
+        "params": _report_params(setup, e, vals) if e.k else {},
         "sd": sd_c,
-        "sd_white": e.report_sd(vals, cov) if e.k else {},
+        "sd_white": _report_params(setup, e, vals, cov) if e.k else {},
         "delta_loglik": d / 2.0,
         "delta_chi2": d,
         "delta_bic": -d + k_free(setup, e) * math.log(max(n_obs, 1)),
@@ -931,8 +1455,13 @@ def _candidate_row(e, res, y, y_base, chi2_base, gap, setup, W, alpha, K):
         "physical": physical,
         "converged": bool(res.converged),
         "explanation": e.explanation,
-        "units": dict(zip(e.report_params(vals).keys(), e.units)) if e.k else {},
+        "units": dict(zip(_report_params(setup, e, vals).keys(), e.units)) if e.k else {},
     }
+    if e.name == "drag_shape" and setup.ctx.drag_shape is not None:
+        ds = setup.ctx.drag_shape
+        grid = np.linspace(ds.knots[0], ds.knots[-1], 9)
+        row["shape"] = {"knots": [round(float(k), 3) for k in ds.knots], "mach": [round(float(m), 3) for m in grid],
+                        "cd_relative": [float(v) for v in ds.correction(vals[:ds.n_shape], grid)]}
     if not res.success:
         row["message"] = res.message
     return row

@@ -13,41 +13,87 @@ import numpy as np
 from .io.outputs import atomic_write, ensure_output_dir, write_json
 
 
+def _pct(x):
+    """A relative change as a percentage with a sensible number of digits (0.013 %, 2.4 %)."""
+    return f"{100 * x:.2g} %" if abs(x) < 0.01 else f"{100 * x:.3g} %"
+
+
+def impact_text(e):
+    """What ignoring an effect would do, in words: "Cd shift 0.05 %, end of track moved 0.3
+    noise sd" (each figure from the fit the row reports; missing ones are left out)."""
+    parts = []
+    if e.get("cd_shift_max") is not None:
+        parts.append(f"Cd shift {_pct(e['cd_shift_max'])}")
+    if e.get("end_shift_sd") is not None:
+        parts.append(f"end of track moved {e['end_shift_sd']:.2g} noise sd")
+    return ", ".join(parts)
+
+
+def reported_values(e):
+    """(params, sd, share-of-the-gap text) a detected effect is reported with: its figures in
+    the detected effects' joint fit when there is one, else its own fit (then the same fit)."""
+    if "params_joint" in e:
+        pv, sd = e["params_joint"], e["sd_joint"]
+    else:
+        pv, sd = e["params"], e["sd"]
+    if e.get("shrink_given_others") is not None:
+        share = f"removing {100 * e['shrink_given_others']:.1f} % of what the others leave"
+    else:
+        share = f"removing {100 * e['shrink']:.1f} % of the gap"
+    return pv, sd, share
+
+
 def summary_paragraph(s):
-    """One paragraph (no line breaks) saying what the diagnosis found."""
+    """One paragraph (no line breaks) saying what the diagnosis found: the material effects
+    (figures from their joint fit), then the detectable but immaterial ones, worded as such."""
     b = s["baseline"]
     parts = [f"Baseline chi2/sample {b['chi2_per_sample']:.3g} (gap {b['gap']:.4g})."]
     if not s["reference_drag"]:
-        parts.append("No reference drag: effects are judged relative to a fitted Cd.")
+        parts.append("No reference drag: effects are judged relative to a fitted Cd (the penalised spline of a "
+                     "Scheme 1 fit).")
+    rows = {e["name"]: e for e in s["effects"]}
+    immaterial = s.get("immaterial") or []
     if not s["verdict"]:
-        parts.append("The nominal simulation explains the track within its noise: no effect is significant"
-                     f" (family-wise false-alarm rate {s['tests']['alpha']:g}).")
+        if immaterial:
+            parts.append("No material effect: nothing the track shows would shift a fitted Cd by more than "
+                         f"{_pct(s['materiality']['cd_shift'])} or move its end by more than "
+                         f"{s['materiality']['end_sd']:g} noise sd.")
+        else:
+            parts.append("The nominal simulation explains the track within its noise: no effect is significant"
+                         f" (family-wise false-alarm rate {s['tests']['alpha']:g}).")
     else:
-        rows = {e["name"]: e for e in s["effects"]}
         for i, n in enumerate(s["verdict"]):
             e = rows[n]
-            # with several effects, their values from the joint fit
-            pv, sd = (e["params_joint"], e["sd_joint"]) if "params_joint" in e else (e["params"], e["sd"])
+            pv, sd, share = reported_values(e)
             ps = ", ".join(f"{k} = {v:.4g} ± {sd.get(k, float('nan')):.2g}" for k, v in pv.items())
-            txt = (f"{'Found' if i == 0 else 'Also'}: {n}" + (f" ({ps})" if ps else "") +
-                   f", removing {100 * e['shrink']:.1f} % of the gap")
-            if e.get("shrink_given_others") is not None:
-                txt += f" alone and {100 * e['shrink_given_others']:.1f} % of what the others leave"
+            txt = f"{'Found' if i == 0 else 'Also'}: {n}" + (f" ({ps})" if ps else "") + f", {share}"
+            if e.get("judged_against"):
+                txt += f" (judged against a {e['judged_against']})"
             if e["confounded_with"]:
                 txt += f" (the data cannot tell it from {', '.join(e['confounded_with'])})"
-            if e.get("cd_shift") and "max_abs_relative" in e["cd_shift"]:
-                txt += f"; ignored, it would shift a fitted Cd by up to {100 * e['cd_shift']['max_abs_relative']:.2f} %"
+            imp = impact_text(e)
+            if imp:
+                txt += f"; ignored: {imp}"
             parts.append(txt + ".")
-        if s.get("joint"):
-            parts.append(f"Together they remove {100 * s['joint']['shrink']:.1f} % of the gap.")
-            for c in s["joint"].get("strongly_correlated", []):
-                a, b = c["params"]
-                parts.append(f"Caution: {a} and {b} are correlated {c['corr']:+.2f} in the joint fit, "
+        if "drag_shape" in s["verdict"]:
+            parts.append("The firing table's shape does not fit this track (a table of another shell, or air "
+                         "whose speed of sound is not the round's).")
+        joint = s.get("joint")
+        if joint:
+            parts.append(f"Together {'they' if len(joint['effects']) > 2 else 'the two'} remove "
+                         f"{100 * joint['shrink']:.1f} % of the gap.")
+            for c in joint.get("strongly_correlated", []):
+                a, b2 = c["params"]
+                parts.append(f"Caution: {a} and {b2} are correlated {c['corr']:+.2f} in the joint fit, "
                              f"so their split rests on the models' shapes more than on the data.")
-        top = rows[s["verdict"][0]]
-        if top["remaining_gap_fraction"] > 0.05:
-            parts.append(f"{100 * top['remaining_gap_fraction']:.0f} % of the gap remains after {top['name']} "
-                         f"(e.g. an effect that varies along the path).")
+            left = 1.0 - joint["shrink"]
+        else:
+            left = rows[s["verdict"][0]]["remaining_gap_fraction"]
+        if left > 0.05:
+            parts.append(f"{100 * left:.0f} % of the gap remains (e.g. an effect that varies along the path).")
+    if immaterial:
+        parts.append("Detectable but immaterial: " + "; ".join(
+            f"{n} ({impact_text(rows[n])})" for n in immaterial) + ".")
     if s["where"]:
         w = s["where"][0]
         if w["channel"] == "launch":
@@ -110,10 +156,12 @@ def plot_ranking(s, ax=None):
     eff = s["effects"][::-1]
     names = [e["name"] for e in eff]
     vals = [e["shrink"] for e in eff]
-    colors = ["C2" if e["name"] in s["verdict"] else ("C0" if e["significant"] else "0.7") for e in eff]
+    imm = set(s.get("immaterial") or [])
+    colors = ["C2" if e["name"] in s["verdict"] else "C1" if e["name"] in imm else "C0" if e["significant"] else "0.7"
+              for e in eff]
     ax.barh(names, vals, color=colors)
-    ax.set(xlim=(0, 1.05), xlabel="shrink (fraction of the gap removed)",
-           title="candidates (green: verdict, blue: significant alone)")
+    ax.set(xlim=(0, 1.05), xlabel="shrink (fraction of the gap removed, each fitted alone)",
+           title="candidates (green: verdict, orange: detectable but immaterial, blue: significant alone)")
     return ax
 
 
@@ -159,8 +207,12 @@ def write_diagnosis(out, d, track_name="", round_name=""):
         b64[name] = _png_b64(fig)
     env = jinja2.Environment(loader=jinja2.PackageLoader("bayesdrag", "templates"),
                              autoescape=jinja2.select_autoescape(["html", "j2"]))
+    rows = {e["name"]: e for e in s["effects"]}
+    detected = [dict(e, shown=reported_values(e), impact=impact_text(e)) for e in
+                [rows[n] for n in list(s["verdict"]) + list(s.get("immaterial") or []) if n in rows]]
     html = env.get_template("diagnosis.html.j2").render(
-        s=s, paragraph=paragraph, notes=s.get("notes", []), track_name=track_name, round_name=round_name,
+        s=s, paragraph=paragraph, detected=detected, notes=s.get("notes", []), track_name=track_name,
+        round_name=round_name,
         fig_residuals=b64["residuals"], fig_ranking=b64["ranking"], fig_where=b64["where"])
     atomic_write(out / "diagnosis.html", lambda tmp: Path(tmp).write_text(html, encoding="utf-8"))
     return paragraph

@@ -205,3 +205,118 @@ def test_coriolis_beside_a_wind_is_added_and_the_cross_wind_freed_of_it():
     w = next(r for r in s["effects"] if r["name"] == "wind")
     assert w["params_joint"]["wx"] == pytest.approx(-5.0, abs=0.5)
     assert w["params_joint"]["wy"] == pytest.approx(3.0, abs=0.5)
+
+
+# --- no firing table, wrong firing table, materiality (issue: diagnosis robustness) -----------
+#: a 130 mm G1-like shell (issue case: 33.4 kg, 810 m/s, QE 8)
+SHELL_130 = dict(mass=33.4, diameter=0.130, v0=810.0, el=8.0)
+#: noise of the 130 mm tracks [m, m/s]
+SIG_130 = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.1}
+#: chi2 per sample of a baseline that explains a track within its noise
+CHI2_PER_SAMPLE_TOL = 0.1
+
+
+def _std_table(name):
+    """A py-ballisticcalc standard drag table (G1, G7, ...) as a ReferenceTable."""
+    import py_ballisticcalc.drag_tables as dt
+
+    from bayesdrag.drag import ReferenceTable
+
+    rows = getattr(dt, f"Table{name}")
+    return ReferenceTable(tuple(float(r["Mach"]) for r in rows), tuple(float(r["CD"]) for r in rows),
+                          source=f"py-ballisticcalc {name}")
+
+
+def _round_130(table):
+    return Round(Projectile("130 mm", SHELL_130["mass"], SHELL_130["diameter"], table),
+                 Launch(elevation_deg=SHELL_130["el"], velocity=SHELL_130["v0"]), radar=Radar(dict(SIG_130)))
+
+
+@pytest.fixture(scope="module")
+def track_130_g1():
+    """Point-mass track (scipy reference integrator) of the 130 mm shell with G1 drag."""
+    tr = simulate_round(_round_130(_std_table("G1")), dt=0.05)
+    return add_noise(tr, SIG_130, np.random.default_rng(130))
+
+
+def test_no_table_baseline_is_the_scheme1_spline_and_names_nothing(track_130_g1):
+    """Issue case 10: without a firing table the baseline used to be an unpenalised spline on
+    generic knots from a 155 mm start curve, and a G1-like 130 mm shell with no effect at all
+    got 'wind (wx = -60 ± 2.9) ... would shift a fitted Cd by up to 17005 %'. Now the nuisance
+    Cd is the Scheme 1 penalised spline of the same track: the baseline explains the track
+    within its noise and nothing is named."""
+    from bayesdrag.estimate.scheme1 import fit_scheme1
+
+    rnd = _round_130(None)
+    s = diagnose(track_130_g1, rnd).summary
+    assert s["verdict"] == [] and s["immaterial"] == []
+    assert abs(s["baseline"]["chi2_per_sample"] - 1.0) < CHI2_PER_SAMPLE_TOL
+    f1 = fit_scheme1(track_130_g1, rnd, drag="spline", sigma=SIG_130)
+    nd = s["baseline"]["nuisance_drag"]
+    assert nd["coefficients"] == f1.drag_model.n_params
+    assert nd["smoothing_sd"] == pytest.approx(f1.smoothing["sd"])
+    assert s["baseline"]["ic_time"] == 0.0  # the diagnosis' own convention: state at launch
+    assert {"drag_scale", "density", "drag_shape"} <= set(s["skipped"])
+
+
+def test_a_table_of_another_shell_blames_the_drag_not_the_weather(track_130_g1):
+    """A G1 shell handed a G7 (boat-tail) table: the diagnosis names a drag finding
+    (drag_shape, with the level as drag_scale or its twin density), no weather effect."""
+    s = diagnose(track_130_g1, _round_130(_std_table("G7"))).summary
+    assert "drag_shape" in s["verdict"]
+    assert not set(s["verdict"]) & {"wind", "temperature", "yaw_drag"}
+    rows = {r["name"]: r for r in s["effects"]}
+    assert rows["drag_shape"]["material"] and rows["drag_shape"]["shape"]["knots"]
+
+
+def test_the_right_table_names_nothing_and_a_wind_is_still_found(track_130_g1):
+    g1 = _std_table("G1")
+    assert diagnose(track_130_g1, _round_130(g1)).summary["verdict"] == []
+    tr = add_noise(simulate_round(_round_130(g1), dt=0.05, wind=(-6.0, 4.0, 0.0)), SIG_130,
+                   np.random.default_rng(131))
+    s = diagnose(tr, _round_130(g1)).summary
+    assert s["verdict"] == ["wind"]
+    w = s["effects"][0]
+    assert w["params"]["wx"] == pytest.approx(-6.0, abs=0.5) and w["params"]["wy"] == pytest.approx(4.0, abs=0.5)
+
+
+def test_materiality_thresholds_move_a_small_clock_offset_out_of_the_verdict():
+    """A 10 ms late clock at 15 deg is detected; whether it is material depends on the
+    thresholds (DESIGN.md defaults: 0.1 % of Cd, 3 noise sd at the track's end). Above them it is
+    listed as detectable but immaterial, worded as such, never as a finding."""
+    from bayesdrag.diagnose import MATERIAL_CD_SHIFT, MATERIAL_END_SD
+    from bayesdrag.diagnose_report import summary_paragraph
+
+    rnd = _round(el=15.0)
+    tr = _track(rnd, seed=14, clock_offset=0.01)
+    s = diagnose(tr, rnd).summary
+    rt = next(r for r in s["effects"] if r["name"] == "radar_time")
+    assert rt["detected"] and rt["significant"]
+    assert (s["materiality"]["cd_shift"], s["materiality"]["end_sd"]) == (MATERIAL_CD_SHIFT, MATERIAL_END_SD)
+    big = diagnose(tr, rnd, material_cd_shift=10 * rt["cd_shift_max"], material_end_sd=10 * rt["end_shift_sd"]).summary
+    assert big["verdict"] == [] and big["immaterial"] == ["radar_time"]
+    row = next(r for r in big["effects"] if r["name"] == "radar_time")
+    assert row["material"] is False and row["materiality"].startswith("immaterial")
+    text = summary_paragraph(big)
+    assert "Detectable but immaterial: radar_time (Cd shift" in text and "noise sd)" in text
+    assert "Found" not in text
+    small = diagnose(tr, rnd, material_cd_shift=0.1 * rt["cd_shift_max"], material_end_sd=1e9).summary
+    assert small["verdict"] == ["radar_time"] and small["immaterial"] == []
+    with pytest.raises(ValueError, match="materiality thresholds must be >= 0"):
+        diagnose(tr, rnd, material_end_sd=-1.0)
+
+
+def test_a_verdict_members_impact_comes_from_the_joint_fit():
+    """6-DOF 40 ms clock beside the spin drift: both members' Cd and end-of-track shifts are
+    computed in the joint fit (the clock's alone would carry the drift's misfit)."""
+    tr, rnd = _sixdof_case(effect="radar_time", params={"dt": 0.04}, elevation=10.0)
+    s = diagnose(tr, rnd).summary
+    assert set(s["verdict"]) == {"lift", "radar_time"}
+    for r in s["effects"]:
+        if r["name"] in s["verdict"]:
+            assert r["impact_from"] == "joint fit" and r["material"]
+            assert r["cd_shift_max"] is not None and r["end_shift_sd"] > MATERIAL_END_SD_FOR_TEST
+
+
+#: the 40 ms clock moves the end of a 10 deg track by ~13 noise sd, the drift by ~90
+MATERIAL_END_SD_FOR_TEST = 3.0

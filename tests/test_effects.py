@@ -6,12 +6,15 @@ from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.effects import EFFECTS, K_YAW, EffectContext, get_effect, simulate_with_effects
+from bayesdrag.effects import (DRAG_SHAPE_MAX, EFFECTS, K_YAW, EffectContext, ShapedTable, drag_shape_knots,
+                               drag_shape_model, get_effect, level_free_offsets, simulate_with_effects)
 
 V0, EL = 818.0, 30.0
 T = np.linspace(0.0, 40.0, 401)
 #: a deflection smaller than this [m] counts as "no change" (kernel rounding is ~1e-6 m)
 TINY_M = 1e-3
+#: Mach span the 818 m/s, 30 deg flight of T covers (for drag_shape's knots)
+SPAN = (0.85, 2.45)
 
 
 @pytest.fixture(scope="module")
@@ -19,15 +22,20 @@ def model():
     return PointMassModel(42.6, 0.155, load_m101(), Atmosphere())
 
 
+def _ctx(**kw):
+    """The effect context of the test flight (drag_shape needs the table's shaped drag)."""
+    return EffectContext(v0=V0, drag_shape=drag_shape_model(load_m101(), SPAN), **kw)
+
+
 def _run(model, effects=(), values=(), ctx=None):
-    st, _ = simulate_with_effects(model, (), initial_state(V0, EL), T, effects, values,
-                                  ctx or EffectContext(v0=V0))
+    st, _ = simulate_with_effects(model, (), initial_state(V0, EL), T, effects, values, ctx or _ctx())
     return st
 
 
 def test_library_has_the_design_names_and_parameters():
     assert set(EFFECTS) >= {"wind", "temperature", "density", "coriolis", "yaw_drag", "lift",
-                            "radar_time", "drag_scale"}
+                            "radar_time", "drag_scale", "drag_shape"}
+    assert [p.name for p in EFFECTS["drag_shape"].params] == [f"s{i + 1}" for i in range(DRAG_SHAPE_MAX)]
     assert [p.name for p in EFFECTS["wind"].params] == ["wx", "wy"]
     assert EFFECTS["coriolis"].k == 0
     for e in EFFECTS.values():
@@ -115,3 +123,61 @@ def test_early_clock_extrapolates_backwards_within_millimetres(model):
     ref = sol.sol(back)
     assert np.max(np.abs(y[0, :back.size, 0] - ref[0])) < BACK_TOL_M
     assert np.max(np.abs(y[0, :back.size, 1] - ref[2])) < BACK_TOL_M
+
+
+# --- drag_shape: the table times a smooth correction without a level ---------------------------
+#: relative tolerance of a Mach mean computed on 801 points
+MEAN_TOL = 1e-3
+
+
+def test_drag_shape_knots_are_denser_where_the_table_rises():
+    knots = drag_shape_knots(load_m101(), 0.7, 2.4)
+    assert knots[0] <= 0.7 and knots[-1] >= 2.4 and len(knots) - 1 <= DRAG_SHAPE_MAX - 2
+    width = np.diff(knots)
+    mid = 0.5 * (knots[:-1] + knots[1:])
+    # the M101 rise (Mach 0.9-1.05) gets the narrowest intervals
+    assert width[np.argmin(np.abs(mid - 1.0))] < 0.5 * width.max()
+    with pytest.raises(ValueError, match="mach_max > mach_min"):
+        drag_shape_knots(load_m101(), 1.2, 1.2)
+
+
+def test_drag_shape_correction_has_no_level_and_changes_drag_where_it_is_put(model):
+    shape = drag_shape_model(load_m101(), SPAN)
+    K = shape.n_shape
+    m = np.linspace(shape.knots[0], shape.knots[-1], 801)
+    for k in range(K):  # every shape function has zero Mach mean (default offsets)
+        c = np.zeros(K)
+        c[k] = 1.0
+        assert abs(np.mean(shape.correction(c, m))) < MEAN_TOL
+    base = _run(model)
+    # coefficients beyond the span's count are unused: all zero is the table itself
+    assert np.max(np.abs(_run(model, ["drag_shape"], np.zeros(DRAG_SHAPE_MAX)) - base)) < TINY_M
+    # +10 % carried by the top three B-splines: more drag at high Mach (the first part of the
+    # flight), less at low Mach (the zero mean), a shorter range
+    up = np.zeros(DRAG_SHAPE_MAX)
+    up[K - 3:K] = 0.1
+    table = load_m101().value(np.array([1.0, 2.3]))
+    cd = shape.cd(np.r_[1.0, up[:K]], np.array([1.0, 2.3]))
+    assert cd[1] > table[1] * 1.05 and cd[0] < table[0]
+    assert _run(model, ["drag_shape"], up)[-1, 0] < base[-1, 0] - 10.0
+    with pytest.raises(ValueError, match="reference drag table"):
+        _run(model, ["drag_shape"], up, EffectContext(v0=V0))
+
+
+def test_level_free_offsets_make_the_shape_orthogonal_to_a_constant_factor():
+    """Synthetic sensitivities: after the offsets each shape column is orthogonal to the level
+    column once the nuisance columns are projected out."""
+    rng = np.random.default_rng(3)
+    shape = drag_shape_model(load_m101(), SPAN)
+    K = shape.n_shape
+    S = rng.standard_normal((200, K + 1))
+    A = rng.standard_normal((200, 3))
+    off = level_free_offsets(shape, S, A)
+    # moving the offsets by b subtracts b times the level column from each shape column
+    S2 = S.copy()
+    S2[:, 1:] -= np.outer(S[:, 0], off - np.asarray(shape.offsets))
+    Q, _ = np.linalg.qr(A)
+    P = S2 - Q @ (Q.T @ S2)
+    assert np.max(np.abs(P[:, 1:].T @ P[:, 0])) < 1e-9 * np.linalg.norm(P[:, 0]) ** 2
+    with pytest.raises(ValueError, match="offsets must be"):
+        ShapedTable(load_m101(), shape.knots, offsets=(0.1,))

@@ -36,7 +36,11 @@ def summarise(results):
             "shrink_min": min(shr) if shr else None,
             "shrink_ge_0.9_rate": sum(s >= 0.9 for s in shr) / max(len(shr), 1),
             "shrink_ge_0.9_within_noise_rate": sum(shr_noise) / max(len(shr_noise), 1),
-            "false_alarm_rate": fa, "cases_with_extra_effects": extra}
+            "false_alarm_rate": fa, "cases_with_extra_effects": extra,
+            # withheld effects the diagnosis found but judged immaterial (DESIGN.md): named under
+            # "immaterial", not in the verdict; and null tracks with something immaterial listed
+            "effect_named_immaterial": sum(bool(r.get("named_immaterial")) for r in eff),
+            "null_with_immaterial": sum(bool(r.get("immaterial")) for r in nul)}
 
 
 def main(argv=None):
@@ -53,6 +57,7 @@ def main(argv=None):
         r["time_s"] = round(time.time() - t1, 2)
         results.append(r)
         print(f"{r['id']:<26} truth {r['truth']:<12} top {str(r['top']):<12} verdict {r['verdict']} "
+              + (f"immaterial {r['immaterial']} " if r.get("immaterial") else "") +
               f"{'OK ' if r['correct'] else 'BAD'} mag {r['magnitude_ok']} "
               f"shrink {r['shrink'] if r['shrink'] is None else round(r['shrink'], 4)}"
               f"{'' if r.get('shrink_sd') is None else ' +- %.3f' % r['shrink_sd']} ({r['time_s']} s)",
