@@ -40,6 +40,8 @@ _API = {
     "fit": "bayesdrag.commands.fit",
     "simulate": "bayesdrag.commands.simulate",
     "FitResult": "bayesdrag.results",
+    "diagnose": "bayesdrag.commands.diagnose",
+    "DiagnosisResult": "bayesdrag.results",
     "FitOptions": "bayesdrag.commands.options",
     "SimulateOptions": "bayesdrag.commands.options",
     # errors

@@ -15,7 +15,7 @@ with sea-level pressure 101 325 Pa, R = 287.05287 J/(kg K), gamma = 1.4, g0 = 9.
 Altitudes passed to the public functions are **geometric** heights above mean sea level [m];
 they are converted to geopotential altitude with the Earth radius r0 = 6 356 766 m.
 
-Non-standard days are described by three numbers (DESIGN.md ``[atmosphere]`` and effects):
+Non-standard days are described by three numbers (the round's ``[atmosphere]`` and the effects):
 
 ``temperature_offset`` dT [K]
     the whole temperature profile is shifted by dT, *at unchanged pressure at the gun*; the
@@ -349,7 +349,7 @@ class MetProfile:
         In [100, 120000] Pa, strictly decreasing with altitude, hydrostatically consistent
         within :data:`HYDROSTATIC_ERROR`.
     wind_x, wind_y : tuple of float or None, m/s
-        Wind components in the DESIGN.md frame (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward
+        Wind components in the track frame (x downrange, y right, z up; docs/formats.md) (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward
         +y), or None. Data only: the kernel takes one constant wind; see :meth:`wind_at` and
         :meth:`mean_wind`.
     gun_altitude : float, m

@@ -1,7 +1,7 @@
 """Command line: ``bayesdrag simulate | fit | diagnose | batch | demo``.
 
 This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
-the command and maps what happened to the exit status (DESIGN.md): 0 success; 2 bad input, with
+the command and maps what happened to the exit status: 0 success; 2 bad input, with
 one line on stderr naming the file, row or key, what was found and what is allowed (no
 traceback); 1 an internal failure or a fit that has no solution; 130 interrupted.
 """

@@ -633,7 +633,7 @@ def _cached_reference_cells(table, grid):
 
 
 def make_drag_model(name, reference=None, mach_range=None, knots=None):
-    """Build a drag model by its DESIGN.md name.
+    """Build a drag model by its name.
 
     Parameters
     ----------

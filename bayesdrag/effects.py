@@ -78,7 +78,7 @@ from .atmosphere import Atmosphere
 from .drag import DragModel, ReferenceTable, Spline
 from .dynamics import kernel as K
 from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
-from .estimate.problem import ExtraParam, SimInputs
+from .effect_inputs import ExtraParam, SimInputs
 
 #: induced-drag factor k in Cd (1 + k delta^2) [1/rad^2] (C_D_delta2 / C_D0 of a typical shell)
 K_YAW = 10.0
@@ -576,8 +576,6 @@ def simulate_with_effects(model, drag_params, state0, t_out, effects=(), values=
     -------
     (N, 6) states and (N,) Mach.
     """
-    from .estimate.problem import OutputErrorProblem  # noqa: F401  (same machinery as the fit)
-
     effects = [get_effect(e) if isinstance(e, str) else e for e in effects]
     ctx = ctx or EffectContext(atmosphere=model.atmosphere)
     model = static_model(model, effects, ctx)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .io.outputs import atomic_write, write_json
 
-__all__ = ["FitResult", "PARTIAL", "CHAIN"]
+__all__ = ["FitResult", "DiagnosisResult", "PARTIAL", "CHAIN"]
 
 #: the sampler's chain while it runs, and once the run has finished
 PARTIAL = "chain.partial.h5"
@@ -48,7 +48,7 @@ class FitResult:
     Attributes
     ----------
     summary : dict
-        The content of ``result.json`` (DESIGN.md): ``scheme``, ``drag_model``, ``ml`` (with
+        The content of ``result.json``: ``scheme``, ``drag_model``, ``ml`` (with
         ``quality``), ``cd`` rows (each with ``determined`` and ``band_sd``), ``posterior`` and
         ``mcmc`` after sampling, ``windows`` for Scheme 2.
     track : RadarTrack
@@ -171,3 +171,59 @@ class FitResult:
             written.append(out / CHAIN)
         written += write_fit_report(out, self, sources=sources or {})
         return written
+
+
+@dataclass(frozen=True, eq=False)
+class DiagnosisResult:
+    """What a diagnosis found (:func:`bayesdrag.diagnose`).
+
+    Attributes
+    ----------
+    diagnosis : Diagnosis
+        The analysis (:func:`bayesdrag.diagnosis.diagnose`): its ``summary`` and the residuals
+        the figures show.
+    track : RadarTrack
+    round : Round
+    """
+
+    diagnosis: object
+    track: object
+    round: object
+
+    @property
+    def verdict(self):
+        """The material effects found, best first (``[]``: the nominal model explains the track)."""
+        return list(self.diagnosis.summary["verdict"])
+
+    @property
+    def summary(self):
+        """The content of ``diagnosis.json`` (a fresh copy; :meth:`to_dict`)."""
+        return self.to_dict()
+
+    @property
+    def paragraph(self):
+        """The diagnosis in one paragraph of words."""
+        from .diagnosis.summary import summary_paragraph
+
+        return summary_paragraph(self.diagnosis.summary)
+
+    def to_dict(self):
+        """The content of ``diagnosis.json``: plain JSON types, a fresh copy (with ``summary``, the
+        paragraph)."""
+        s = dict(self.diagnosis.summary, summary=self.paragraph)
+        return json.loads(json.dumps(_jsonable(s), allow_nan=False))
+
+    def write(self, directory, *, sources=None):
+        """Write ``diagnosis.json``, the figures and ``diagnosis.html`` into ``directory``.
+
+        Returns
+        -------
+        list of Path
+        """
+        from .report.diagnosis import write_diagnosis
+
+        sources = sources or {}
+        out = Path(directory)
+        write_diagnosis(out, self.diagnosis, track_name=str(sources.get("track", self.track.source)),
+                        round_name=str(sources.get("round", self.round.path)))
+        return [out / "diagnosis.json", out / "diagnosis.html"] + sorted(out.glob("diagnosis_*.png"))

@@ -42,7 +42,7 @@ def simulate_round(rnd, model="pointmass", dt=0.027, *, clock_offset=0.0, wind=(
         The radar clock is late by this much: recorded time = true time - clock_offset
         (effect ``radar_time``). Samples are recorded at 0, dt, ... on the radar's clock.
     wind : (3,) m/s
-        Constant wind in the DESIGN.md frame.
+        Constant wind in the track frame (x downrange, y right, z up; docs/formats.md).
     channels : sequence of str
         Channels to record, among x, y, z, v.
 

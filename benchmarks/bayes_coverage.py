@@ -49,7 +49,8 @@ def truth_model():
 def replicate(i, dm, c_true, m101, duration, seed0=1000):
     from bayesdrag.dynamics.pointmass import PointMassModel
     from bayesdrag.dynamics.trajectory import initial_state
-    from bayesdrag.estimate.bayes import LogPosterior, cd_draws, sample_posterior
+    from bayesdrag.estimate.posterior import LogPosterior
+    from bayesdrag.estimate.sampler import cd_draws, sample_posterior
     from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
     from bayesdrag.synthetic import add_noise
     from bayesdrag.round import Launch, Projectile, Radar, Round

@@ -28,7 +28,8 @@ def main(argv=None):
     ap.add_argument("--elevation", type=float, default=45.0)
     a = ap.parse_args(argv)
 
-    from bayesdrag.diagnose import _fit, diagnose, make_setup
+    from bayesdrag.diagnosis import diagnose, make_setup
+    from bayesdrag.diagnosis.setup import fit_effects
     from bayesdrag.io.drag_tables import load_m101
     from bayesdrag.synthetic import add_noise, simulate_round
     from bayesdrag.round import Launch, Projectile, Radar, Round
@@ -48,7 +49,7 @@ def main(argv=None):
     setup = make_setup(track, rnd)
     t0 = time.perf_counter()
     for _ in range(reps):
-        _fit(setup, [], setup.theta0)
+        fit_effects(setup, [], setup.theta0)
     t_base = (time.perf_counter() - t0) / reps
     print(f"diagnosis of {track.n} samples: {t_diag:.2f} s warm (baseline fit alone {t_base:.2f} s); "
           f"verdict {d.summary['verdict']}")

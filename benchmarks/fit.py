@@ -62,7 +62,8 @@ def time_ml(track, rnd, drag):
 
 def time_bayes(track, rnd, drag, seed=1):
     """ML + LogPosterior + sampling to convergence; returns (seconds, BayesResult, n params)."""
-    from bayesdrag.estimate.bayes import LogPosterior, sample_posterior
+    from bayesdrag.estimate.posterior import LogPosterior
+    from bayesdrag.estimate.sampler import sample_posterior
     from bayesdrag.estimate.scheme1 import fit_scheme1
 
     def once():
@@ -78,7 +79,8 @@ def time_bayes(track, rnd, drag, seed=1):
 
 
 def compare_moves(track, rnd, steps):
-    from bayesdrag.estimate.bayes import LogPosterior, sample_posterior
+    from bayesdrag.estimate.posterior import LogPosterior
+    from bayesdrag.estimate.sampler import sample_posterior
     from bayesdrag.estimate.scheme1 import fit_scheme1
 
     f1 = fit_scheme1(track, rnd, drag="poly2-split")

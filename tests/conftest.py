@@ -1,15 +1,13 @@
-import numpy as np
-import pytest
+"""Shared test set-up: the tests folder on the import path (for ``support`` and ``acceptance``
+helpers) and the fixtures by domain (``tests/fixtures``).
 
-from bayesdrag.io.drag_tables import load_m101
+Layout: ``unit/`` (one module's behaviour), ``integration/`` (commands, files, several layers),
+``acceptance/`` (statistical validation suites; their long versions are marked ``slow``)."""
+import sys
+from pathlib import Path
 
+TESTS = Path(__file__).resolve().parent
+if str(TESTS) not in sys.path:
+    sys.path.insert(0, str(TESTS))
 
-@pytest.fixture(scope="session")
-def m101():
-    """155 mm M101 zero-yaw drag curve (BRL MR-1167), shipped in the package."""
-    return load_m101()
-
-
-@pytest.fixture
-def rng():
-    return np.random.default_rng(20261122)
+pytest_plugins = ["fixtures.physics", "fixtures.shell155"]

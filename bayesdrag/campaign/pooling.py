@@ -1,5 +1,5 @@
 """Campaign pooling: the population Cd(M) of many rounds of one shell and the round-to-round
-scatter (DESIGN.md "Campaigns").
+scatter.
 
 Pooling model (decided here, written down)
 ------------------------------------------
@@ -26,7 +26,7 @@ integrate out in closed form (Sherman-Morrison per round), leaving the exact mar
 of ``s``, which emcee samples (1-D, in ``log s``); ``g | s`` is then Gaussian and is drawn
 exactly, and ``e_r | s, g`` too. So the posterior of ``(g, s, e)`` is exact for this model, not a
 long high-dimensional chain to babysit. ``log(1 + delta) = delta`` to 5e-5 at 1 % scatter, so
-``s`` *is* the relative sd of Cd (DESIGN.md ``scatter``), and ``exp(g)`` the population median
+``s`` *is* the relative sd of Cd (``scatter`` in campaign.json), and ``exp(g)`` the population median
 curve (its mean is larger by ``s^2/2``, 5e-5 at 1 %).
 
 Why nodes and not a population spline: every round's curve is already a smooth spline, the
@@ -357,7 +357,7 @@ def _pooled_reference(inputs, mach):
 
 
 def campaign_json(pooled, inputs=None, campaign_name="", failed=()):
-    """The ``campaign.json`` document (DESIGN.md keys plus extensions: ``deltas``, ``sampler``,
+    """The ``campaign.json`` document (keys: ``name``, ``rounds``, ``cd``, ``scatter``, and ``deltas``, ``sampler``,
     ``model``, ``failed``, ``rounds_detail``)."""
     doc = {"name": campaign_name, "rounds": list(pooled.names), "cd": pooled.cd_rows(),
            "scatter": pooled.scatter_summary(), "deltas": pooled.delta_summary(),

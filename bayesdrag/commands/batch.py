@@ -113,7 +113,7 @@ def run_diagnose_job(track, round_path, outdir):
     from .diagnose import run_diagnose
 
     d = run_diagnose(track, round_path, outdir, quiet=True, echo=lambda *a: None)
-    return f"verdict {d.summary['verdict'] or 'none'}"
+    return f"verdict {d.verdict or 'none'}"
 
 
 def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, covariance="colored"):

@@ -265,13 +265,16 @@ def summary_line(result):
     caveat = "" if ml["quality"]["ok"] else " -- NOT a clean answer: the model misses the track (warnings above)"
     head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}"
             if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
+    holes = [(a, b) for a, b in ml["quality"].get("undetermined", []) if det and det[0] < a and b < det[1]]
+    if holes:
+        head += " except " + ", ".join(f"{a:.2f}-{b:.2f}" for a, b in holes)
     return head + caveat
 
 
 def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print):
     """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
 
-    Outputs (DESIGN.md): ``result.json``, ``report.html`` and figures; with sampling also
+    Outputs: ``result.json``, ``report.html`` and figures; with sampling also
     ``posterior.nc`` (ArviZ) and ``chain.h5`` (the emcee chain). While sampling, the chain is
     written to ``chain.partial.h5``; ``resume`` continues it after a kill, and it becomes
     ``chain.h5`` when the run finishes. A fresh run refuses to start over an unfinished chain (it

@@ -180,11 +180,27 @@ class DiagnoseOptions:
     ----------
     channels : tuple of str or None
         Subset of the track's channels (default all).
+    material_cd_shift : float
+        An effect is material when ignoring it would shift a fitted Cd by more than this
+        fraction anywhere in the flown Mach range (default 0.001 = 0.1 %) ...
+    material_end_sd : float
+        ... or move the track by more than this many noise sd at its end (default 3).
+    alpha : float
+        Family-wise false-alarm rate of the verdict (default 0.05).
     """
 
     channels: tuple | None = None
+    material_cd_shift: float = 0.001
+    material_end_sd: float = 3.0
+    alpha: float = 0.05
 
     def __post_init__(self):
+        for name in ("material_cd_shift", "material_end_sd"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v > 0 and math.isfinite(v)):
+                _bad(name, v, "use a positive finite number")
+        if not (isinstance(self.alpha, (int, float)) and 0 < self.alpha < 1):
+            _bad("alpha", self.alpha, "use a probability in (0, 1)")
         if self.channels is not None:
             ch = tuple(self.channels)
             if not ch or any(c not in CHANNELS for c in ch):

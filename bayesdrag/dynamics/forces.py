@@ -70,7 +70,7 @@ def lift_parameter(factor, v0):
     ``alpha_R = -(2 Ix p / (rho S d v^4 C_Ma)) (v x dv/dt)`` (right-handed axes), and the lift
     on it is ``a_L = (rho S v^2 C_La / 2m) alpha_R = -(Ix p C_La / (m d C_Ma)) (v x dv/dt) / v^2``.
     Drag is along v and drops out of the cross product; with dv/dt replaced by gravity
-    ``(0, 0, -g)`` and v by the airspeed vector u, this becomes, in the DESIGN.md frame
+    ``(0, 0, -g)`` and v by the airspeed vector u, this becomes, in the track frame (x downrange, y right, z up; docs/formats.md)
     (x downrange, y right, z up -- left-handed, so the cross product is taken with y flipped
     and flipped back)::
 
@@ -130,7 +130,7 @@ def lift_mach_shape(mach, rise=LIFT_MACH_RISE, sat=LIFT_MACH_SAT):
 
 
 def coriolis_matrix(latitude_deg, azimuth_deg, omega=OMEGA_EARTH):
-    """Matrix C [1/s] with Coriolis acceleration ``a = C @ v`` in the DESIGN.md frame.
+    """Matrix C [1/s] with Coriolis acceleration ``a = C @ v`` in the track frame (x downrange, y right, z up; docs/formats.md).
 
     ``a = -2 Omega x v`` evaluated in east-north-up axes and projected on x (downrange, along
     ``azimuth_deg`` clockwise from north), y (to the right) and z (up). Note that (x, y, z) is

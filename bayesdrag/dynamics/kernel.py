@@ -5,7 +5,7 @@ that numba compiles it once (``cache=True`` writes the machine code next to this
 ``NUMBA_CACHE_DIR``, so a new process does not recompile) and runs the trajectories of a batch
 in parallel threads (``prange``).
 
-State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in the DESIGN.md
+State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in the track frame
 frame (x downrange, y right, z up). Acceleration (paper Eqs. 20-22 in 3-D, plus effects):
 
     a = -k_ref * rho_scale * rho(z) * Cd_eff * |u| u + (0, 0, -g) + C_cor @ v
@@ -29,14 +29,14 @@ vertical plane (up for a right-hand spin), with the speed ``m = nu p0 d`` and a 
 model.
 
 Per-trajectory parameters live in the rows of ``par`` with the column layout ``P_*`` below
-(``P_HAS_COR`` is no longer read: the Coriolis terms are always evaluated, branch-free).
+(``P_HAS_COR`` is not read: the Coriolis terms are always evaluated, branch-free).
 
 Integration: classic RK4 on a uniform step h (``pointmass.output_schedule``; ~0.074 s for a
 155 mm shell, against 0.027 s radar samples) with the acceleration at the step end re-used as
 the next step's first stage (4 evaluations per step), and a cubic Hermite interpolant through
 the states and accelerations at both ends of a step for every output time inside it.
 
-Layout and speed (issue 3). Trajectories are processed in blocks of ``nl`` lanes (8, fewer
+Layout and speed. Trajectories are processed in blocks of ``nl`` lanes (8, fewer
 for tiny batches, :func:`lanes_per_block`), one block per ``prange`` iteration; inside a block
 every RK stage is one loop over the lanes with the lane index innermost and contiguous, so
 LLVM vectorises it into AVX-512 code (8 doubles, gathers for the table reads). What it took,
@@ -177,6 +177,115 @@ def _acc(z, vx, vy, vz, q, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     return ax, ay, az, dq
 
 
+@njit(forceinline=True, **_OPTS)
+def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw, BL, LP, CDO, ATO, ST):
+    """Load block ``blk``'s lanes: state, per-lane parameters, table offsets (lanes past B
+    repeat the last trajectory and are not stored)."""
+    for l in range(nl):
+        b = min(blk * nl + l, B - 1)
+        BL[blk, l] = b
+        for c in range(6):
+            ST[blk, c, l] = y0[b, c]
+        ST[blk, 6, l] = 1.0
+        LP[blk, _L_KREF, l] = par[b, P_KREF]
+        LP[blk, _L_WX, l] = par[b, P_WX]
+        LP[blk, _L_WY, l] = par[b, P_WY]
+        LP[blk, _L_WZ, l] = par[b, P_WZ]
+        LP[blk, _L_G, l] = par[b, P_G]
+        LP[blk, _L_LIFT, l] = par[b, P_LIFT]
+        LP[blk, _L_LRISE, l] = par[b, P_LIFT_RISE]
+        LP[blk, _L_LSAT, l] = par[b, P_LIFT_SAT]
+        LP[blk, _L_SPIN, l] = par[b, P_SPIN_DECAY] * par[b, P_KREF] * par[b, P_RHO_SCALE]
+        LP[blk, _L_LVERT, l] = par[b, P_LIFT_VERT]
+        LP[blk, _L_LVSAT, l] = par[b, P_LIFT_VERT_SAT]
+        for c in range(9):
+            LP[blk, _L_COR + c, l] = par[b, P_COR + c]
+        scale = par[b, P_CD_SCALE] * par[b, P_RHO_SCALE]
+        LP[blk, _L_SCALE, l] = scale
+        LP[blk, _L_YAW_AMP, l] = par[b, P_YAW_AMP]
+        LP[blk, _L_YAW_RATE, l] = -2.0 * par[b, P_YAW_DECAY]
+        LP[blk, _L_T0, l] = par[b, P_T0] + t_start
+        LP[blk, _L_F0, l] = scale
+        LP[blk, _L_FH2, l] = scale
+        LP[blk, _L_FH, l] = scale
+        CDO[blk, l] = cd_idx[b] * (n_cells * 4)
+        ATO[blk, l] = atm_idx[b] * (n_z * 2)
+    if yaw:
+        for l in range(nl):
+            LP[blk, _L_F0, l] = LP[blk, _L_SCALE, l] * (
+                1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
+
+
+@njit(forceinline=True, **_OPTS)
+def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, cd_flat, atm_flat, tab, ST, AC, K2, K3, K4, ST1, AC1):
+    """One RK4 step of every lane of block ``blk`` from ``ST``/``AC`` (state and acceleration at
+    t_s) to ``ST1``/``AC1`` (at t_s + h). One loop per stage, lanes innermost: independent
+    vectors in flight."""
+    if yaw:
+        for l in range(nl):
+            ts = LP[blk, _L_T0, l] + s * h
+            LP[blk, _L_FH2, l] = LP[blk, _L_SCALE, l] * (
+                1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h2)))
+            LP[blk, _L_FH, l] = LP[blk, _L_SCALE, l] * (
+                1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h)))
+    for l in range(nl):
+        K2[blk, 0, l], K2[blk, 1, l], K2[blk, 2, l], K2[blk, 3, l] = _acc(
+            ST[blk, 2, l] + h2 * ST[blk, 5, l], ST[blk, 3, l] + h2 * AC[blk, 0, l],
+            ST[blk, 4, l] + h2 * AC[blk, 1, l], ST[blk, 5, l] + h2 * AC[blk, 2, l],
+            ST[blk, 6, l] + h2 * AC[blk, 3, l],
+            LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+    for l in range(nl):
+        K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
+            ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
+            ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
+            ST[blk, 5, l] + h2 * K2[blk, 2, l], ST[blk, 6, l] + h2 * K2[blk, 3, l],
+            LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+    for l in range(nl):
+        K4[blk, 0, l], K4[blk, 1, l], K4[blk, 2, l], K4[blk, 3, l] = _acc(
+            ST[blk, 2, l] + h * (ST[blk, 5, l] + h2 * K2[blk, 2, l]),
+            ST[blk, 3, l] + h * K3[blk, 0, l], ST[blk, 4, l] + h * K3[blk, 1, l],
+            ST[blk, 5, l] + h * K3[blk, 2, l], ST[blk, 6, l] + h * K3[blk, 3, l],
+            LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+    for l in range(nl):
+        for c in range(3):
+            v = ST[blk, 3 + c, l]
+            a1 = AC[blk, c, l]
+            # RK4 with the stage velocities v + h/2 a1, v + h/2 a2, v + h a3 folded in
+            ST1[blk, c, l] = ST[blk, c, l] + h * v + h * h6 * (a1 + K2[blk, c, l] + K3[blk, c, l])
+            ST1[blk, 3 + c, l] = v + h6 * (a1 + 2.0 * K2[blk, c, l] + 2.0 * K3[blk, c, l] + K4[blk, c, l])
+        ST1[blk, 6, l] = ST[blk, 6, l] + h6 * (AC[blk, 3, l] + 2.0 * K2[blk, 3, l]
+                                               + 2.0 * K3[blk, 3, l] + K4[blk, 3, l])
+        AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l], AC1[blk, 3, l] = _acc(
+            ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l],
+            LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+
+
+@njit(forceinline=True, **_OPTS)
+def _hermite_row(blk, nl, th, h, z0, inv_dz, zmax, LP, ATO, atm_flat, ST, AC, ST1, AC1, OB):
+    """One output row of every lane: cubic Hermite on [t_s, t_s + h] (position ``th`` in [0, 1])
+    from the states and accelerations at both ends, and its Mach number, into ``OB``."""
+    th2 = th * th
+    th3 = th2 * th
+    e00 = 2.0 * th3 - 3.0 * th2 + 1.0
+    e01 = 3.0 * th2 - 2.0 * th3
+    e10 = h * (th3 - 2.0 * th2 + th)
+    e11 = h * (th3 - th2)
+    for l in range(nl):
+        for c in range(3):
+            OB[blk, c, l] = (e00 * ST[blk, c, l] + e10 * ST[blk, c + 3, l]
+                             + e01 * ST1[blk, c, l] + e11 * ST1[blk, c + 3, l])
+            OB[blk, c + 3, l] = (e00 * ST[blk, c + 3, l] + e10 * AC[blk, c, l]
+                                 + e01 * ST1[blk, c + 3, l] + e11 * AC1[blk, c, l])
+        ux = OB[blk, 3, l] - LP[blk, _L_WX, l]
+        uy = OB[blk, 4, l] - LP[blk, _L_WY, l]
+        uz = OB[blk, 5, l] - LP[blk, _L_WZ, l]
+        zi = min(max((OB[blk, 2, l] - z0) * inv_dz, 0.0), zmax)
+        j = int(zi)
+        ja = ATO[blk, l] + 2 * j
+        OB[blk, 6, l] = np.sqrt(ux * ux + uy * uy + uz * uz) * (
+            atm_flat[ja + 1] + (zi - j) * (atm_flat[ja + 3] - atm_flat[ja + 1]))
+
+
 @njit(parallel=True, cache=True, **_OPTS)
 def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
                     m0, dm, atm_flat, n_z, atm_idx, z0, dz, nl, out, mach_out):
@@ -244,41 +353,8 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     AC1 = np.empty((n_blk, 4, nl))   # acceleration there (= next step's first stage)
     OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
     for blk in prange(n_blk):
-        # lanes past B repeat the last trajectory and are not stored
         n_real = min(B, blk * nl + nl) - blk * nl
-        for l in range(nl):
-            b = min(blk * nl + l, B - 1)
-            BL[blk, l] = b
-            for c in range(6):
-                ST[blk, c, l] = y0[b, c]
-            ST[blk, 6, l] = 1.0
-            LP[blk, _L_KREF, l] = par[b, P_KREF]
-            LP[blk, _L_WX, l] = par[b, P_WX]
-            LP[blk, _L_WY, l] = par[b, P_WY]
-            LP[blk, _L_WZ, l] = par[b, P_WZ]
-            LP[blk, _L_G, l] = par[b, P_G]
-            LP[blk, _L_LIFT, l] = par[b, P_LIFT]
-            LP[blk, _L_LRISE, l] = par[b, P_LIFT_RISE]
-            LP[blk, _L_LSAT, l] = par[b, P_LIFT_SAT]
-            LP[blk, _L_SPIN, l] = par[b, P_SPIN_DECAY] * par[b, P_KREF] * par[b, P_RHO_SCALE]
-            LP[blk, _L_LVERT, l] = par[b, P_LIFT_VERT]
-            LP[blk, _L_LVSAT, l] = par[b, P_LIFT_VERT_SAT]
-            for c in range(9):
-                LP[blk, _L_COR + c, l] = par[b, P_COR + c]
-            scale = par[b, P_CD_SCALE] * par[b, P_RHO_SCALE]
-            LP[blk, _L_SCALE, l] = scale
-            LP[blk, _L_YAW_AMP, l] = par[b, P_YAW_AMP]
-            LP[blk, _L_YAW_RATE, l] = -2.0 * par[b, P_YAW_DECAY]
-            LP[blk, _L_T0, l] = par[b, P_T0] + t_start
-            LP[blk, _L_F0, l] = scale
-            LP[blk, _L_FH2, l] = scale
-            LP[blk, _L_FH, l] = scale
-            CDO[blk, l] = cd_idx[b] * (n_cells * 4)
-            ATO[blk, l] = atm_idx[b] * (n_z * 2)
-        if yaw:
-            for l in range(nl):
-                LP[blk, _L_F0, l] = LP[blk, _L_SCALE, l] * (
-                    1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
+        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw, BL, LP, CDO, ATO, ST)
         for l in range(nl):
             AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
                 ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l],
@@ -286,67 +362,10 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
                 blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
         o = 0
         for s in range(n_steps):
-            if yaw:
-                for l in range(nl):
-                    ts = LP[blk, _L_T0, l] + s * h
-                    LP[blk, _L_FH2, l] = LP[blk, _L_SCALE, l] * (
-                        1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h2)))
-                    LP[blk, _L_FH, l] = LP[blk, _L_SCALE, l] * (
-                        1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h)))
-            # one loop per RK stage, lanes innermost: independent vectors in flight
-            for l in range(nl):
-                K2[blk, 0, l], K2[blk, 1, l], K2[blk, 2, l], K2[blk, 3, l] = _acc(
-                    ST[blk, 2, l] + h2 * ST[blk, 5, l], ST[blk, 3, l] + h2 * AC[blk, 0, l],
-                    ST[blk, 4, l] + h2 * AC[blk, 1, l], ST[blk, 5, l] + h2 * AC[blk, 2, l],
-                    ST[blk, 6, l] + h2 * AC[blk, 3, l],
-                    LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
-            for l in range(nl):
-                K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
-                    ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
-                    ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
-                    ST[blk, 5, l] + h2 * K2[blk, 2, l], ST[blk, 6, l] + h2 * K2[blk, 3, l],
-                    LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
-            for l in range(nl):
-                K4[blk, 0, l], K4[blk, 1, l], K4[blk, 2, l], K4[blk, 3, l] = _acc(
-                    ST[blk, 2, l] + h * (ST[blk, 5, l] + h2 * K2[blk, 2, l]),
-                    ST[blk, 3, l] + h * K3[blk, 0, l], ST[blk, 4, l] + h * K3[blk, 1, l],
-                    ST[blk, 5, l] + h * K3[blk, 2, l], ST[blk, 6, l] + h * K3[blk, 3, l],
-                    LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
-            for l in range(nl):
-                for c in range(3):
-                    v = ST[blk, 3 + c, l]
-                    a1 = AC[blk, c, l]
-                    # RK4 with the stage velocities v + h/2 a1, v + h/2 a2, v + h a3 folded in
-                    ST1[blk, c, l] = ST[blk, c, l] + h * v + h * h6 * (a1 + K2[blk, c, l] + K3[blk, c, l])
-                    ST1[blk, 3 + c, l] = v + h6 * (a1 + 2.0 * K2[blk, c, l] + 2.0 * K3[blk, c, l] + K4[blk, c, l])
-                ST1[blk, 6, l] = ST[blk, 6, l] + h6 * (AC[blk, 3, l] + 2.0 * K2[blk, 3, l]
-                                                       + 2.0 * K3[blk, 3, l] + K4[blk, 3, l])
-                AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l], AC1[blk, 3, l] = _acc(
-                    ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l],
-                    LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, cd_flat, atm_flat, tab, ST, AC, K2, K3, K4, ST1,
+                      AC1)
             while o < N and out_step[o] == s:
-                # cubic Hermite on [t_s, t_s + h] from the states and accelerations at both ends
-                th = out_theta[o]
-                th2 = th * th
-                th3 = th2 * th
-                e00 = 2.0 * th3 - 3.0 * th2 + 1.0
-                e01 = 3.0 * th2 - 2.0 * th3
-                e10 = h * (th3 - 2.0 * th2 + th)
-                e11 = h * (th3 - th2)
-                for l in range(nl):
-                    for c in range(3):
-                        OB[blk, c, l] = (e00 * ST[blk, c, l] + e10 * ST[blk, c + 3, l]
-                                         + e01 * ST1[blk, c, l] + e11 * ST1[blk, c + 3, l])
-                        OB[blk, c + 3, l] = (e00 * ST[blk, c + 3, l] + e10 * AC[blk, c, l]
-                                             + e01 * ST1[blk, c + 3, l] + e11 * AC1[blk, c, l])
-                    ux = OB[blk, 3, l] - LP[blk, _L_WX, l]
-                    uy = OB[blk, 4, l] - LP[blk, _L_WY, l]
-                    uz = OB[blk, 5, l] - LP[blk, _L_WZ, l]
-                    zi = min(max((OB[blk, 2, l] - z0) * inv_dz, 0.0), zmax)
-                    j = int(zi)
-                    ja = ATO[blk, l] + 2 * j
-                    OB[blk, 6, l] = np.sqrt(ux * ux + uy * uy + uz * uz) * (
-                        atm_flat[ja + 1] + (zi - j) * (atm_flat[ja + 3] - atm_flat[ja + 1]))
+                _hermite_row(blk, nl, out_theta[o], h, z0, inv_dz, zmax, LP, ATO, atm_flat, ST, AC, ST1, AC1, OB)
                 for l in range(n_real):
                     b = BL[blk, l]
                     for c in range(6):

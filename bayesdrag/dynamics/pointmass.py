@@ -1,6 +1,6 @@
 """Point-mass trajectory model (paper Eqs. 20-22 in 3-D) with wind, atmosphere and effects.
 
-Equations of motion (DESIGN.md frame: x downrange, y right, z up; ground-relative velocity v)::
+Equations of motion (track frame: x downrange, y right, z up; ground-relative velocity v)::
 
     dv/dt = -(pi d^2 / 8m) rho(z) Cd(M) |u| u  +  (0, 0, -g)  +  C_cor v
             +  q s(M) g / |u|^2 [L (-u_y, u_x, 0) + |L| m q / (|u|^2 (1 + C x_m)) (-u_x u_z, -u_y u_z, u_h^2)]
@@ -87,7 +87,7 @@ class PointMassModel:
     drag : DragModel
     atmosphere : Atmosphere
     wind : (3,) tuple, m/s
-        Constant wind ``(wx, wy, wz)`` in the DESIGN.md frame (direction the air moves).
+        Constant wind ``(wx, wy, wz)`` in the track frame (x downrange, y right, z up; docs/formats.md) (direction the air moves).
     coriolis : (latitude_deg, azimuth_deg) or None
         Earth rotation on when given.
     gravity : float, m/s^2

@@ -1,6 +1,6 @@
 """Six-degree-of-freedom (6-DOF) rigid-body simulator of a spin-stabilised shell: synthetic truth.
 
-This is the model the paper (``shared/seeds``, Eqs. 1-17) used to make its simulated radar
+This is the model the paper (Eqs. 1-17) used to make its simulated radar
 tracks: a rotationally symmetric rigid body under gravity and the full set of linear
 aerodynamic forces and moments, integrated from the muzzle to impact. The estimators of this
 package fit a *point-mass* model (paper Eqs. 20-22) to such tracks; the 6-DOF model supplies
@@ -78,7 +78,7 @@ small nose-right yaw; lift acting on it gives the classic rightward drift (y > 0
 
 Frames
 ------
-Outputs follow DESIGN.md: x downrange (horizontal, along the firing azimuth), **y to the right**
+Outputs are in the track frame: x downrange (horizontal, along the firing azimuth), **y to the right**
 looking downrange, z up; origin at the muzzle, t = 0 at launch. (x, y-right, z-up) is a
 *left-handed* triad, so cross products are evaluated internally in the right-handed frame
 (x downrange, y' = -y to the LEFT, z up) and the y components of positions, velocities, wind
@@ -268,7 +268,7 @@ def _rhs(t, y, par, atm, z0, inv_dz, cd_tab, m0, dm, aero):
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class SixDofResult:
-    """Sampled 6-DOF trajectory (DESIGN.md frame: x downrange, y right, z up; SI units).
+    """Sampled 6-DOF trajectory (track frame: x downrange, y right, z up; SI units).
 
     Attributes
     ----------
@@ -335,7 +335,7 @@ class SixDofResult:
 
 
 def _to_internal(v):
-    """DESIGN frame (x, y right, z up) -> internal right-handed (x, y left, z up)."""
+    """track frame (x, y right, z up) -> internal right-handed (x, y left, z up)."""
     v = np.array(v, dtype=float)
     v[..., 1] *= -1.0
     return v
@@ -407,7 +407,7 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
     atmosphere : Atmosphere, optional
         Default: ICAO standard atmosphere with the gun at sea level.
     wind : (wx, wy, wz), m/s
-        Constant wind, DESIGN frame (wx > 0 tailwind, wy > 0 blows toward +y = right, wz up).
+        Constant wind, track frame (wx > 0 tailwind, wy > 0 blows toward +y = right, wz up).
     spin_rate : float, rad/s, optional
         Muzzle spin; default ``2 pi velocity / (twist_calibres d)`` (right-hand twist).
         Negative for a left-hand twist.
@@ -421,7 +421,7 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
         omega_S)`` rad, with the epicyclic frequencies of :func:`linear_theory` (Table 1 shell,
         818 m/s, sea level: omega_F - omega_S ~ 108 rad/s, so 3 rad/s gives ~3 deg).
     azimuth_deg : float, deg
-        Firing azimuth, clockwise from true north (DESIGN.md). It does not change the output:
+        Firing azimuth, clockwise from true north. It does not change the output:
         x is *defined* along the firing azimuth, the wind is given in that frame, and the Earth
         here is flat and non-rotating (no Coriolis). Accepted so that callers can pass the
         round's launch data unchanged.
@@ -438,14 +438,7 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
     -------
     SixDofResult
     """
-    if not isinstance(shell, Shell):
-        raise ValueError(f"shell must be a Shell (e.g. table1_shell()), got {type(shell).__name__}")
-    if not (np.isfinite(velocity) and velocity > 0):
-        raise ValueError(f"velocity must be a finite positive speed in m/s, got {velocity!r}")
-    if not (np.isfinite(elevation_deg) and -10.0 < elevation_deg < 90.0):
-        raise ValueError(f"elevation_deg must be in (-10, 90) degrees, got {elevation_deg!r}")
-    if t_out is None and not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    _check_inputs(shell, velocity, elevation_deg, t_out, dt, azimuth_deg)
     atmosphere = Atmosphere() if atmosphere is None else atmosphere
     if spin_rate is None:
         spin_rate = default_spin_rate(velocity, shell.diameter, twist_calibres)
@@ -453,33 +446,8 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
     if wind.shape != (3,) or not np.all(np.isfinite(wind)):
         raise ValueError(f"wind must be three finite numbers (wx, wy, wz) in m/s, got {wind!r}")
     wind_int = _to_internal(wind)
-
-    if t_out is not None:
-        t_req = np.asarray(t_out, dtype=float).ravel()
-        if t_req.size == 0 or np.any(~np.isfinite(t_req)) or np.any(t_req < 0) \
-                or np.any(np.diff(t_req) <= 0):
-            raise ValueError("t_out must be finite, >= 0 and strictly increasing seconds")
-        t_end = min(float(t_req[-1]), max_time)
-    else:
-        t_req = None
-        t_end = max_time
-
-    # tables for the compiled right-hand side
-    z0 = MIN_ALTITUDE - atmosphere.gun_altitude + 1.0
-    z_top = MAX_ALTITUDE - atmosphere.gun_altitude - 50.0
-    z0, dz, atm = atmosphere.table(z_min=z0, z_max=z_top, dz=25.0)
-    grid = MachGrid(0.0, 0.01, 500)
-    cd_tab = np.ascontiguousarray(shell.cd0.kernel_table((), grid))
-    aero_tab = shell.aero.table()
-    par = np.zeros(_N_PAR)
-    par[_P_MASS], par[_P_D], par[_P_S] = shell.mass, shell.diameter, shell.area
-    par[_P_IX], par[_P_IY], par[_P_G] = shell.Ix, shell.Iy, G0
-    par[_P_WX:_P_WZ + 1] = wind_int
-    args = (par, np.ascontiguousarray(atm), float(z0), 1.0 / dz, cd_tab, grid.m0, grid.dm,
-            aero_tab)
-
-    if not np.isfinite(azimuth_deg):
-        raise ValueError(f"azimuth_deg must be a finite number of degrees, got {azimuth_deg!r}")
+    t_req, t_end = _requested_times(t_out, max_time)
+    args, z0, z_top = _rhs_tables(shell, atmosphere, wind_int)
     # the bore points along +x by definition of the frame, whatever the azimuth from north
     y0 = _launch_state(shell, float(velocity), elevation_deg, 0.0, float(spin_rate),
                        initial_yaw_deg, initial_yaw_rate)
@@ -510,6 +478,79 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
                     rtol=rtol, atol=atol)
     runtime = time.perf_counter() - t0
 
+    ts, ys, success, notes, (impact_time, impact_range, impact_drift) = _trim_at_impact(
+        sol, y0, t_req, stop_at_impact, max_time)
+    xh, V, yaw, spin, mach, sg = _derived(shell, ys, atmosphere, wind_int)
+    air0 = atmosphere.at_height(0.0)
+    V0 = float(np.linalg.norm(y0[3:6] - wind_int))
+    sg0 = gyroscopic_stability(shell, V0, spin_rate, float(air0.density),
+                               V0 / float(air0.speed_of_sound))
+    if np.max(yaw) > MAX_VALID_YAW:
+        success = False
+        notes.append(f"total yaw reached {math.degrees(np.max(yaw)):.1f} deg (> "
+                     f"{math.degrees(MAX_VALID_YAW):.0f} deg): linear aerodynamics not valid")
+    if sg0 <= 1.0:
+        notes.append(f"gyroscopically unstable at launch (Sg = {sg0:.2f} <= 1)")
+    if success and not notes:
+        message = ("reached impact" if np.isfinite(impact_time) else
+                   "reached the last output time") \
+            + f" after {sol.nfev} evaluations in {runtime:.2f} s"
+    else:
+        message = "; ".join(notes) if notes else sol.message
+
+    pos = _to_design(ys[:, 0:3])
+    vel = _to_design(ys[:, 3:6])
+    return SixDofResult(
+        t=ts, position=pos, velocity=vel, speed=np.linalg.norm(vel, axis=1), mach=mach,
+        yaw=yaw, spin=spin, sg=sg, sg0=float(sg0), axis=_to_design(xh),
+        impact_time=impact_time, impact_range=impact_range, impact_drift=impact_drift,
+        success=success, message=message, nfev=int(sol.nfev), runtime=runtime,
+    )
+
+
+def _check_inputs(shell, velocity, elevation_deg, t_out, dt, azimuth_deg):
+    """ValueError for inputs :func:`simulate_6dof` cannot fly."""
+    if not isinstance(shell, Shell):
+        raise ValueError(f"shell must be a Shell (e.g. table1_shell()), got {type(shell).__name__}")
+    if not (np.isfinite(velocity) and velocity > 0):
+        raise ValueError(f"velocity must be a finite positive speed in m/s, got {velocity!r}")
+    if not (np.isfinite(elevation_deg) and -10.0 < elevation_deg < 90.0):
+        raise ValueError(f"elevation_deg must be in (-10, 90) degrees, got {elevation_deg!r}")
+    if t_out is None and not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    if not np.isfinite(azimuth_deg):
+        raise ValueError(f"azimuth_deg must be a finite number of degrees, got {azimuth_deg!r}")
+
+
+def _requested_times(t_out, max_time):
+    """(requested output times or None, end of the integration [s])."""
+    if t_out is None:
+        return None, max_time
+    t_req = np.asarray(t_out, dtype=float).ravel()
+    if t_req.size == 0 or np.any(~np.isfinite(t_req)) or np.any(t_req < 0) or np.any(np.diff(t_req) <= 0):
+        raise ValueError("t_out must be finite, >= 0 and strictly increasing seconds")
+    return t_req, min(float(t_req[-1]), max_time)
+
+
+def _rhs_tables(shell, atmosphere, wind_int):
+    """Arguments of the compiled right-hand side (parameters, atmosphere and drag tables) and
+    the tabulated atmosphere's height range [m]."""
+    z0 = MIN_ALTITUDE - atmosphere.gun_altitude + 1.0
+    z_top = MAX_ALTITUDE - atmosphere.gun_altitude - 50.0
+    z0, dz, atm = atmosphere.table(z_min=z0, z_max=z_top, dz=25.0)
+    grid = MachGrid(0.0, 0.01, 500)
+    cd_tab = np.ascontiguousarray(shell.cd0.kernel_table((), grid))
+    par = np.zeros(_N_PAR)
+    par[_P_MASS], par[_P_D], par[_P_S] = shell.mass, shell.diameter, shell.area
+    par[_P_IX], par[_P_IY], par[_P_G] = shell.Ix, shell.Iy, G0
+    par[_P_WX:_P_WZ + 1] = wind_int
+    args = (par, np.ascontiguousarray(atm), float(z0), 1.0 / dz, cd_tab, grid.m0, grid.dm, shell.aero.table())
+    return args, z0, z_top
+
+
+def _trim_at_impact(sol, y0, t_req, stop_at_impact, max_time):
+    """The integrator's samples cut at impact (the impact point appended to a regular output),
+    whether the flight succeeded, notes, and (impact time [s], range [m], drift [m])."""
     ts, ys = sol.t, sol.y.T
     notes = []
     success = bool(sol.status >= 0)
@@ -545,30 +586,4 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
         notes.append("non-finite state")
         good = np.all(np.isfinite(ys), axis=1)
         ts, ys = ts[good], ys[good]
-
-    xh, V, yaw, spin, mach, sg = _derived(shell, ys, atmosphere, wind_int)
-    air0 = atmosphere.at_height(0.0)
-    V0 = float(np.linalg.norm(y0[3:6] - wind_int))
-    sg0 = gyroscopic_stability(shell, V0, spin_rate, float(air0.density),
-                               V0 / float(air0.speed_of_sound))
-    if np.max(yaw) > MAX_VALID_YAW:
-        success = False
-        notes.append(f"total yaw reached {math.degrees(np.max(yaw)):.1f} deg (> "
-                     f"{math.degrees(MAX_VALID_YAW):.0f} deg): linear aerodynamics not valid")
-    if sg0 <= 1.0:
-        notes.append(f"gyroscopically unstable at launch (Sg = {sg0:.2f} <= 1)")
-    if success and not notes:
-        message = ("reached impact" if np.isfinite(impact_time) else
-                   "reached the last output time") \
-            + f" after {sol.nfev} evaluations in {runtime:.2f} s"
-    else:
-        message = "; ".join(notes) if notes else sol.message
-
-    pos = _to_design(ys[:, 0:3])
-    vel = _to_design(ys[:, 3:6])
-    return SixDofResult(
-        t=ts, position=pos, velocity=vel, speed=np.linalg.norm(vel, axis=1), mach=mach,
-        yaw=yaw, spin=spin, sg=sg, sg0=float(sg0), axis=_to_design(xh),
-        impact_time=impact_time, impact_range=impact_range, impact_drift=impact_drift,
-        success=success, message=message, nfev=int(sol.nfev), runtime=runtime,
-    )
+    return ts, ys, success, notes, (impact_time, impact_range, impact_drift)

@@ -2,7 +2,7 @@
 
 :func:`to_inference_data` turns a :class:`~bayesdrag.estimate.sampler.BayesResult` and its
 :class:`~bayesdrag.estimate.posterior.LogPosterior` into an ``arviz.InferenceData``, written by
-``bayesdrag fit`` as ``posterior.nc`` (DESIGN.md). The convergence numbers of the run itself
+``bayesdrag fit`` as ``posterior.nc``. The convergence numbers of the run itself
 (R-hat, ESS) are computed by :mod:`bayesdrag.estimate.sampler` with ArviZ's definitions.
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
     rng : numpy.random.Generator, keyword-only
         Consumed for the posterior-predictive noise.
     seed : int, keyword-only
-        Backward-compatible alternative to ``rng`` (``numpy.random.default_rng(seed)``).
+        Alternative to ``rng`` (``numpy.random.default_rng(seed)``).
 
     Returns
     -------

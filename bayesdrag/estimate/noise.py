@@ -65,7 +65,20 @@ def hf_residual(z, window=HF_WINDOW, order=HF_ORDER):
     return e, max(1.0 - h0, 1e-3)
 
 
-def _robust_sd(e):
+def robust_sd(e):
+    """Robust standard deviation of a sample: 1.4826 times its median absolute deviation (the
+    sd of a Gaussian sample, unmoved by a few gross outliers).
+
+    Parameters
+    ----------
+    e : (N,) array
+        Values, in their own unit.
+
+    Returns
+    -------
+    float
+        The robust sd, in the unit of ``e``.
+    """
     med = np.median(e)
     return 1.4826 * float(np.median(np.abs(e - med)))
 
@@ -99,7 +112,7 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
                 zz[flagged] = np.interp(track.t[flagged], track.t[~flagged], z[~flagged])
             e, fac, valid = hf_residual_t(track.t, zz)
             use = valid & ~flagged
-            s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
+            s = robust_sd(e[use]) if use.sum() > 10 else robust_sd(e)
             if sigma_given and c in sigma_given:
                 # never call a sample an outlier for deviating by less than k stated sd: on a
                 # short or coarsely quantised track the smoother follows the data too closely
@@ -116,7 +129,7 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
             sigma[c], source[c] = float(sigma_given[c]), "round"
         else:
             use = valid & ~flagged
-            s = _robust_sd(e[use]) if use.sum() > 10 else _robust_sd(e)
+            s = robust_sd(e[use]) if use.sum() > 10 else robust_sd(e)
             sigma[c] = max(s / math.sqrt(fac), 1e-6)
             source[c] = "estimated"
     return sigma, source, out
@@ -139,4 +152,4 @@ def hf_noise_sd(t, y):
         return 0.0
     e, fac, valid = hf_residual_t(np.asarray(t, float), y)
     use = valid if valid.sum() > 10 else np.ones_like(valid)
-    return float(_robust_sd(e[use]) / math.sqrt(fac)) if fac > 0 else 0.0
+    return float(robust_sd(e[use]) / math.sqrt(fac)) if fac > 0 else 0.0

@@ -21,10 +21,11 @@ autocorrelation.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from ..effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ..errors import InputError
 from ..track import CHANNELS
 
@@ -37,46 +38,6 @@ IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
 
 #: longest backward extrapolation from the initial state for a shifted radar clock [s]
 MAX_BACKWARD = 0.25
-
-
-@dataclass(frozen=True)
-class ExtraParam:
-    """An extra (effect) parameter appended after the initial state.
-
-    Attributes
-    ----------
-    name : str
-    start : float
-        Starting value (usually the "no effect" value).
-    lower, upper : float
-        Bounds the fit keeps the parameter inside.
-    step : float
-        Central finite-difference step for the sensitivities (in the parameter's unit).
-    """
-
-    name: str
-    start: float
-    lower: float = -np.inf
-    upper: float = np.inf
-    step: float = 1e-3
-
-
-@dataclass(frozen=True, eq=False)
-class SimInputs:
-    """What a batch of extra-parameter values does to the simulation.
-
-    Attributes
-    ----------
-    overrides : dict kernel column -> (B,) array
-        Per-trajectory kernel parameters (``dynamics.kernel.P_*``).
-    atmospheres : list of Atmosphere (length B) or None
-    time_shift : (B,) array or None, s
-        Radar clock offset: the model is evaluated at ``track.t + time_shift``.
-    """
-
-    overrides: dict = field(default_factory=dict)
-    atmospheres: list | None = None
-    time_shift: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

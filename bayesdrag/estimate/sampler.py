@@ -325,8 +325,8 @@ class _Streams:
 
 
 def _streams(rng, seed):
-    """Derive a run's streams from ``rng``, or from ``seed`` exactly as earlier versions did
-    (so a given seed still gives the same chain)."""
+    """Derive a run's three random streams (walker start, noise draws, emcee's generator) from
+    ``rng``, or from ``seed`` by a fixed rule (so a given seed always gives the same chain)."""
     if rng is not None and seed is not None:
         raise TypeError("sample_posterior: give rng or seed, not both")
     if rng is None:
@@ -377,8 +377,8 @@ def sample_posterior(post, *, nwalkers=None, max_steps=20000, min_steps=100, che
     rng : numpy.random.Generator, optional
         Consumed once to derive the walkers' start, the noise draws and emcee's generator.
     seed : int, optional
-        Backward-compatible alternative to ``rng`` (give one of them): derives the streams as
-        earlier versions did, so a given seed gives the same chain. Neither: fresh entropy.
+        Alternative to ``rng`` (give one of them): derives the streams by a fixed rule, so a
+        given seed always gives the same chain. Neither: fresh entropy.
     moves : {"auto", "de", "stretch"}
         Move mix (:func:`~bayesdrag.estimate.moves.make_moves`).
     move_options : dict, optional

@@ -220,7 +220,7 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
     Scheme2Result
     """
     chans = tuple(channels) if channels is not None else track.names
-    if track.channels.get("x") is None or track.channels.get("z") is None:
+    if "x" not in chans or "z" not in chans:
         raise InputError(f"{track.source}: Scheme 2 needs x and z in the track to start each window "
                          f"(it has {', '.join(track.names)}); fit a speed-only track with Scheme 1")
     slices = window_slices(track.n, window, overlap)
@@ -286,7 +286,7 @@ def _start_cd(model, s0, reference, start=None):
 
 
 def windows_table(result):
-    """The ``windows`` part of result.json (DESIGN.md): one dict per window."""
+    """The ``windows`` part of result.json: one dict per window."""
     keys = ("t_start", "t_end", "mach", "ml", "crb_sd", "crb_sd_colored", "band_sd", "determined", "reference",
             "n", "mach_min", "mach_max", "converged", "quality")
     return [{k: w[k] for k in keys} for w in result.windows]

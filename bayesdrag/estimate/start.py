@@ -264,10 +264,10 @@ def smooth_kinematics(track, elevation_deg=None, g=G0, sigma=None):
     t = np.asarray(track.t, float)
     ch = track.channels
     notes = []
-    sig = dict(sigma or {})
-    for c in ch:
-        if c not in sig:
-            sig[c] = hf_noise_sd(t, ch[c])
+    # the round's sd where given, but never below what the track's own high-frequency content
+    # shows: a stated sd smaller than the noise makes the smoother follow the noise (and a track
+    # in feet has 3.3 times the noise the round states in metres)
+    sig = {c: max(float((sigma or {}).get(c, 0.0)), hf_noise_sd(t, ch[c])) for c in ch}
     pos, vel = {}, {}
     for c in ("x", "y", "z"):
         if c in ch:

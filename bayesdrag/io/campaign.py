@@ -1,4 +1,4 @@
-"""Campaign files (TOML, DESIGN.md "Campaigns"): many rounds of one shell.
+"""Campaign files (TOML): many rounds of one shell.
 
 A campaign TOML lists rounds (paths relative to the campaign file)::
 

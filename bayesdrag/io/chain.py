@@ -7,7 +7,7 @@ backend whose new steps are appended to the file every ``flush_every`` steps (~1
 generator after its last stored step, so a resumed run continues the exact chain an uninterrupted
 run would have produced.
 
-Nothing read from the file is unpickled or evaluated (DESIGN.md). Every value is read as a typed
+Nothing read from the file is unpickled or evaluated. Every value is read as a typed
 number array or a plain string and checked before it is used (:meth:`ChainFile.load_backend`):
 a file that is not a chain of this format, of the expected shape, with finite values and a
 well-formed random state, made by the same problem and settings, raises
@@ -111,8 +111,7 @@ class ChainFile:
         ------
         InputError
             One line naming the file and what is wrong: not an HDF5 file or truncated, not a
-            chain of this format (an earlier version's file with a pickled random state
-            included), another problem or settings, datasets of the wrong type or shape,
+            chain of this format (a file with a pickled random state included), another problem or settings, datasets of the wrong type or shape,
             non-finite values, or a malformed random state.
         """
         try:

@@ -3,7 +3,7 @@
 py-ballisticcalc takes a drag model as ``DragModel(bc, drag_table)`` with ``drag_table`` a list
 of ``{"Mach": M, "CD": Cd}`` points (or ``DragDataPoint``) and a ballistic coefficient ``bc`` in
 lb/in². Its drag deceleration is ``density_ratio * Cd(M) * K / bc * v^2`` [ft/s²] with
-``K = 2.08551e-4`` and ``density_ratio`` relative to 1.2250 kg/m³ (see ``tests/pbc_reference.py``
+``K = 2.08551e-4`` and ``density_ratio`` relative to 1.2250 kg/m³ (see ``tests/support/pbc_reference.py``
 for the whole derivation, read from its sources). Equating with bayesdrag's
 ``rho * pi d^2 / (8 m) * Cd * v^2`` gives the **bc that makes the table the projectile's own
 Cd** (form factor 1)::

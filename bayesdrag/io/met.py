@@ -24,7 +24,7 @@ def read_met_profile(path, gun_altitude=0.0, **offsets):
 
     Format (the track CSV rules: ``#`` comments, a header row, one row of numbers per level):
     columns ``altitude`` [m above sea level, geometric], ``temperature`` [K], ``pressure`` [Pa],
-    optional ``wind_x``, ``wind_y`` [m/s, DESIGN.md frame]; rows in increasing altitude.
+    optional ``wind_x``, ``wind_y`` [m/s, track frame]; rows in increasing altitude.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Writing outputs safely: every file is written under a temporary name in the target folder
 and renamed into place only when complete, so a failed or interrupted run never leaves a
-half-written file and never overwrites a file it did not finish (DESIGN.md, command line)."""
+half-written file and never overwrites a file it did not finish."""
 from __future__ import annotations
 
 import json

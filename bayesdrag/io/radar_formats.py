@@ -26,7 +26,7 @@ Mapping to bayesdrag (decisions written down):
 * ``Dist`` (slant distance from the radar) is kept as an **extra** column ``range_m``, not as
   ``x``: the radar stands beside/behind the muzzle and its distance is neither horizontal nor
   from the muzzle. ``SNR`` becomes the extra column ``snr_db``. Extra columns are kept and
-  ignored by the fit (DESIGN.md).
+  ignored by the fit.
 * The first row (``SNR`` "-", t = 0) is the device's extrapolation to the muzzle; it is
   **dropped** by default (``keep_extrapolated=True`` keeps it): it is not an independent
   measurement and would pin the launch speed twice. A note says so.

@@ -1,4 +1,4 @@
-"""Round files (TOML, DESIGN.md "Files"): ``[projectile]``, ``[launch]``, ``[atmosphere]`` and
+"""Round files (TOML): ``[projectile]``, ``[launch]``, ``[atmosphere]`` and
 ``[radar]`` sections; paths inside are relative to the round file. See :func:`read_round`.
 
 Every failure raises :class:`bayesdrag.errors.InputError` with one line naming the file, the
@@ -48,7 +48,7 @@ def _unknown(path, what, key, allowed):
 
 
 def read_round(path):
-    """Read and validate a round TOML file (DESIGN.md "Files").
+    """Read and validate a round TOML file.
 
     Sections and keys (units in brackets; all but ``[projectile] mass`` and ``diameter``
     optional):

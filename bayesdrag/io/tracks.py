@@ -1,4 +1,4 @@
-"""Track files (CSV, DESIGN.md "Files"): ``#`` comment lines, a header row naming ``t`` plus at
+"""Track files (CSV): ``#`` comment lines, a header row naming ``t`` plus at
 least one of ``x, y, z, v``, then one row of numbers per radar sample; SI units (t [s], x, y,
 z [m], v [m/s]). Extra columns (SNR, range rate, ...) are kept in ``RadarTrack.extra``, ignored
 by the fit, and reported by one line in ``RadarTrack.notes``.
@@ -112,7 +112,7 @@ def _track_header_check(path, line, names):
 
 
 def read_track(path):
-    """Read and validate a radar track CSV (DESIGN.md "Files").
+    """Read and validate a radar track CSV.
 
     Parameters
     ----------
@@ -129,10 +129,12 @@ def read_track(path):
     bayesdrag.errors.InputError
         Everything :func:`read_csv_columns` rejects, plus: no ``t`` or no channel, fewer than 2
         rows, time not strictly increasing (line that repeats or goes back), negative ``v``, and
-        positions clearly inconsistent with ``v`` (median ratio of the speed from finite
-        differences of the positions to ``v`` off by more than 3x; the message names the likely
-        unit mistake: km, ft, ft/s, km/h, mm, ms). A ``v`` in ft/s alone (no positions) cannot be
-        detected and is not checked.
+        positions inconsistent with ``v``: the median ratio of the speed from chords of the
+        positions to ``v`` off by more than 3x, or, with both ``x`` and ``z`` (the whole speed),
+        by more than 5 % and 5 of its standard errors (yards beside m/s give 1.094); the message
+        names the likely unit mistake (km, ft, ft/s, yd, yd/s, km/h, mm, ms). A track entirely in
+        another unit is consistent here; the fit refuses it from the physics (its path bends as
+        if gravity were 32.2 for feet). A ``v`` in ft/s alone (no positions) cannot be detected.
     """
     path, names, data, line_no = read_table(path, "track", header_check=_track_header_check)
     if data.shape[0] < 2:

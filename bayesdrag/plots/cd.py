@@ -30,12 +30,15 @@ def plot_drag_curve(mach, cd, ax=None, label=None, **kw):
 
 
 def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
-    """Cd(M) from an ML fit with its Cramér-Rao band and the reference curve.
+    """Cd(M) from an ML fit with its band and the reference curve.
+
+    The band is each row's ``band_sd`` when present (the sd the fit stands by: the Cramér-Rao sd,
+    or the colored-residual sd where the residuals show model error), else its ``crb_sd``.
 
     Parameters
     ----------
     rows : list of dict
-        ``result.json`` ``cd`` rows (keys mach, ml, crb_sd, reference).
+        ``result.json`` ``cd`` rows (keys mach, ml, crb_sd, optional band_sd, reference).
     ax : matplotlib Axes, optional
     band : float
         Central probability of the Gaussian CRB band.
@@ -49,9 +52,10 @@ def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
     ax = new_axes(ax, (7, 4.5))
     m = np.array([r["mach"] for r in rows])
     cd = np.array([r["ml"] for r in rows])
-    sd = np.array([r["crb_sd"] for r in rows])
+    honest = all(r.get("band_sd") is not None for r in rows)
+    sd = np.array([r["band_sd"] if honest else r["crb_sd"] for r in rows])
     k = norm.ppf(0.5 + band / 2)
-    ax.fill_between(m, cd - k * sd, cd + k * sd, alpha=0.3, label=f"{band:.0%} CRB band")
+    ax.fill_between(m, cd - k * sd, cd + k * sd, alpha=0.3, label=f"{band:.0%} band" if honest else f"{band:.0%} CRB band")
     ax.plot(m, cd, label=label)
     ref = [r.get("reference") for r in rows]
     if all(v is not None for v in ref):

@@ -31,8 +31,8 @@ def fit_figures(result):
     rows = result.summary["cd"]
     track = result.track
     if bayes is None:
-        return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (the band sd of each row) and "
-                 "the reference.", plot_cd_ml(rows, label=f"ML ({dm.name})").figure, None),
+        return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the Cramér-Rao sd, or the colored-residual "
+                 "sd where the residuals show model error) and the reference.", plot_cd_ml(rows, label=f"ML ({dm.name})").figure, None),
                 ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.",
                  plot_residuals(track.t, res.residuals, res.sigma), None)]
     figs = [("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "

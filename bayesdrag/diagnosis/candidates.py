@@ -1,0 +1,202 @@
+"""The candidate effects, each fitted alone (step 4 of :mod:`bayesdrag.diagnosis`).
+
+:func:`screen_candidates` says which effects of the library this track and round can test (a
+Coriolis candidate needs a latitude, ``radar_time`` the launch, ``drag_shape`` a table and a
+flown Mach span; an effect whose signature the nuisance parameters absorb is not identifiable)
+and why the others are skipped; :func:`fit_candidates` fits each with the initial state and
+ranks them (:func:`candidate_row`: chi2 drop, colored test, shrink, parameters with sd).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..effects import EFFECTS
+from ..errors import FitError
+from .setup import (drag_shape_for, fit_effects, k_free, n_weighted, noise_floor, report_params)
+from .signatures import IDENTIFIABLE_FRACTION, signatures
+from .statistics import autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation, threshold
+
+__all__ = ["screen_candidates", "fit_candidates", "candidate_row"]
+
+
+def screen_candidates(setup, candidates, base_theta, span):
+    """The effects a diagnosis tests on this track, their signatures and the skipped ones.
+
+    Sets ``setup.ctx.drag_shape`` (the table's shape functions over ``span``) when ``drag_shape``
+    is tested.
+
+    Parameters
+    ----------
+    setup : Setup
+    candidates : sequence of str or None
+        Effect names asked for (None: the whole library).
+    base_theta : (P + 6,) array
+        The baseline fit's parameters.
+    span : (float, float) or None
+        Flown Mach range (:func:`bayesdrag.diagnosis.setup.flown_mach_span`).
+
+    Returns
+    -------
+    (list of Effect, dict, dict)
+        The testable effects (library order), their :func:`signatures` and ``skipped`` (name ->
+        reason in words).
+    """
+    names = list(candidates) if candidates is not None else list(EFFECTS)
+    skipped = {}
+    if setup.ctx.latitude_deg is None and "coriolis" in names:
+        skipped["coriolis"] = "the round gives no [launch] latitude: Earth rotation cannot be formed"
+    if not setup.launch_known and "radar_time" in names:
+        skipped["radar_time"] = "no [launch] velocity/elevation: a clock offset is a later start of the same trajectory"
+    if "drag_shape" in names:
+        if not setup.has_reference:
+            skipped["drag_shape"] = ("no reference drag: the fitted nuisance Cd already has any shape, so a "
+                                     "shape error of a table cannot be asked")
+        elif span is None or not span[1] > span[0]:
+            skipped["drag_shape"] = "the nominal trajectory gives no Mach span to shape the table over"
+        else:
+            setup.ctx = replace(setup.ctx, drag_shape=drag_shape_for(setup, base_theta, span))
+    effs = [EFFECTS[n] for n in names if n not in skipped]
+    sigs = signatures(setup, base_theta, effs)
+    for e in list(effs):
+        Q, frac = sigs[e.name]
+        if Q is None or frac < IDENTIFIABLE_FRACTION:
+            why = ("absorbed by the fitted Cd and the initial state" if not setup.has_reference
+                   else "absorbed by the initial state")
+            skipped[e.name] = f"not identifiable from this track ({why}; {frac:.3g} of its signature left)"
+            effs.remove(e)
+    return effs, sigs, skipped
+
+
+def fit_candidates(setup, effs, base_fit, gap, alpha, K, skipped):
+    """Fit every candidate alone (with the initial state) and rank them.
+
+    Parameters
+    ----------
+    setup : Setup
+    effs : list of Effect
+    base_fit : (MLResult, OutputErrorProblem, (N, C) outputs)
+        The baseline fit.
+    gap : float
+        Baseline gap (chi2 above its noise floor).
+    alpha : float
+        Family-wise false-alarm rate.
+    K : int
+        Number of candidates tested (Bonferroni).
+    skipped : dict
+        Name -> reason; a candidate whose fit fails is added (changed in place).
+
+    Returns
+    -------
+    (list of dict, dict)
+        The rows (:func:`candidate_row`), best first: significant effects before the rest (a
+        non-physical or non-converged fit, e.g. a yaw_drag at a negative amplitude, may drop chi2
+        the most yet cannot be the answer), then by chi2 drop, ties in library order; and the
+        fits by name.
+    """
+    base, _, y_base = base_fit
+    base_theta = base.theta.copy()
+    chi2_base = float(base.cost)
+    rows = []
+    fits = {}
+    for e in effs:
+        try:
+            res, prob, y = fit_effects(setup, [e], base_theta)
+            if not np.all(np.isfinite(y)):
+                raise FloatingPointError("non-finite trajectory at the estimate")
+        except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError) as exc:
+            # one candidate failing is a finding about that candidate, not the end of the diagnosis
+            skipped[e.name] = f"its fit failed ({type(exc).__name__}: {exc})"
+            continue
+        fits[e.name] = (res, prob, y)
+        rows.append(candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base))
+    rows.sort(key=lambda r: (not r["significant"], -round(r["delta_chi2"], 6 if r["delta_chi2"] < 1e3 else 3),
+                             list(EFFECTS).index(r["name"])))
+    return rows, fits
+
+
+def candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base_res):
+    """The row of ``diagnosis.json`` ``effects`` of one candidate fitted alone.
+
+    Parameters
+    ----------
+    e : Effect
+    res : MLResult
+        The candidate's fit.
+    y : (N, C) array
+        Its fitted outputs [m, m/s].
+    y_base : (N, C) array
+        The baseline's outputs.
+    chi2_base : float
+        The baseline's cost.
+    gap : float
+        Baseline gap (chi2 above its noise floor).
+    setup : Setup
+    alpha : float
+        Family-wise false-alarm rate.
+    K : int
+        Number of candidates tested (Bonferroni).
+    base_res : MLResult
+        The baseline fit.
+
+    Returns
+    -------
+    dict
+        Parameters with their colored and white sd, chi2 drop, shrink, remaining gap, colored
+        inflation, test statistic and threshold, ``significant`` and the effect's explanation.
+    """
+    chans = setup.channels
+    sig_vec = np.array([setup.sigma[c] for c in chans])
+    d = float(chi2_base - res.cost)
+    resid = np.stack([res.residuals[c] for c in chans], axis=-1)
+    acov = autocovariance(resid, setup.weights)
+    infl = colored_inflation(y - y_base, acov, sig_vec, setup.weights)
+    stat = tested_drop(setup, e, d, base_res, res) / tested_inflation(e, infl)
+    thr = threshold(e, alpha / K, k_free(setup, e))
+    n_obs = n_weighted(setup)
+    vals = res.theta[-e.k:] if e.k else np.zeros(0)
+    idx = slice(res.theta.size - e.k, res.theta.size)
+    cov = res.cov[idx, idx] if e.k else np.zeros((0, 0))
+    covc = res.cov_colored[idx, idx] if e.k else np.zeros((0, 0))
+    floor_e = noise_floor(setup, res)
+    remaining = max(float(res.cost) - floor_e, 0.0)
+    noise_sd = chi2_noise_sd(acov, sig_vec, setup.weights)
+    physical = True
+    if e.name == "yaw_drag" and vals[0] < 0:
+        physical = False
+    sd_c = report_params(setup, e, vals, covc) if e.k else {}
+    # inflate the white sd by the colored factor where the Morelli-Klein bound is smaller
+    row = {
+        "name": e.name,
+        "params": report_params(setup, e, vals) if e.k else {},
+        "sd": sd_c,
+        "sd_white": report_params(setup, e, vals, cov) if e.k else {},
+        "delta_loglik": d / 2.0,
+        "delta_chi2": d,
+        "delta_bic": -d + k_free(setup, e) * math.log(max(n_obs, 1)),
+        "shrink": float(np.clip(d / gap, 0.0, 1.0)) if gap > 0 else 0.0,
+        "remaining_gap": remaining,
+        "remaining_gap_fraction": float(remaining / gap) if gap > 0 else 0.0,
+        # the noise-only chi2 fluctuates by this much (with the residuals' own correlation): a
+        # remaining gap of this order is noise, and shrink is resolved to about shrink_sd
+        "remaining_gap_noise_sd": noise_sd,
+        "shrink_sd": float(noise_sd / gap) if gap > 0 else None,
+        "inflation": float(infl),
+        "test_statistic": float(stat),
+        "threshold": thr,
+        "significant": bool(stat > thr and d > 0 and physical and np.isfinite(res.cost)),
+        "physical": physical,
+        "converged": bool(res.converged),
+        "explanation": e.explanation,
+        "units": dict(zip(report_params(setup, e, vals).keys(), e.units)) if e.k else {},
+    }
+    if e.name == "drag_shape" and setup.ctx.drag_shape is not None:
+        ds = setup.ctx.drag_shape
+        grid = np.linspace(ds.knots[0], ds.knots[-1], 9)
+        row["shape"] = {"knots": [round(float(k), 3) for k in ds.knots], "mach": [round(float(m), 3) for m in grid],
+                        "cd_relative": [float(v) for v in ds.correction(vals[:ds.n_shape], grid)]}
+    if not res.success:
+        row["message"] = res.message
+    return row

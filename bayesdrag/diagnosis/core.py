@@ -1,0 +1,299 @@
+"""The diagnosis itself: :func:`diagnose` runs the steps of :mod:`bayesdrag.diagnosis` in order
+and returns a :class:`Diagnosis`, whose ``summary`` is the content of ``diagnosis.json``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .._threads import single_blas
+from ..effects import EFFECTS
+from ..errors import FitError
+from .candidates import fit_candidates, screen_candidates
+from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
+from .selection import DRAG_EFFECTS, conditional_shrinks, select_effects, wrong_table_fit
+from .setup import edf, fit_effects, flown_mach_span, make_setup, n_weighted, noise_floor, report_params
+from .signatures import mark_confounded
+from .statistics import ALPHA
+from .where import where_segments, with_launch_misfit
+
+__all__ = ["diagnose", "Diagnosis", "MIN_DIAGNOSIS_SAMPLES"]
+
+#: fewest samples a diagnosis accepts: the initial state (6) and an effect (<= 2 parameters)
+#: need more data values than that with room for a test; a Doppler report every 100 yd (16
+#: samples of x and v) qualifies. Without [radar] sigma the noise estimate from the track's
+#: high-frequency content (:func:`bayesdrag.estimate.noise.noise_and_outliers`) needs more.
+MIN_DIAGNOSIS_SAMPLES = 12
+#: parameters of two verdict effects correlated beyond this in the joint fit are reported
+JOINT_CORR_WARN = 0.9
+
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`: ``summary`` is diagnosis.json; the arrays feed the figures."""
+
+    summary: dict
+    t: np.ndarray
+    channels: tuple
+    sigma: dict
+    resid_base: np.ndarray
+    resid_best: np.ndarray | None
+    mach: np.ndarray
+    weights: np.ndarray
+    best: str | None
+
+
+@dataclass
+class _Baseline:
+    """The nominal simulation fitted to the track (step 2-3): its fit, figures and gap."""
+
+    fit: tuple
+    theta: np.ndarray
+    chi2: float
+    floor: float
+    gap: float
+    resid: np.ndarray
+    prior_terms: dict
+    mach: np.ndarray
+    span: tuple | None
+
+
+def _baseline(setup):
+    """Fit the baseline (no effect) and measure its gap."""
+    base, base_prob, y_base = fit_effects(setup, [], setup.theta0)
+    if not np.all(np.isfinite(y_base)):
+        raise FitError("the nominal simulation of the round does not reach the track's times")
+    base_theta = base.theta.copy()
+    floor0 = noise_floor(setup, base)
+    chi2_base = float(base.cost)
+    mach = np.asarray(base.mach, float)
+    return _Baseline(
+        fit=(base, base_prob, y_base), theta=base_theta, chi2=chi2_base, floor=floor0,
+        gap=max(chi2_base - floor0, 0.0), resid=np.stack([base.residuals[c] for c in setup.channels], axis=-1),
+        prior_terms={p.name: float((p.mean - p.fn(base_theta)) / p.sd) for p in setup.priors},
+        mach=mach, span=flown_mach_span(setup, mach))
+
+
+def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
+    """Steps 6 and 10: the detected effects (ordered by what each explains alone), their joint
+    fit, its drop-one fits and, beside a table of another shell, the summary of the diagnosis
+    against a fitted Cd (else None)."""
+    found, selected_fit, drop_one, wrong_table = [], None, {}, None
+    if rows and rows[0]["significant"]:
+        found, selected_fit, drop_one = select_effects(setup, rows, fits, gap, sig_vec, alpha, K)
+        if "drag_shape" in found and set(found) - set(DRAG_EFFECTS):
+            found, selected_fit, drop_one, wrong_table = _beside_a_wrong_table(
+                setup, rows, found, selected_fit, drop_one, fits, gap, sig_vec, alpha, opts)
+        # ordered by what each effect explains alone (its single chi2 drop)
+        rank = {r["name"]: i for i, r in enumerate(rows)}
+        found = sorted(found, key=rank.get)
+    return found, selected_fit, drop_one, wrong_table
+
+
+def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec, alpha, opts):
+    """The drag effects' joint fit (:func:`bayesdrag.diagnosis.selection.wrong_table_fit`) and
+    every other effect judged by a diagnosis of the round without its table (candidates: all
+    but the drag effects). Returns (drag effects, their joint fit, its drop-one fits, that
+    diagnosis' summary); the selection unchanged and None when the drag effects' fit fails."""
+    drag = wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha)
+    if drag is None:
+        return found, fit, drop_one, None
+    names, nfit, subs = drag
+    rnd = setup.rnd
+    no_table = replace(rnd, projectile=replace(rnd.projectile, reference_drag=None))
+    sub = diagnose(setup.track, no_table, candidates=[n for n in EFFECTS if n not in DRAG_EFFECTS],
+                   sigma=dict(setup.sigma), channels=setup.channels, alpha=alpha, **opts)
+    return names, nfit, subs, sub.summary
+
+
+def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
+    """The joint fit of several detected effects, as ``summary["joint"]`` (None for fewer than
+    two); every figure of a detected effect comes from it (written into its row)."""
+    if len(found) <= 1:
+        return None
+    res, _, y = selected_fit
+    joint = {"effects": list(found), "params": {k: float(v) for k, v in res.extras.items()},
+             "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
+             "shrink_given_others": conditional_shrinks(setup, res, drop_one)}
+    # parameters of different effects that the joint fit can hardly tell apart: their values
+    # then rest on the shapes of the models (e.g. a cross wind against the spin drift of a
+    # shell whose lift differs from the generic Mach shape) more than on the data
+    k0 = res.theta.size - len(joint["params"])
+    pnames = list(joint["params"])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = res.correlation()[k0:, k0:]
+    joint["sd"] = {n: float(v) for n, v in zip(pnames, np.sqrt(np.clip(np.diag(res.cov_colored)[k0:], 0, None)))}
+    joint["strongly_correlated"] = [
+        {"params": [pnames[i], pnames[j]], "corr": float(corr[i, j])}
+        for i in range(len(pnames)) for j in range(i + 1, len(pnames))
+        if pnames[i].split(".")[0] != pnames[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
+    for n in found:
+        e, r = EFFECTS[n], by_name[n]
+        idx = [pnames.index(f"{e.name}.{p.name}") for p in e.params]
+        vals = np.array([joint["params"][pnames[i]] for i in idx])
+        cov_e = res.cov_colored[np.ix_([k0 + i for i in idx], [k0 + i for i in idx])]
+        r["params_joint"] = report_params(setup, e, vals) if e.k else {}
+        r["sd_joint"] = report_params(setup, e, vals, cov_e) if e.k else {}
+        r["shrink_given_others"] = joint["shrink_given_others"].get(n)
+    return joint
+
+
+def _verdict(setup, rows, found, by_name, wrong_table):
+    """The material and the immaterial detected effects; beside a table of another shell the
+    other effects' rows are those of the diagnosis against a fitted Cd. Sorts ``rows`` best
+    first: the verdict, the detected but immaterial, then the rest. Returns (verdict,
+    immaterial, all detected)."""
+    verdict = [n for n in found if by_name[n]["material"]]
+    immaterial = [n for n in found if not by_name[n]["material"]]
+    for r in rows:
+        r["detected"] = r["name"] in found
+    if wrong_table is not None:
+        # effects beside a table of another shell were judged against a fitted Cd: their rows
+        # (every figure) come from that diagnosis
+        sub = {r["name"]: r for r in wrong_table["effects"]}
+        moved = wrong_table["verdict"] + wrong_table["immaterial"]
+        for k, r in enumerate(rows):
+            if r["name"] in moved:
+                rows[k] = dict(sub[r["name"]], detected=True, judged_against="fitted Cd (the table has another "
+                                                                             "shell's shape)")
+        verdict += wrong_table["verdict"]
+        immaterial += wrong_table["immaterial"]
+        found = found + moved
+        setup.notes.append("the firing table has another shell's shape (drag_shape): the other effects were "
+                           "judged against a fitted Cd, as without a table"
+                           + (f" ({', '.join(moved)} found there)" if moved else " (none found)"))
+    # the effects list is "best first": the verdict, the detected but immaterial, then the rest
+    order = {n: k for k, n in enumerate(verdict + immaterial)}
+    rows.sort(key=lambda r: (order.get(r["name"], len(order)),))
+    return verdict, immaterial, found
+
+
+def _after(track, chans, rows, found, fits, selected_fit):
+    """The name of the explanation the "after" residuals show and those residuals (measured
+    minus its outputs, (N, C), or None): the detected effects' joint fit, the one detected
+    effect, else the best-ranked candidate."""
+    best_name = rows[0]["name"] if rows else None
+    y_best = fits[best_name][2] if best_name else None
+    if len(found) > 1:  # "after" = the detected effects' joint fit
+        best_name, y_best = " + ".join(found), selected_fit[2]
+    elif found:
+        best_name, y_best = found[0], fits[found[0]][2]
+    resid_best = (np.stack([track.channels[c] for c in chans], axis=-1) - y_best) if y_best is not None else None
+    return best_name, resid_best
+
+
+def _baseline_summary(setup, track, b):
+    """``summary["baseline"]``: the nominal simulation's misfit, noise and nuisance."""
+    chans = setup.channels
+    base = b.fit[0]
+    n_obs = n_weighted(setup)
+    return {
+        "rms": {c: float(np.sqrt(np.sum(setup.weights[:, j] * b.resid[:, j] ** 2)
+                                 / max(setup.weights[:, j].sum(), 1))) for j, c in enumerate(chans)},
+        "chi2_per_sample": float(b.chi2 / max(n_obs, 1)),
+        "chi2": b.chi2, "chi2_noise_floor": float(b.floor), "gap": float(b.gap),
+        # sd of chi2 under white noise: a gap or a remaining gap of this order is noise, and
+        # shrink cannot be resolved better than gap_noise_sd / gap
+        "gap_noise_sd": float(math.sqrt(2.0 * max(b.floor, 1.0))),
+        "prior_misfit_sd": b.prior_terms, "n_samples": int(track.n), "n_weighted": n_obs,
+        "sigma": {c: float(setup.sigma[c]) for c in chans}, "sigma_source": setup.sigma_source,
+        "drag": "reference" if setup.has_reference else "fitted spline (no reference drag)",
+        "nuisance_drag": setup.nuisance,
+        "edf": float(edf(setup, base)),
+        "initial_state": {n: float(v) for n, v in zip(base.names[setup.P:], b.theta[setup.P:])},
+        "ic_time": setup.t_ic, "converged": bool(base.converged), "message": base.message,
+    }
+
+
+@single_blas
+def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=ALPHA, cd_shifts=True,
+             material_cd_shift=MATERIAL_CD_SHIFT, material_end_sd=MATERIAL_END_SD):
+    """Diagnose the gap between a radar track and the nominal simulation of its round.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    candidates : sequence of str, optional
+        Effect names to test (default: the whole library that the round makes testable).
+    sigma : dict, optional
+        Noise sd per channel [m, m/s] (default the round's ``[radar] sigma``, else estimated).
+    channels : sequence of str, optional
+        Channels to use (default all of the track's).
+    alpha : float
+        Family-wise false-alarm rate of the verdict.
+    cd_shifts : bool
+        Compute the Cd shift of the detected and the best-ranked effects (one extra sensitivity
+        batch each). Without it the Cd part of materiality is unknown and a detected effect
+        counts as material.
+    material_cd_shift : float
+        An effect is material when ignoring it would shift a fitted Cd by more than this
+        (relative; default :data:`MATERIAL_CD_SHIFT` = 0.001, i.e. 0.1 %) anywhere in the flown
+        Mach range ...
+    material_end_sd : float
+        ... or move the track at its last sample by more than this many noise sd (default
+        :data:`MATERIAL_END_SD` = 3).
+
+    Returns
+    -------
+    Diagnosis
+        ``summary["verdict"]`` lists the detected effects that are material, best first;
+        ``summary["immaterial"]`` those detected but immaterial.
+
+    Raises
+    ------
+    ValueError
+        A materiality threshold is negative.
+    FitError
+        The nominal simulation does not reach the track's times, or (without a reference drag)
+        the Scheme 1 fit behind the nuisance Cd failed.
+    """
+    if not (material_cd_shift >= 0 and material_end_sd >= 0):
+        raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
+                         f"material_end_sd={material_end_sd!r}")
+    setup = make_setup(track, rnd, sigma=sigma, channels=channels)
+    chans = setup.channels
+    sig_vec = np.array([setup.sigma[c] for c in chans])
+    b = _baseline(setup)
+
+    effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span)
+    K = max(len(effs), 1)
+    rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
+    mark_confounded(rows, sigs, alpha, K)
+
+    opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
+    found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
+    by_name = {r["name"]: r for r in rows}
+    joint = _joint(setup, found, selected_fit, drop_one, by_name, b.chi2, b.gap)
+    judge_impacts(setup, rows, found, selected_fit, fits, **opts)
+    verdict, immaterial, found = _verdict(setup, rows, found, by_name, wrong_table)
+    best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
+
+    y_base = b.fit[2]
+    z_model = y_base[:, chans.index("z")] if "z" in chans else None
+    where = where_segments(track.t, b.resid / sig_vec[None, :], setup.weights, b.mach, z_model, chans)
+    where = with_launch_misfit(where, track.t[0], b.prior_terms, b.gap)
+    for r in rows:
+        r.pop("inflation_raw", None)
+    summary = {
+        "baseline": _baseline_summary(setup, track, b),
+        "where": where,
+        "effects": rows,
+        "verdict": verdict,
+        "immaterial": immaterial,
+        "joint": joint,
+        "materiality": {"cd_shift": material_cd_shift, "end_sd": material_end_sd,
+                        "rule": "material when ignoring it would shift a fitted Cd by more than cd_shift "
+                                "(relative) anywhere in the flown Mach range or move the track's last sample by "
+                                "more than end_sd noise sd; detected effects are judged in their joint fit"},
+        "skipped": skipped,
+        "outliers": {c: [int(i) for i in np.flatnonzero(setup.outliers[:, j])] for j, c in enumerate(chans)},
+        "tests": {"alpha": alpha, "candidates": K, "per_test_alpha": alpha / K,
+                  "rule": "chi2 drop / colored inflation > chi2_k quantile at alpha/K"},
+        "notes": setup.notes,
+        "reference_drag": setup.has_reference,
+    }
+    return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
+                     b.mach, setup.weights, best_name)

@@ -1,0 +1,52 @@
+"""What an unmodelled effect hands the simulation: the extra parameters appended after the
+initial state (:class:`ExtraParam`) and what a batch of their values does to the point-mass
+kernel (:class:`SimInputs`). The effect library (:mod:`bayesdrag.effects`) builds them; the
+output-error problem (:mod:`bayesdrag.estimate.problem`) fits them. Plain values, no physics.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["ExtraParam", "SimInputs"]
+
+
+@dataclass(frozen=True)
+class ExtraParam:
+    """An extra (effect) parameter appended after the initial state.
+
+    Attributes
+    ----------
+    name : str
+    start : float
+        Starting value (usually the "no effect" value), in the parameter's unit.
+    lower, upper : float
+        Bounds the fit keeps the parameter inside, in the parameter's unit.
+    step : float
+        Central finite-difference step for the sensitivities (in the parameter's unit).
+    """
+
+    name: str
+    start: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    step: float = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class SimInputs:
+    """What a batch of extra-parameter values does to the simulation.
+
+    Attributes
+    ----------
+    overrides : dict kernel column -> (B,) array
+        Per-trajectory kernel parameters (``dynamics.kernel.P_*``).
+    atmospheres : list of Atmosphere (length B) or None
+    time_shift : (B,) array or None, s
+        Radar clock offset: the model is evaluated at ``track.t + time_shift``.
+    """
+
+    overrides: dict = field(default_factory=dict)
+    atmospheres: list | None = None
+    time_shift: np.ndarray | None = None

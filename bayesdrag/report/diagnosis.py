@@ -1,0 +1,75 @@
+"""What ``bayesdrag diagnose`` writes: ``diagnosis.json`` (the summary of
+:func:`bayesdrag.diagnosis.diagnose` and its one-paragraph summary), the figures as PNG and
+``diagnosis.html`` (self-contained, figures embedded), through the reports' one jinja2
+environment and figure helper (:mod:`bayesdrag.report.render`). No analysis here."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.outputs import ensure_output_dir, write_bytes, write_json
+from ..plots.diagnosis import plot_ranking, plot_residuals_before_after, plot_where
+from ..diagnosis.summary import impact_text, reported_values, summary_paragraph
+from .render import figure_png, png_base64, render_report
+
+__all__ = ["write_diagnosis", "diagnosis_figures"]
+
+#: resolution of the diagnosis figures, written and embedded [dots per inch]
+DIAGNOSIS_DPI = 90
+
+
+def diagnosis_figures(d):
+    """The figures of a diagnosis: ``{name: Figure}`` for ``residuals``, ``ranking``, ``where``
+    (written as ``diagnosis_<name>.png``)."""
+    return {"residuals": plot_residuals_before_after(d), "ranking": plot_ranking(d.summary).figure,
+            "where": plot_where(d)}
+
+
+def write_diagnosis(out, d, *, track_name="", round_name=""):
+    """Write ``diagnosis.json``, ``diagnosis.html`` and the PNG figures into ``out``.
+
+    Parameters
+    ----------
+    out : path
+        Output folder (created if missing).
+    d : Diagnosis
+    track_name, round_name : str
+        Shown in the report.
+
+    Returns
+    -------
+    str
+        The summary paragraph (also ``diagnosis.json``'s ``summary``).
+    """
+    out = ensure_output_dir(out)
+    paragraph = summary_paragraph(d.summary)
+    s = dict(d.summary, summary=paragraph)
+    write_json(out / "diagnosis.json", _jsonable(s))
+    b64 = {}
+    for name, fig in diagnosis_figures(d).items():
+        png = figure_png(fig, dpi=DIAGNOSIS_DPI)
+        write_bytes(out / f"diagnosis_{name}.png", png)
+        b64[name] = png_base64(png)
+    rows = {e["name"]: e for e in s["effects"]}
+    detected = [dict(e, shown=reported_values(e), impact=impact_text(e), judged_against=e.get("judged_against"))
+                for e in [rows[n] for n in list(s["verdict"]) + list(s.get("immaterial") or []) if n in rows]]
+    render_report(out / "diagnosis.html", dict(
+        s=s, paragraph=paragraph, detected=detected, notes=s.get("notes", []), track_name=track_name,
+        round_name=round_name, fig_residuals=b64["residuals"], fig_ranking=b64["ranking"], fig_where=b64["where"]),
+        template="diagnosis.html.j2")
+    return paragraph
+
+
+def _jsonable(o):
+    """Plain JSON types (numpy scalars converted, non-finite floats to None)."""
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        v = float(o)
+        return v if np.isfinite(v) else None
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return o

@@ -1,0 +1,313 @@
+"""Withheld-effect validation cases for the gap diagnosis (issue 6).
+
+Each case makes a radar track with ONE effect the diagnosis is not told about (or none: a null
+case), from one of three simulators:
+
+* ``pm``   - bayesdrag's point mass, scipy reference backend (``PointMassModel.simulate(...,
+  backend="scipy")``), i.e. not the fixed-step kernel the diagnosis fits with;
+* ``6dof`` - the paper's 6-DOF model (``bayesdrag.simulate.simulate_round(model="6dof")``). It
+  carries yaw-of-repose drift and yaw drag of its own, so ``lift`` may appear *after* the
+  withheld effect in the verdict; the 6-DOF null case's expected answer is ``lift``;
+* ``pbc``  - py-ballisticcalc (independent simulator, driven as in ``tests/support/pbc_reference.py``)
+  for wind and temperature. (Coriolis is not exposed by that helper; Coriolis cases use the
+  point mass and the 6-DOF reference integrators.)
+
+Noise: Gaussian with sd x, y, z = 1 m, v = 0.3 m/s, white or AR(1) (rho 0.9/0.95, same marginal
+sd), optionally 1 % gross outliers of 15 sd. The round handed to the diagnosis has the nominal
+atmosphere and knows the launch velocity/elevation (with the default priors) and sigma.
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.io.drag_tables import load_m101
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
+from bayesdrag.synthetic import add_noise, add_outliers
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.track import RadarTrack
+
+SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
+V0 = 818.0
+#: shells: the paper's Table 1 155 mm (818 m/s, 1-in-20 twist) and a 105 mm howitzer shell
+#: after the M1 HE (14.97 kg, Ix 0.0233, Iy 0.2326 kg m^2, 1-in-18 twist, charge 7 at 494 m/s:
+#: launched at Mach 1.45 instead of 2.4), both with the M107-like aerodynamics of the 6-DOF
+#: and the M101 zero-yaw drag. The 105 mm cases test that the lift effect's generic Mach shape
+#: and spin decay (fitted to nothing of this shell) still carry its drift.
+SHELLS = {"155": dict(mass=42.6, diameter=0.155, Ix=0.146, Iy=1.709, v0=V0, twist=20.0),
+          "105": dict(mass=14.97, diameter=0.105, Ix=0.0233, Iy=0.2326, v0=494.0, twist=18.0)}
+DT = 0.05  # sample interval [s] (coarser than the paper's 0.027 s to keep the suite fast)
+
+#: effects that count as a correct top-1 for a withheld effect (temperature/density are each
+#: other's match by the acceptance; density and drag_scale are exactly confounded by DESIGN.md)
+ACCEPT = {"temperature": {"temperature", "density", "drag_scale"},
+          "density": {"density", "temperature", "drag_scale"},
+          "drag_scale": {"drag_scale", "density", "temperature"}}
+
+
+@dataclass(frozen=True)
+class Case:
+    id: str
+    sim: str            # "pm", "6dof", "pbc"
+    effect: str | None  # None = null case
+    params: dict
+    elevation: float
+    rho: float = 0.0
+    outliers: bool = False
+    seed: int = 0
+    latitude: float | None = None
+    azimuth: float = 90.0
+    expect: str | None = None  # expected top-1 when it differs from ``effect`` (6-DOF null)
+    shell: str = "155"
+    initial_yaw_deg: float = 0.0  # 6-DOF launch disturbance
+
+    @property
+    def inherent(self):
+        """Effects the simulator itself carries beyond the point mass: a 6-DOF shell drifts
+        (``lift``: yaw-of-repose lift, Magnus) and yaws (``yaw_drag``). In a 6-DOF case these may
+        stand in the verdict beside the withheld effect; they are not counted as its top-1."""
+        return {"lift", "yaw_drag"} if self.sim == "6dof" and self.effect else set()
+
+    def accepted(self):
+        e = self.expect or self.effect
+        return ACCEPT.get(e, {e})
+
+
+def _ref():
+    return load_m101()
+
+
+def diagnosis_round(case):
+    """The round the diagnosis sees: nominal atmosphere, launch known, sigma given."""
+    ref = _ref()
+    sh = SHELLS[case.shell]
+    return Round(Projectile(f"{case.shell} mm", sh["mass"], sh["diameter"], ref),
+                 Launch(elevation_deg=case.elevation, velocity=sh["v0"], azimuth_deg=case.azimuth,
+                        latitude_deg=case.latitude),
+                 radar=Radar(dict(SIGMA)))
+
+
+def _sample_times(t_imp, dt, clock):
+    t = np.arange(0.0, t_imp - clock, dt)
+    return t
+
+
+def truth_track(case):
+    """Noise-free track with the withheld effect."""
+    ref = _ref()
+    p = case.params
+    atm = Atmosphere(temperature_offset=p.get("dT", 0.0), density_ratio=p.get("ratio", 1.0))
+    wind = (p.get("wx", 0.0), p.get("wy", 0.0), 0.0)
+    clock = p.get("dt", 0.0)
+    rnd = Round(Projectile("155 mm M101", 42.6, 0.155, ref),
+                Launch(elevation_deg=case.elevation, velocity=V0, azimuth_deg=case.azimuth,
+                       latitude_deg=case.latitude if case.effect == "coriolis" else None),
+                atmosphere=atm)
+    if case.sim == "6dof":
+        from bayesdrag.dynamics import shell as shells, sixdof
+
+        base = shells.table1_shell()
+        sh = SHELLS[case.shell]
+        shell = replace(base, cd0=ref, mass=sh["mass"], diameter=sh["diameter"], Ix=sh["Ix"], Iy=sh["Iy"])
+        kw = dict(atmosphere=atm, wind=wind, twist_calibres=sh["twist"], initial_yaw_deg=case.initial_yaw_deg)
+        first = sixdof.simulate_6dof(shell, sh["v0"], case.elevation, dt=DT, **kw)
+        t_rec = np.arange(0.0, float(first.t[-1]) - clock - 1e-6, DT)
+        res = sixdof.simulate_6dof(shell, sh["v0"], case.elevation, t_out=t_rec + clock,
+                                   stop_at_impact=False, **kw)
+        pos, vel = res.position, res.velocity
+        return RadarTrack(t_rec, {"x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2],
+                                  "v": np.linalg.norm(vel, axis=1)}, {}, source="6dof")
+    if case.sim == "pbc":
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from support import pbc_reference
+
+        o = pbc_reference.pbc_trajectory(ref.mach, ref.cd_values, 42.6, 0.155, V0, case.elevation,
+                                         wind=wind[:2], temperature_offset=p.get("dT", 0.0),
+                                         t_out=np.arange(0.0, 400.0, DT))
+        ok = np.isfinite(o["x"]) & (o["z"] >= 0)
+        return RadarTrack(o["t"][ok], {c: o[c][ok] for c in ("x", "y", "z", "v")}, {}, source="pbc")
+    if "shear" in p:
+        return _shear_track(case, ref, atm)
+    # point mass, scipy reference backend, with the effect in the model
+    cor = (case.latitude, case.azimuth) if case.effect == "coriolis" else None
+    model = PointMassModel(42.6, 0.155, ref, atm, wind=wind, coriolis=cor,
+                           cd_scale=p.get("factor", 1.0) if case.effect == "drag_scale" else 1.0,
+                           yaw_amp=10.0 * p.get("delta0", 0.0) ** 2, yaw_decay=p.get("decay", 0.0),
+                           lift_factor=p.get("factor", 0.0) if case.effect == "lift" else 0.0,
+                           lift_v0=V0 if case.effect == "lift" else None)
+    s0 = initial_state(V0, case.elevation)
+    first = model.simulate((), s0, backend="scipy", stop_at_impact=True, dt=DT)
+    t_rec = np.arange(0.0, first.t_impact - clock, DT)
+    tr = model.simulate((), s0, t_rec + clock, backend="scipy")
+    st = tr.state
+    return RadarTrack(t_rec, {"x": st[:, 0], "y": st[:, 1], "z": st[:, 2],
+                              "v": np.linalg.norm(st[:, 3:], axis=1)}, {}, source="pm")
+
+
+def _shear_track(case, ref, atm):
+    """Point mass in a wind that grows linearly with height: w(z) = w0 + shear * z (m/s, 1/s),
+    integrated with solve_ivp (the kernel has only constant winds)."""
+    from scipy.integrate import solve_ivp
+
+    p = case.params
+    w0 = np.array([p["wx0"], p["wy0"], 0.0])
+    sh = np.array([p["shear"][0], p["shear"][1], 0.0])
+    curve = ref.curve(())
+    kref = np.pi * 0.155 ** 2 / (8 * 42.6)
+
+    def rhs(t, s):
+        u = s[3:] - (w0 + sh * s[2])
+        V = np.linalg.norm(u)
+        rho, a = atm.density_and_sound_speed(s[2])
+        acc = -kref * rho * curve(V / a) * V * u
+        acc[2] -= 9.80665
+        return np.concatenate([s[3:], acc])
+
+    def hit(t, s):
+        return s[2] if t > 1 else 1.0
+    hit.terminal, hit.direction = True, -1
+    s0 = initial_state(V0, case.elevation)
+    sol = solve_ivp(rhs, (0, 400), s0, method="DOP853", rtol=1e-10, atol=1e-9, dense_output=True, events=hit)
+    t_rec = np.arange(0.0, sol.t_events[0][0], DT)
+    st = sol.sol(t_rec).T
+    return RadarTrack(t_rec, {"x": st[:, 0], "y": st[:, 1], "z": st[:, 2],
+                              "v": np.linalg.norm(st[:, 3:], axis=1)}, {}, source="pm-shear")
+
+
+def make_track(case):
+    """Noisy track of a case (seeded)."""
+    rng = np.random.default_rng(1000 + case.seed)
+    tr = add_noise(truth_track(case), SIGMA, rng, rho=case.rho)
+    if case.outliers:
+        tr, _ = add_outliers(tr, 0.01, 15.0, SIGMA, rng)
+    return tr
+
+
+def _c(i, sim, eff, params, el, **kw):
+    return Case(f"{sim}-{eff or 'null'}-{i:02d}", sim, eff, params, el, seed=i, **kw)
+
+
+EFFECT_CASES = [
+    _c(1, "pm", "wind", {"wx": -8.0, "wy": 0.0}, 7.0),
+    _c(2, "pm", "wind", {"wx": 5.0, "wy": -6.0}, 30.0),
+    _c(3, "pm", "wind", {"wx": 0.0, "wy": 10.0}, 45.0),
+    _c(4, "pm", "wind", {"wx": 3.0, "wy": 3.0}, 15.0, rho=0.95),
+    _c(5, "pm", "wind", {"wx": -10.0, "wy": -4.0}, 25.0, outliers=True),
+    _c(6, "pm", "temperature", {"dT": 20.0}, 15.0),
+    _c(7, "pm", "temperature", {"dT": -25.0}, 40.0),
+    _c(8, "pm", "temperature", {"dT": 10.0}, 30.0, rho=0.9),
+    _c(9, "pm", "temperature", {"dT": -30.0}, 7.0),
+    _c(10, "pm", "density", {"ratio": 1.05}, 20.0),
+    _c(11, "pm", "density", {"ratio": 0.94}, 35.0),
+    _c(12, "pm", "density", {"ratio": 1.03}, 45.0, outliers=True),
+    _c(13, "pm", "density", {"ratio": 0.92}, 10.0, rho=0.95),
+    _c(14, "pm", "radar_time", {"dt": 0.01}, 15.0),
+    _c(15, "pm", "radar_time", {"dt": 0.03}, 30.0),
+    _c(16, "pm", "radar_time", {"dt": 0.06}, 45.0, rho=0.95),
+    _c(17, "pm", "radar_time", {"dt": 0.02}, 7.0, outliers=True),
+    _c(18, "pm", "coriolis", {}, 30.0, latitude=50.0, azimuth=90.0),
+    _c(19, "pm", "coriolis", {}, 45.0, latitude=-50.0, azimuth=0.0),
+    _c(20, "pm", "coriolis", {}, 20.0, latitude=50.0, azimuth=270.0, rho=0.9),
+    _c(21, "pm", "yaw_drag", {"delta0": 0.12, "decay": 0.3}, 20.0),
+    _c(22, "pm", "lift", {"factor": 1.0}, 30.0),
+    _c(23, "pm", "drag_scale", {"factor": 1.04}, 25.0),
+    _c(24, "pbc", "wind", {"wx": 6.0, "wy": -3.0}, 20.0),
+    _c(25, "pbc", "wind", {"wx": -4.0, "wy": 7.0}, 35.0),
+    _c(26, "pbc", "wind", {"wx": 0.0, "wy": -5.0}, 12.0, rho=0.95),
+    _c(27, "pbc", "temperature", {"dT": 15.0}, 25.0),
+    _c(28, "pbc", "temperature", {"dT": -20.0}, 40.0, outliers=True),
+    _c(29, "6dof", "temperature", {"dT": 25.0}, 15.0),
+    _c(30, "6dof", "radar_time", {"dt": 0.04}, 10.0),
+    _c(31, "6dof", "wind", {"wx": -10.0, "wy": 0.0}, 10.0),
+    # winds that change along the path (linear in height): still "wind", with a remaining gap
+    _c(32, "pm", "wind", {"wx0": -2.0, "wy0": 0.0, "shear": (-3e-3, 0.0)}, 30.0),
+    _c(33, "pm", "wind", {"wx0": 0.0, "wy0": 2.0, "shear": (0.0, 2.5e-3)}, 40.0, rho=0.9),
+    # 6-DOF: a cross wind beside the spin drift, density, and the 105 mm shell
+    _c(34, "6dof", "wind", {"wx": 0.0, "wy": -6.0}, 25.0),
+    _c(35, "6dof", "density", {"ratio": 0.95}, 35.0),
+    _c(36, "6dof", "temperature", {"dT": -20.0}, 30.0, shell="105"),
+    _c(37, "6dof", "wind", {"wx": 4.0, "wy": 5.0}, 40.0, shell="105", rho=0.9),
+    _c(38, "6dof", "radar_time", {"dt": 0.05}, 20.0, shell="105", initial_yaw_deg=2.0),
+]
+
+_NULL_EL = [7, 12, 15, 20, 25, 30, 35, 40, 45, 10, 18, 27, 33, 42, 8, 22, 38, 14, 29, 44]
+NULL_CASES = [
+    _c(100 + i, "pm", None, {}, float(el), rho=(0.0, 0.9, 0.95, 0.0)[i % 4], outliers=(i % 3 == 2),
+       latitude=(50.0 if i % 2 else None))
+    for i, el in enumerate(_NULL_EL)
+]
+SIXDOF_NULL = [_c(200, "6dof", None, {}, 20.0, expect="lift"),
+               _c(201, "6dof", None, {}, 35.0, expect="lift", shell="105", initial_yaw_deg=3.0)]
+
+#: a small subset for the default test run (one per simulator and noise kind, plus nulls)
+SMALL = [EFFECT_CASES[i] for i in (1, 3, 6, 15, 18, 24)] + NULL_CASES[:4]
+
+
+def magnitude_ok(case, row):
+    """Is the fitted magnitude within the acceptance tolerance? None when not applicable
+    (no parameters, or a cross-matched effect with other parameters)."""
+    if row is None or row["name"] != case.effect or not case.params or "shear" in case.params:
+        return None
+    p, t = row["params"], case.params
+    if case.effect == "wind":
+        return all(abs(p[k] - t[k]) <= max(0.15 * abs(t[k]), 0.5) for k in ("wx", "wy"))
+    if case.effect == "temperature":
+        return abs(p["dT"] - t["dT"]) <= 0.15 * abs(t["dT"])
+    if case.effect in ("density", "drag_scale"):
+        k = "ratio" if case.effect == "density" else "factor"
+        return abs((p[k] - 1) - (t[k] - 1)) <= 0.15 * abs(t[k] - 1)
+    if case.effect == "radar_time":
+        return abs(p["dt"] - t["dt"]) <= 0.15 * abs(t["dt"])
+    if case.effect == "lift":
+        return abs(p["factor"] - t["factor"]) <= 0.15 * abs(t["factor"])
+    if case.effect == "yaw_drag":
+        return abs(p["delta0"] - t["delta0"]) <= 0.15 * abs(t["delta0"])
+    return None
+
+
+def run_case(case):
+    """Diagnose one case; returns a dict of what the acceptance checks."""
+    from bayesdrag.diagnosis import diagnose
+    from bayesdrag.effects import EFFECTS
+
+    d = diagnose(make_track(case), diagnosis_round(case))
+    s = d.summary
+    rows = {r["name"]: r for r in s["effects"]}
+    verdict = s["verdict"]
+    immaterial = s.get("immaterial", [])
+    # top-1: the first verdict member the simulator does not carry by itself (6-DOF drift). The
+    # verdict holds only material effects (DESIGN.md); a withheld effect too small to matter
+    # (a 10 ms clock moves a 15-deg track's end by ~3 noise sd) is still found when the
+    # diagnosis lists it as detectable but immaterial, and then counts as named there
+    own = [n for n in verdict if n not in case.inherent]
+    own_imm = [n for n in immaterial if n not in case.inherent]
+    named_immaterial = not own and bool(own_imm)
+    top = own[0] if own else (own_imm[0] if own_imm else (
+        verdict[0] if verdict else (s["effects"][0]["name"] if s["effects"] else None)))
+    true_row = dict(rows[case.effect]) if case.effect in rows else None
+    joint = s.get("joint") or {}
+    if true_row is not None and case.effect in joint.get("effects", ()):
+        # the effect shares the verdict with another: its parameters from the joint fit, its
+        # shrink as the share of what the others leave that it removes
+        e = EFFECTS[case.effect]
+        true_row["params"] = e.report_params([joint["params"][f"{case.effect}.{p.name}"] for p in e.params]) \
+            if e.k else {}
+        true_row["shrink"] = joint["shrink_given_others"].get(case.effect, true_row["shrink"])
+        true_row["remaining_gap_fraction"] = 1.0 - joint["shrink"]
+    extra = [n for n in own if n not in case.accepted()]
+    return {"id": case.id, "truth": case.expect or case.effect or "none", "top": top,
+            "verdict": verdict, "immaterial": immaterial, "named_immaterial": named_immaterial,
+            "correct": (top in case.accepted() and bool(verdict or own_imm))
+            if (case.effect or case.expect) else (not verdict),
+            "extra_effects": extra,
+            "magnitude_ok": magnitude_ok(case, true_row if true_row else None),
+            "params": (true_row or {}).get("params"), "true_params": case.params,
+            "shrink": (true_row or {}).get("shrink"), "shrink_top": rows.get(top, {}).get("shrink"),
+            "gap": s["baseline"]["gap"],
+            "shrink_sd": (true_row or {}).get("shrink_sd"),
+            "remaining_gap_fraction": (true_row or {}).get("remaining_gap_fraction")}

@@ -1,0 +1,39 @@
+"""Withheld-effect acceptance of the gap diagnosis (issue 6).
+
+Default run: the SMALL subset (point mass, py-ballisticcalc, AR(1) noise, outliers, nulls).
+``-m slow``: the full suite (38 withheld effects from 3 simulators and two shells, 20 null
+seeds, two 6-DOF nulls)
+with the acceptance numbers; ``python tests/acceptance/run_suite.py`` prints the same with a
+confusion matrix.
+"""
+import pytest
+
+from acceptance.cases import EFFECT_CASES, NULL_CASES, SIXDOF_NULL, SMALL, run_case
+from acceptance.run_suite import summarise
+
+#: acceptance (issue 6)
+TOP1_MIN, MAG_MIN, SHRINK_MIN, FA_MAX = 0.90, 1.0, 0.9, 0.05
+
+
+@pytest.mark.parametrize("case", SMALL, ids=lambda c: c.id)
+def test_small_suite_case(case):
+    r = run_case(case)
+    assert r["correct"], r
+    if r["magnitude_ok"] is not None:
+        assert r["magnitude_ok"], r
+    if case.effect:
+        assert r["shrink"] >= SHRINK_MIN, r
+
+
+@pytest.mark.slow
+def test_full_suite_meets_the_acceptance():
+    results = [run_case(c) for c in EFFECT_CASES + NULL_CASES + SIXDOF_NULL]
+    s = summarise(results)
+    assert s["n_effect"] >= 30 and s["n_null"] >= 20
+    assert s["top1_rate"] >= TOP1_MIN, s
+    assert s["false_alarm_rate"] <= FA_MAX, s
+    assert s["shrink_ge_0.9_rate"] >= 0.9, s
+    # where shrink < 0.9 the effect's remaining gap is within one noise sd of the chi2
+    assert s["shrink_ge_0.9_within_noise_rate"] == 1.0, s
+    assert s["cases_with_extra_effects"] == 0, s
+    assert s["magnitude_rate"] >= 0.9, s

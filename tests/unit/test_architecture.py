@@ -1,0 +1,157 @@
+"""The package's shape, checked: layers, no import cycles, no reaching into private names, modules
+and functions of a readable size (docs/architecture.md). Imports inside functions count."""
+import ast
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[2] / "bayesdrag"
+#: longest module [lines] and function [lines] a newcomer should have to read at once
+MAX_MODULE_LINES = 700
+MAX_FUNCTION_LINES = 150
+
+#: the layers, lowest first: a module may import only from its own layer or lower ones
+LAYERS = [
+    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads"],
+    ["bayesdrag.atmosphere", "bayesdrag.drag"],
+    ["bayesdrag.track", "bayesdrag.round"],
+    ["bayesdrag.io"],
+    ["bayesdrag.dynamics"],
+    ["bayesdrag.effects", "bayesdrag.effect_inputs"],
+    ["bayesdrag.synthetic"],
+    ["bayesdrag.estimate"],
+    ["bayesdrag.diagnosis"],
+    ["bayesdrag.campaign"],
+    ["bayesdrag.plots"],
+    ["bayesdrag.report"],
+    ["bayesdrag.results"],
+    ["bayesdrag.commands"],
+    ["bayesdrag.cli", "bayesdrag"],
+]
+
+
+def _modules():
+    out = {}
+    for f in sorted(PKG.rglob("*.py")):
+        parts = f.relative_to(PKG.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = f
+    return out
+
+
+def _imports(name, path):
+    """(module imported, names imported, line) of every import in a module, functions included."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    is_pkg = path.name == "__init__.py"
+    base = name.split(".") if is_pkg else name.split(".")[:-1]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                b = base[:len(base) - node.level + 1]
+                mod = ".".join(b + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            if mod.startswith("bayesdrag"):
+                out.append((mod, [a.name for a in node.names], node.lineno))
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("bayesdrag"):
+                    out.append((a.name, [], node.lineno))
+    return out
+
+
+def _layer(mod):
+    best = None
+    for i, layer in enumerate(LAYERS):
+        for prefix in layer:
+            if mod == prefix or mod.startswith(prefix + "."):
+                if best is None or len(prefix) > best[1]:
+                    best = (i, len(prefix))
+    return None if best is None else best[0]
+
+
+MODULES = _modules()
+
+
+def _resolve(mod, names):
+    """Modules an import statement depends on: ``from pkg import sub`` depends on ``pkg.sub``."""
+    out = []
+    for n in names or [None]:
+        if n is not None and f"{mod}.{n}" in MODULES:
+            out.append(f"{mod}.{n}")
+        elif mod in MODULES:
+            out.append(mod)
+    return out
+
+
+def test_modules_and_functions_are_readable_sizes():
+    too_long, long_funcs = [], []
+    for name, f in MODULES.items():
+        n = len(f.read_text(encoding="utf-8").splitlines())
+        if n > MAX_MODULE_LINES:
+            too_long.append(f"{name}: {n} lines")
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    long_funcs.append(f"{name}.{node.name}: {length} lines")
+    assert not too_long, too_long
+    assert not long_funcs, long_funcs
+
+
+def test_no_module_imports_another_modules_private_names():
+    bad = []
+    for name, f in MODULES.items():
+        for mod, names, line in _imports(name, f):
+            for n in names:
+                if n.startswith("_") and not n.startswith("__") and mod != name:
+                    bad.append(f"{name}:{line} imports {mod}.{n}")
+    assert not bad, bad
+
+
+def test_layers_import_only_downwards():
+    bad = []
+    for name, f in MODULES.items():
+        lay = _layer(name)
+        assert lay is not None, f"{name} is in no layer of tests/test_architecture.py (add it to LAYERS)"
+        for mod, names, line in _imports(name, f):
+            for dep in _resolve(mod, names):
+                dl = _layer(dep)
+                if dl is not None and dl > lay:
+                    bad.append(f"{name}:{line} (layer {lay}) imports {dep} (layer {dl})")
+    assert not bad, bad
+
+
+def test_no_import_cycles():
+    graph = defaultdict(set)
+    for name, f in MODULES.items():
+        for mod, names, _ in _imports(name, f):
+            for dep in _resolve(mod, names):
+                if dep != name and not name.startswith(dep + ".") and dep != "bayesdrag":
+                    graph[name].add(dep)
+    seen, cycles = set(), []
+
+    def visit(n, path):
+        if n in path:
+            cycles.append(path[path.index(n):] + [n])
+            return
+        if n in seen:
+            return
+        seen.add(n)
+        for m in sorted(graph[n]):
+            visit(m, path + [n])
+
+    for n in sorted(MODULES):
+        visit(n, [])
+    assert not cycles, [" -> ".join(c) for c in cycles[:5]]
+
+
+@pytest.mark.parametrize("name", ["read_track", "read_round", "fit", "simulate", "FitResult", "diagnose",
+                                  "DiagnosisResult"])
+def test_public_api_names(name):
+    import bayesdrag
+
+    assert name in bayesdrag.__all__
+    assert getattr(bayesdrag, name) is not None
