@@ -15,8 +15,8 @@ from .drag import ReferenceTable
 from .track import CHANNELS, UNITS
 from .validate import number, positive, type_name
 
-__all__ = ["Projectile", "Launch", "Radar", "Round", "DEFAULT_VELOCITY_SD", "DEFAULT_ELEVATION_SD_DEG",
-           "DEFAULT_POSITION_SD"]
+__all__ = ["Projectile", "Launch", "Radar", "Systematics", "Round", "DEFAULT_VELOCITY_SD",
+           "DEFAULT_ELEVATION_SD_DEG", "DEFAULT_POSITION_SD", "SYSTEMATIC_SOURCES"]
 
 #: default a-priori sd of the launch velocity [m/s]: round-to-round muzzle-velocity dispersion of
 #: a lot is ~0.3-0.5 % (2.5-4 m/s at 800 m/s); 5 m/s also absorbs a nominal value taken from the
@@ -195,6 +195,77 @@ class Radar:
         object.__setattr__(self, "sigma", sig)
 
 
+#: the systematic sources a round may declare: key stem -> (round-file section, unit, largest
+#: plausible sd). The bounds refuse values that cannot be meant (a 50 % density uncertainty is a
+#: wrong unit, not a measurement) while leaving every real tolerance far inside them.
+SYSTEMATIC_SOURCES = {
+    "mass": ("projectile", "kg", None),            # bound: a fraction of the mass, checked in Round
+    "diameter": ("projectile", "m", None),         # bound: a fraction of the diameter, checked in Round
+    "density": ("atmosphere", "relative", 0.2),
+    "temperature": ("atmosphere", "K", 30.0),
+    "position_scale": ("radar", "relative", 0.05),
+    "velocity_scale": ("radar", "relative", 0.05),
+    "time_offset": ("radar", "s", 1.0),
+}
+#: largest mass_sd / mass and diameter_sd / diameter accepted
+SYSTEMATIC_RELATIVE_MAX = 0.2
+
+
+@dataclass(frozen=True, eq=False)
+class Systematics:
+    """Declared a-priori sds of quantities the fit otherwise holds at their nominal values.
+
+    Each declared sd makes its quantity a nuisance parameter with a Gaussian prior (mean: the
+    nominal value, sd as given) that the fit estimates with Cd and whose share of the Cd
+    uncertainty is reported; None (the default) holds the quantity at its nominal value and the
+    result says the Cd is conditional on it.
+
+    Attributes
+    ----------
+    mass : float or None, kg
+        sd of the projectile mass (``[projectile] mass_sd``).
+    diameter : float or None, m
+        sd of the reference diameter (``[projectile] diameter_sd``).
+    density : float or None, relative
+        sd of the air density ratio at unchanged temperature (``[atmosphere] density_sd``;
+        0.003 = 0.3 %).
+    temperature : float or None, K
+        sd of an offset of the whole temperature profile (``[atmosphere] temperature_sd``).
+    position_scale : float or None, relative
+        sd of a common scale error of x, y, z (``[radar] position_scale_sd``).
+    velocity_scale : float or None, relative
+        sd of a scale error of v (``[radar] velocity_scale_sd``).
+    time_offset : float or None, s
+        sd of the radar clock against the launch (``[radar] time_offset_sd``).
+    """
+
+    mass: float | None = None
+    diameter: float | None = None
+    density: float | None = None
+    temperature: float | None = None
+    position_scale: float | None = None
+    velocity_scale: float | None = None
+    time_offset: float | None = None
+
+    def __post_init__(self):
+        for stem, (_, unit, hi) in SYSTEMATIC_SOURCES.items():
+            val = number(f"{stem}_sd", getattr(self, stem), unit, optional=True)
+            if val is not None:
+                val = positive(f"{stem}_sd", val, unit)
+                if hi is not None and val > hi:
+                    raise ValueError(f"{stem}_sd = {val:g} {unit} is larger than the plausible {hi:g} {unit}"
+                                     + (" (it is a fraction: 0.003 means 0.3 %)" if unit == "relative" else ""))
+            object.__setattr__(self, stem, val)
+
+    def declared(self):
+        """The declared sources as ``{stem: sd}``, in :data:`SYSTEMATIC_SOURCES` order."""
+        return {k: getattr(self, k) for k in SYSTEMATIC_SOURCES if getattr(self, k) is not None}
+
+    def undeclared(self):
+        """The stems of the sources held at their nominal values."""
+        return [k for k in SYSTEMATIC_SOURCES if getattr(self, k) is None]
+
+
 @dataclass(frozen=True, eq=False)
 class Round:
     """Everything known about one firing besides the track.
@@ -209,6 +280,8 @@ class Round:
     radar : Radar
     path : str
         The round file, or "".
+    systematics : Systematics
+        Declared sds of mass, diameter, air and radar calibration (none by default).
     """
 
     projectile: Projectile
@@ -216,11 +289,20 @@ class Round:
     atmosphere: Atmosphere = None
     radar: Radar = field(default_factory=Radar)
     path: str = ""
+    systematics: Systematics = field(default_factory=Systematics)
 
     def __post_init__(self):
         if self.atmosphere is None:
             object.__setattr__(self, "atmosphere", Atmosphere(gun_altitude=self.launch.altitude))
         object.__setattr__(self, "path", str(self.path))
+        if not isinstance(self.systematics, Systematics):
+            raise ValueError(f"systematics must be a Systematics, got {type_name(self.systematics)}")
+        sy = self.systematics
+        for stem, nominal in (("mass", self.projectile.mass), ("diameter", self.projectile.diameter)):
+            sd = getattr(sy, stem)
+            if sd is not None and sd > SYSTEMATIC_RELATIVE_MAX * nominal:
+                raise ValueError(f"{stem}_sd = {sd:g} is more than {SYSTEMATIC_RELATIVE_MAX:.0%} of the "
+                                 f"{stem} ({nominal:g}); is it in the wrong unit?")
 
     @property
     def reference_drag(self):

@@ -15,8 +15,8 @@ import tomli_w
 
 from ..atmosphere import Atmosphere, MetProfile
 from ..errors import InputError
-from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, Launch, Projectile,
-                     Radar, Round)
+from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
+                     Launch, Projectile, Radar, Round, Systematics)
 from ..validate import number, type_name
 from .csv import read_text
 from .drag_tables import read_drag_table
@@ -27,12 +27,14 @@ __all__ = ["read_round", "write_round"]
 
 _SCHEMA = {
     "projectile": {"name": "text", "mass": "kg", "diameter": "m", "reference_drag": "CSV path",
-                   "reference_extrapolate": "boolean"},
+                   "reference_extrapolate": "boolean", "mass_sd": "kg", "diameter_sd": "m"},
     "launch": {"elevation": "deg", "velocity": "m/s", "azimuth": "deg", "latitude": "deg",
                "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
     "atmosphere": {"model": "text", "profile": "CSV path", "temperature_offset": "K",
-                   "pressure_ratio": "-", "density_ratio": "-"},
-    "radar": {"sigma": "table"},
+                   "pressure_ratio": "-", "density_ratio": "-", "density_sd": "relative",
+                   "temperature_sd": "K"},
+    "radar": {"sigma": "table", "position_scale_sd": "relative", "velocity_scale_sd": "relative",
+              "time_offset_sd": "s"},
 }
 ATMOSPHERE_MODELS = ("icao", "profile")
 #: how far [Mach] the launch Mach may exceed the reference table's last row before the round is
@@ -68,6 +70,10 @@ def read_round(path):
       ``model = "profile"``, and ``model = "icao"`` with a profile is a contradiction),
       temperature_offset [K], pressure_ratio, density_ratio (applied on top of a profile too)
     - ``[radar]`` sigma = {x, y, z [m], v [m/s]}
+    - systematic sources (optional; each declared sd makes that quantity a nuisance parameter
+      of the fit, see :class:`bayesdrag.round.Systematics`): ``[projectile]`` mass_sd [kg],
+      diameter_sd [m]; ``[atmosphere]`` density_sd [relative], temperature_sd [K]; ``[radar]``
+      position_scale_sd [relative], velocity_scale_sd [relative], time_offset_sd [s]
 
     A missing ``name`` defaults to the file's stem.
 
@@ -186,7 +192,11 @@ def read_round(path):
                 f"launch Mach (to within {REFERENCE_MACH_SLACK:g}): extend it, or set "
                 f"reference_extrapolate = true to hold Cd at its last value beyond the table")
     radar = build("radar", lambda: Radar(tables["radar"].get("sigma", {})))
-    return Round(projectile, launch, atmosphere, radar, str(path))
+    sds = {stem: tables[sec].get(f"{stem}_sd") for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items()}
+    for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items():     # each error names its own section
+        build(sec, lambda: Systematics(**{stem: sds[stem]}))
+    systematics = Systematics(**sds)
+    return build("projectile", lambda: Round(projectile, launch, atmosphere, radar, str(path), systematics))
 
 
 def write_round(path, rnd, comment=None):
@@ -245,6 +255,8 @@ def write_round(path, rnd, comment=None):
     doc = {"projectile": proj, "launch": launch, "atmosphere": atm}
     if rnd.radar.sigma:
         doc["radar"] = {"sigma": dict(rnd.radar.sigma)}
+    for stem, sd in rnd.systematics.declared().items():
+        doc.setdefault(SYSTEMATIC_SOURCES[stem][0], {})[f"{stem}_sd"] = float(sd)
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
     head += "# units: kg, m, deg, m/s, K\n"
     path.write_text(head + tomli_w.dumps(doc), encoding="utf-8")
