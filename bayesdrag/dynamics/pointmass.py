@@ -31,7 +31,7 @@ Two backends compute the same trajectories:
     at the output times, run for a whole batch of parameter sets at once (vectorised lanes,
     parallel threads); the drag curve and the atmosphere are tabulated (exact for the drag
     models, < 1e-6 relative for the atmosphere). Agreement with the scipy backend is below
-    1e-3 m over a full 155 mm trajectory (tests/test_pointmass.py); the step depends only on
+    1e-3 m over a full 155 mm trajectory (tests/unit/test_pointmass.py); the step depends only on
     the model and the output times, never on the parameters, so finite differences of the
     kernel are smooth.
 """

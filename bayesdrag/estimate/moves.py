@@ -9,7 +9,7 @@ move (``DEMove`` with >= 2 D walkers, else random-walk Metropolis with the Lapla
 Measured on the shipped demo track (54 parameters, 300 steps, 32 walkers): tau ~ 4-5 steps,
 acceptance ~ 0.4; 70 %/1.2x/5 dof gave tau 8.3; the stretch move and DE alone need >= 2 D = 108
 walkers and gave tau of hundreds of steps on the ~20-parameter spline (``docs/bayes.md``). The
-mix reproduces a strongly correlated Gaussian target's covariance (``tests/test_bayes.py``) even
+mix reproduces a strongly correlated Gaussian target's covariance (``tests/integration/test_bayes.py``) even
 with a deliberately mis-centred and mis-scaled proposal, because the independence move is an
 exact Metropolis-Hastings move (its proposal ratio enters the acceptance).
 """
