@@ -82,7 +82,7 @@ def _nu(value):
 
 def _add_fit_options(p, batch=False):
     """The options that change a fit's result (shared by ``fit`` and ``batch``)."""
-    from .commands.options import LIKELIHOODS, MOVES, FitOptions
+    from .commands.options import LIKELIHOODS, MOVES, NOISE_MODELS, FitOptions
     from .drag import DRAG_MODEL_NAMES
 
     d = FitOptions()
@@ -111,6 +111,9 @@ def _add_fit_options(p, batch=False):
                         "walkers), stretch")
     p.add_argument("--likelihood", choices=LIKELIHOODS, default=d.likelihood,
                    help="noise model: gaussian (default) or student-t (robust to outliers)")
+    p.add_argument("--noise-model", choices=NOISE_MODELS, default=d.noise_model,
+                   help="auto (default: per channel from the residuals), white (independent samples) or ar1 "
+                        "(white noise plus an AR(1) model-error process: correlated residuals widen the bands)")
     p.add_argument("--nu", type=_nu, default=d.nu,
                    help=f"Student-t degrees of freedom: a number (default {d.nu:g}) or 'sample'")
 
@@ -181,7 +184,7 @@ def _fit_options(args):
         if not ch:
             raise InputError(f"command line: --channels {args.channels!r} names no channel; use e.g. x,z,v")
         kw["channels"] = ch
-    for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu"):
+    for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu", "noise_model"):
         if hasattr(args, k):
             kw[k] = getattr(args, k)
     return FitOptions(**kw)

@@ -45,8 +45,17 @@ class SimInputs:
     atmospheres : list of Atmosphere (length B) or None
     time_shift : (B,) array or None, s
         Radar clock offset: the model is evaluated at ``track.t + time_shift``.
+    output_scale : dict channel -> (B,) array, optional
+        Multipliers of the model outputs (a radar's range or speed scale error: the radar
+        reports ``(1 + s)`` times the true value).
+    atmosphere_tables : (B, n, 2) array or None
+        Per-trajectory tabulated density [kg/m^3] and 1 / speed of sound [s/m] on the nominal
+        atmosphere's height grid (:meth:`PointMassModel.simulate_batch` ``atmospheres`` given
+        as tables: a continuous temperature offset without building an atmosphere per walker).
     """
 
     overrides: dict = field(default_factory=dict)
     atmospheres: list | None = None
     time_shift: np.ndarray | None = None
+    output_scale: dict = field(default_factory=dict)
+    atmosphere_tables: np.ndarray | None = None

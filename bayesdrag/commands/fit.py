@@ -76,7 +76,7 @@ def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, pr
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start):
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
-                     likelihood=opts.likelihood, nu=opts.ml_nu)
+                     likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model)
     res = f1.ml
     if not res.success:
         raise FitError(f"{track.source or 'track'}: {res.message}")
@@ -94,6 +94,10 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             assess(ff, rows_f, track, rnd.radar.sigma)
             check_against_flexible(rows, rows_f, quality, dm.name)
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
+    summary["uncertainty_budget"] = _budget(f1, grid, rows)
+    if not f1.sources and log is not None:
+        log(f"Cd is conditional on the nominal {', '.join(summary['uncertainty_budget']['conditional_on'])} "
+            "(declare their _sd in the round file to include them)")
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
     bayes = post = None
     if opts.mcmc:
@@ -109,6 +113,26 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
+
+
+def _budget(f1, grid, rows):
+    """result.json ``uncertainty_budget`` (linearised, GUM) of the Scheme 1 fit; each ``cd`` row
+    gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
+    budget is all ``statistical`` and ``conditional_on`` lists what the Cd assumes known."""
+    from ..estimate.systematics import budget_rows, uncertainty_budget
+    from ..round import SYSTEMATIC_SOURCES
+
+    res = f1.ml
+    P = f1.problem.P
+    n0 = res.theta.size - len(f1.sources)
+    idx = list(range(n0, res.theta.size))
+    b = uncertainty_budget(res.cov, f1.drag_model.jacobian(grid), slice(0, P), idx, [s[0] for s in f1.sources])
+    for r, v in zip(rows, b["by_source"]["statistical"]):
+        r["crb_sd_statistical"] = float(v)
+    out = budget_rows(b, grid)
+    declared = {s[0] for s in f1.sources}
+    out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared]
+    return out
 
 
 def _ml_summary(f1, rows, quality, lo, hi, opts):
@@ -131,7 +155,7 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
                "warnings": list(res.warnings),
                "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None,
                "likelihood": opts.likelihood, "rejected_samples": f1.rejected, "smoothing": smoothing,
-               "quality": quality},
+               "noise": f1.noise, "quality": quality},
         "cd": rows,
     }
 

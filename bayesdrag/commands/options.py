@@ -25,6 +25,8 @@ MOVES = ("auto", "de", "stretch")
 SIMULATION_MODELS = ("pointmass", "6dof")
 #: jobs a batch runs per round
 JOBS = ("fit", "diagnose")
+#: noise models of the channels (``auto``: per channel from the residuals)
+NOISE_MODELS = ("auto", "white", "ar1")
 #: the Student-t likelihood's default degrees of freedom (heavy tails, finite variance)
 DEFAULT_NU = 4.0
 
@@ -60,6 +62,11 @@ class FitOptions:
         Noise model; ``student-t`` is robust to gross outliers.
     nu : float or "sample"
         Student-t degrees of freedom (default 4), or ``"sample"`` to sample them.
+    noise_model : {"auto", "white", "ar1"}
+        ``white``: independent samples (Eq. 19); ``ar1``: white noise plus an AR(1) model-error
+        process per channel, so residuals that model error has made correlated widen the
+        bands; ``auto`` (default): ``ar1`` for the channels whose white-noise residuals show
+        such a process (:func:`bayesdrag.estimate.scheme1.choose_noise_model`).
     window, overlap : int
         Scheme 2: samples per window (default 50) and shared by consecutive windows (0).
     walkers : int or None
@@ -79,6 +86,7 @@ class FitOptions:
     fix_ic: bool = False
     likelihood: str = "gaussian"
     nu: float | str = DEFAULT_NU
+    noise_model: str = "auto"
     window: int = 50
     overlap: int = 0
     walkers: int | None = None
@@ -100,6 +108,8 @@ class FitOptions:
             object.__setattr__(self, "channels", ch)
         if self.likelihood not in LIKELIHOODS:
             _bad("likelihood", self.likelihood, f"use one of {', '.join(LIKELIHOODS)}")
+        if self.noise_model not in NOISE_MODELS:
+            _bad("noise_model", self.noise_model, f"use one of {', '.join(NOISE_MODELS)}")
         if self.nu != "sample":
             try:
                 nu = float(self.nu)

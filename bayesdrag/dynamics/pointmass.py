@@ -52,7 +52,7 @@ from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT
                      SPIN_DECAY, coriolis_matrix, lift_parameter)
 from .trajectory import DEFAULT_MAX_STEP, STEP_DRAG_FRACTION, Trajectory, output_schedule
 
-__all__ = ["PointMassModel"]
+__all__ = ["PointMassModel", "atmosphere_table"]
 
 
 
@@ -369,8 +369,10 @@ class PointMassModel:
         drag_params : (B, P) array
         overrides : dict of column index -> (B,) array, optional
             Per-trajectory values of kernel parameters (``_kernel.P_*``), e.g. wind.
-        atmospheres : sequence of Atmosphere, length B, optional
-            Per-trajectory atmospheres (identical ones share a table).
+        atmospheres : sequence of Atmosphere, length B, or (B, n, 2) ndarray, optional
+            Per-trajectory atmospheres (identical ones share a table), or their tables on the
+            model's own atmosphere grid (columns density [kg/m^3] and 1 / speed of sound [s/m],
+            see :func:`atmosphere_table`).
         state0 : (B, 6) array, optional
             Initial states; they set the lift constant (:meth:`lift_constant`) unless
             ``overrides`` gives ``P_LIFT``.
@@ -395,6 +397,14 @@ class PointMassModel:
             uniq, inv = np.unique(drag_params, axis=0, return_inverse=True)
             cd_tabs = self.drag.kernel_table(uniq, grid)
             cd_idx = inv.reshape(-1).astype(np.int64)
+        if isinstance(atmospheres, np.ndarray):
+            # tables on the nominal atmosphere's grid (density, 1 / speed of sound), one per
+            # trajectory: a continuous temperature offset without an Atmosphere per trajectory
+            z0, dz, tab0 = _atmosphere_table(self.atmosphere)
+            if atmospheres.shape != (B,) + tab0.shape:
+                raise ValueError(f"atmosphere tables must be (B, {tab0.shape[0]}, 2), got {atmospheres.shape}")
+            return (par, cd_tabs, cd_idx, grid, np.ascontiguousarray(atmospheres), np.arange(B, dtype=np.int64),
+                    z0, dz)
         atms = [self.atmosphere] * B if atmospheres is None else list(atmospheres)
         keys = {}
         atm_idx = np.empty(B, dtype=np.int64)
@@ -450,6 +460,13 @@ class PointMassModel:
         # a NaN or inf propagates to the last sample, so checking that row is enough
         ok = bool(np.all(np.isfinite(out[:, -1])))
         return Trajectory(t_out, out, mach, ok, "" if ok else "non-finite state: integration failed")
+
+
+def atmosphere_table(atm):
+    """The kernel's table of an atmosphere: ``(z0, dz, values)`` with heights above the gun
+    ``z0 + dz * i`` [m] and columns density [kg/m^3] and 1 / speed of sound [s/m] (read-only,
+    memoised)."""
+    return _atmosphere_table(atm)
 
 
 @lru_cache(maxsize=128)

@@ -40,6 +40,7 @@ autocorrelation per channel, summed to the lag where it first drops below its no
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,7 +71,7 @@ class MLResult:
     cov, cov_colored : (n, n) ndarray
         Covariances (zero rows/columns for fixed parameters).
     sigma : dict channel -> float
-        Noise sd used at the end (estimated or fixed).
+        Noise sd used at the end (estimated or fixed); the white part's sd of ``ar1`` channels.
     cost : float
         Eq. 19 at the estimate (with the final R), plus prior terms.
     converged : bool
@@ -85,6 +86,15 @@ class MLResult:
         Mach number along the fitted trajectory.
     history : tuple of float
         Cost after each iteration.
+    n_drag, n_extra : int
+        Drag coefficients (first) and extra (effect) parameters (last) in ``theta``.
+    weights : (N, C) ndarray
+        Per-sample weights used.
+    ar : dict channel -> (rho, q)
+        Model-error AR coefficient and variance ratio of the ``ar1`` channels
+        (:mod:`bayesdrag.estimate.colored`; empty when every channel is white).
+    noise_model : dict channel -> str
+        ``white`` or ``ar1`` per channel.
     """
 
     names: tuple
@@ -108,6 +118,8 @@ class MLResult:
     n_drag: int = 0
     n_extra: int = 0
     weights: np.ndarray = None
+    ar: dict = field(default_factory=dict)
+    noise_model: dict = field(default_factory=dict)
 
     @property
     def params(self):
@@ -150,9 +162,9 @@ def fit(problem, *, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, f
     res = _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma)
     if res.converged or not fallback or not np.all(np.isfinite(res.theta)):
         return res
-    alt = fit_trust_region(problem, res.theta, res.sigma)
+    alt = fit_trust_region(problem, res.theta, res.sigma, ar=res.ar)
     if alt.converged and (alt.cost <= res.cost * (1 + 1e-9) or not res.converged):
-        if len(problem.sigma_fixed) < len(problem.channels):
+        if len(problem.sigma_fixed) < len(problem.channels) or problem.ar_channels:
             # the noise sd was held at the LM's last estimate: one more relaxation pass
             theta0 = problem.theta0
             problem.theta0 = alt.theta.copy()
@@ -166,15 +178,15 @@ def fit(problem, *, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, f
     return res
 
 
-def fit_trust_region(problem, theta, sigma, max_nfev=200):
-    """Minimise the cost at fixed noise sd ``sigma`` with scipy's ``least_squares``
-    (trust-region reflective, bounds respected, our central-difference Jacobian), from
-    ``theta``. Returns :class:`MLResult`; ``converged`` when scipy reports success."""
+def fit_trust_region(problem, theta, sigma, max_nfev=200, ar=None):
+    """Minimise the cost at fixed noise sd ``sigma`` (and model-error parameters ``ar``) with scipy's
+    ``least_squares`` (trust-region reflective, bounds respected, our central-difference
+    Jacobian), from ``theta``. Returns :class:`MLResult`; ``converged`` when scipy reports
+    success."""
     from scipy.optimize import least_squares
 
     idx = np.flatnonzero(problem.free)
-    sig_vec = np.array([sigma[c] for c in problem.channels])
-    sw = np.sqrt(problem.weights / sig_vec[None, :] ** 2)
+    ar = dict(ar or {})
     base = np.asarray(theta, float).copy()
     cache = {}
 
@@ -188,8 +200,8 @@ def fit_trust_region(problem, theta, sigma, max_nfev=200):
         if key not in cache:
             th = full(x)
             y, _, S = problem.sensitivities(th)
-            r = ((problem.z - y) * sw).reshape(-1)
-            J = -(S * sw[:, :, None]).reshape(-1, idx.size)
+            r = problem.weighted(problem.z - y, sigma, ar).reshape(-1)
+            J = -problem.weighted(S, sigma, ar).reshape(-1, idx.size)
             pr, pJ = problem.prior_terms(th)
             if pr.size:
                 r = np.concatenate([r, pr])
@@ -211,16 +223,16 @@ def fit_trust_region(problem, theta, sigma, max_nfev=200):
     except (ValueError, np.linalg.LinAlgError) as exc:
         th = full(x0)
         y, mach, S = problem.sensitivities(th)
-        return _finish(problem, th, y, mach, S, problem.z - y, dict(sigma), problem.cost(problem.z - y, sigma, th),
-                            False, f"trust-region fallback failed: {exc}", 0, [])
+        return _finish(problem, th, y, mach, S, problem.z - y, dict(sigma), ar,
+                       problem.cost(problem.z - y, sigma, th, ar), False, f"trust-region fallback failed: {exc}", 0, [])
     th = full(sol.x)
     y, mach, S = problem.sensitivities(th)
     resid = problem.z - y
-    cost = problem.cost(resid, sigma, th)
+    cost = problem.cost(resid, sigma, th, ar)
     ok = bool(sol.success and np.all(np.isfinite(y)))
     msg = (f"converged (trust-region fallback: {sol.message})" if ok
            else f"not converged (trust-region fallback: {sol.message})")
-    return _finish(problem, th, y, mach, S, resid, dict(sigma), cost, ok, msg, int(sol.nfev), [cost])
+    return _finish(problem, th, y, mach, S, resid, dict(sigma), ar, cost, ok, msg, int(sol.nfev), [cost])
 
 
 def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
@@ -232,19 +244,16 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         raise FitError("the model trajectory at the starting values is not finite: check the "
                        "drag starting values and the launch conditions")
     resid = problem.z - y
-    sigma = problem.update_sigma(resid, None)
+    sigma, ar = problem.update_noise(resid, None, None)
     lam = 1e-3
     history = []
     converged = False
     message = ""
     it = 0
-    cost = problem.cost(resid, sigma, theta)
+    cost = problem.cost(resid, sigma, theta, ar)
     for it in range(1, max_iter + 1):
-        W = 1.0 / np.array([sigma[c] for c in problem.channels]) ** 2  # (C,)
-        sw = np.sqrt(W[None, :] * problem.weights)  # (N, C)
-        Sw = S * sw[:, :, None]
-        A = Sw.reshape(-1, idx.size)
-        rw = (resid * sw).reshape(-1)
+        A = problem.weighted(S, sigma, ar).reshape(-1, idx.size)
+        rw = problem.weighted(resid, sigma, ar).reshape(-1)
         pr, pJ = problem.prior_terms(theta)
         A = np.vstack([A, pJ]) if pr.size else A
         rw = np.concatenate([rw, pr]) if pr.size else rw
@@ -269,7 +278,7 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
                 lam *= 10
                 continue
             rt = problem.z - yt[0]
-            ct = problem.cost(rt, sigma, trial)
+            ct = problem.cost(rt, sigma, trial, ar)
             if ct <= cost:
                 accepted = True
                 break
@@ -294,10 +303,15 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         theta = trial
         y, mach, S = problem.sensitivities(theta)
         resid = problem.z - y
-        new_sigma = problem.update_sigma(resid, sigma)
+        new_sigma, new_ar = problem.update_noise(resid, sigma, ar)
         dsig = max(abs(new_sigma[c] / sigma[c] - 1) for c in problem.channels)
-        sigma = new_sigma
-        new_cost = problem.cost(resid, sigma, theta)
+        # model-error parameters (log correlation time and log variance) to 1 % : their effect
+        # on the estimate and the bounds is second order, and their optimiser's tolerance is 1e-3
+        dsig = max([dsig] + [0.1 * max(abs(math.log((1.0 - new_ar[c][0]) / (1.0 - ar.get(c, (0.0, 0.0))[0]))),
+                                 abs(math.log((new_ar[c][1] + 1e-6) / (ar.get(c, (0.0, 0.0))[1] + 1e-6))))
+                             for c in new_ar])
+        sigma, ar = new_sigma, new_ar
+        new_cost = problem.cost(resid, sigma, theta, ar)
         history.append(new_cost)
         try:
             sd = np.sqrt(np.diag(np.linalg.inv(M)))
@@ -310,18 +324,18 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
             converged = True
             message = ("converged: " + ("parameter steps < 1e-3 CRB sd" if small_step else
                                         "relative cost change < 1e-8") +
-                       (", noise sd change < 0.1 %" if len(problem.sigma_fixed) < C else ""))
+                       (", noise sd change < 0.1 %" if len(problem.sigma_fixed) < C or ar else ""))
             break
     else:
         message = f"not converged after {max_iter} iterations"
-    return _finish(problem, theta, y, mach, S, resid, sigma, cost, converged, message, it, history)
+    return _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history)
 
 
-def _finish(problem, theta, y, mach, S, resid, sigma, cost, converged, message, it, history):
+def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history):
     idx = np.flatnonzero(problem.free)
     n = theta.size
-    W = 1.0 / np.array([sigma[c] for c in problem.channels]) ** 2
-    A = (S * np.sqrt(W[None, :] * problem.weights)[:, :, None]).reshape(-1, idx.size)
+    Sw_all = problem.weighted(S, sigma, ar)                        # (N, C, nf): whitened / sigma
+    A = Sw_all.reshape(-1, idx.size)
     pr, pJ = problem.prior_terms(theta)
     M = A.T @ A + (pJ.T @ pJ if pr.size else 0.0)
     warnings = []
@@ -349,13 +363,16 @@ def _finish(problem, theta, y, mach, S, resid, sigma, cost, converged, message, 
     if not np.all(np.isfinite(Minv)):
         Minv = np.full_like(M, np.nan)
         warnings.append("information matrix is singular: no Cramér-Rao bounds")
-    # colored-residual correction (Morelli & Klein 1997)
+    # colored-residual correction (Morelli & Klein 1997), on the whitened residuals and
+    # sensitivities (for white channels the residuals and R^-1 S themselves)
     D = np.zeros_like(M)
-    Sw = S * (W[None, :] * problem.weights)[:, :, None]  # R^-1 S, (N, C, nf)
+    sig_vec = np.array([sigma[c] for c in problem.channels])
+    Sw = Sw_all * np.sqrt(problem.weights)[:, :, None] / sig_vec[None, :, None]  # R^-1 S (whitened)
+    resid_w = problem.whiten(resid, ar)
     N = resid.shape[0]
     for j in range(len(problem.channels)):
         wj = problem.weights[:, j] > 0
-        e = np.where(wj, resid[:, j] - resid[wj, j].mean(), 0.0)
+        e = np.where(wj, resid_w[:, j] - resid_w[wj, j].mean(), 0.0)
         r = np.correlate(e, e, mode="full")[N - 1:] / N
         limit = 2.0 / np.sqrt(N) * r[0]
         below = np.flatnonzero(r < limit)
@@ -395,4 +412,5 @@ def _finish(problem, theta, y, mach, S, resid, sigma, cost, converged, message, 
     resids = {c: resid[:, j] for j, c in enumerate(problem.channels)}
     return MLResult(problem.names, theta, problem.free.copy(), crb, crbc, cov, covc, sigma, cost,
                     converged, success, message, it, tuple(warnings), resids, fitted, mach,
-                    tuple(history), problem.P, problem.E, problem.weights)
+                    tuple(history), problem.P, problem.E, problem.weights,
+                    {c: (float(v[0]), float(v[1])) for c, v in (ar or {}).items()}, dict(problem.noise_model))

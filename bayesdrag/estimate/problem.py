@@ -18,6 +18,15 @@ atmospheres, a radar clock offset ``dt``: the model is evaluated at ``t + dt``).
 Optional per-sample weights (N, C) in [0, 1] multiply ``R^-1`` sample by sample: 0 removes a
 sample (a flagged gross outlier) from the cost, the sensitivities, the bounds and the residual
 autocorrelation.
+
+Noise model per channel (``noise_model``): ``white`` (independent samples, Eq. 19 as written) or
+``ar1``: white noise of sd ``sigma_c`` plus a first-order autoregressive model-error process
+(coefficient ``rho_c`` per median sample interval, variance ``q_c sigma_c^2``); residuals and
+sensitivities are whitened by its Kalman filter (:mod:`bayesdrag.estimate.colored`, which says
+why a pure AR(1) of the whole residual is not enough), so the least squares is the generalised one
+and its information matrix gives the colored bound. The AR parameters of a channel are estimated
+from its residuals like the noise sd (relaxation); the radar's sigma, when given, is not used for
+an ``ar1`` channel.
 """
 from __future__ import annotations
 
@@ -28,6 +37,7 @@ import numpy as np
 from ..effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ..errors import InputError
 from ..track import CHANNELS
+from . import colored
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
 _CH_INDEX = {"x": 0, "y": 1, "z": 2}
@@ -38,6 +48,8 @@ IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
 
 #: longest backward extrapolation from the initial state for a shifted radar clock [s]
 MAX_BACKWARD = 0.25
+#: noise models of a channel
+NOISE_MODELS = ("white", "ar1")
 
 
 @dataclass(frozen=True)
@@ -95,10 +107,12 @@ class OutputErrorProblem:
         Time of the initial state (default ``track.t[0]``; the diagnosis uses 0 = launch).
     weights : (N, C) array, optional
         Per-sample weights in [0, 1] on ``R^-1`` (0 drops a sample).
+    noise_model : dict channel -> {"white", "ar1"}, optional
+        Default white for every channel. ``ar1`` channels need unit weights.
     """
 
     def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
-                 extras=(), effect_fn=None, t_ic=None, weights=None):
+                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None):
         self.model = model
         self.track = track
         self.channels = tuple(channels) if channels is not None else track.names
@@ -135,6 +149,12 @@ class OutputErrorProblem:
             if np.ptp(self.z[:, j]) == 0.0 and c != "y":
                 raise InputError(f"{track.source}: channel {c} is constant ({self.z[0, j]}); "
                                  f"it carries no information — drop the column or fix the track")
+        self.noise_model = {c: "white" for c in self.channels}
+        self.set_noise_model(noise_model or {})
+        dt = np.diff(np.asarray(track.t, float))
+        ratio = dt / float(np.median(dt)) if dt.size else dt
+        #: sample intervals over their median (exactly 1.0 on a regular grid)
+        self.dt_ratio = np.where(np.abs(ratio - 1.0) < 1e-6, 1.0, ratio)
         lb, ub = model.drag.bounds
         big = np.full(6, np.inf)
         self.lower = np.concatenate([lb, -big, [e.lower for e in self.extras]])
@@ -143,6 +163,71 @@ class OutputErrorProblem:
                                      IC_STEPS, [e.step for e in self.extras]])
 
     # ----------------------------------------------------------------------------------------
+    def set_noise_model(self, model):
+        """Set channels' noise models (dict channel -> ``white`` or ``ar1``); others unchanged."""
+        for c, m in model.items():
+            if c not in self.channels:
+                continue
+            if m not in NOISE_MODELS:
+                raise ValueError(f"noise model {m!r} of channel {c} is not known; allowed: {', '.join(NOISE_MODELS)}")
+            if m == "ar1" and np.any(self.weights[:, self.channels.index(c)] != 1.0):
+                raise ValueError(f"channel {c}: AR(1) noise needs unit sample weights (not a Student-t fit)")
+            self.noise_model[c] = m
+
+    @property
+    def ar_channels(self):
+        """Channels with ``ar1`` noise."""
+        return tuple(c for c in self.channels if self.noise_model[c] == "ar1")
+
+    def whiten(self, a, ar):
+        """Whiten residual-like arrays along samples (the Kalman filter of the ``ar1`` channels).
+
+        Parameters
+        ----------
+        a : (N, C, ...) array
+            Residuals (N, C) [m or m/s] or sensitivities (N, C, k).
+        ar : dict channel -> (rho, q) or None
+            Model-error parameters of the ``ar1`` channels; white channels pass unchanged.
+
+        Returns
+        -------
+        Array of ``a``'s shape: standardised innovations, independent with the white noise
+        variance under the noise model.
+        """
+        if not ar or not any(ar.get(c, (0.0, 0.0))[1] > 0.0 for c in self.ar_channels):
+            return a
+        out = np.array(a, float, copy=True)
+        for j, c in enumerate(self.channels):
+            if self.noise_model[c] == "ar1" and c in ar and ar[c][1] > 0.0:
+                out[:, j], _ = colored.standardize(a[:, j], ar[c][0], ar[c][1], self.dt_ratio)
+        return out
+
+    def weighted(self, a, sigma, ar=None):
+        """Whitened, noise-normalised residuals (N, C) or sensitivities (N, C, k): the rows of
+        the least-squares problem at white noise sd ``sigma`` (dict) and ``ar`` (dict)."""
+        sw = np.sqrt(self.weights) / np.array([sigma[c] for c in self.channels])[None, :]
+        if a.ndim == 3:
+            sw = sw[:, :, None]
+        return self.whiten(a, ar) * sw
+
+    def update_noise(self, resid, sigma, ar):
+        """Noise relaxation: new ``(sigma, ar)`` at fixed parameters.
+
+        White channels: the round's sigma where fixed, else the weighted residual rms. ``ar1``
+        channels: sigma, rho and q of maximum likelihood (:func:`colored.fit_noise`, warm
+        started at the previous ``ar``).
+        """
+        sig = self.update_sigma(resid, sigma)
+        new = {}
+        for j, c in enumerate(self.channels):
+            if self.noise_model[c] != "ar1":
+                continue
+            start = (ar or {}).get(c)
+            s, rho, q, _ = colored.fit_noise(resid[:, j], self.dt_ratio, start=start)
+            new[c] = (rho, q)
+            sig[c] = s
+        return sig, new
+
     def predict(self, thetas):
         """Model outputs (B, N, C) and Mach (B, N) for parameter sets (B, P + 6)."""
         thetas = np.atleast_2d(thetas)
@@ -153,6 +238,16 @@ class OutputErrorProblem:
             return outputs(tr.state, self.channels), tr.mach
         B = thetas.shape[0]
         inp = self.effect_fn(thetas[:, P + 6:])
+        y, mach = self._predict_effects(thetas, inp)
+        if inp.output_scale:
+            for j, c in enumerate(self.channels):
+                if c in inp.output_scale:
+                    y[:, :, j] *= np.asarray(inp.output_scale[c], float)[:, None]
+        return y, mach
+
+    def _predict_effects(self, thetas, inp):
+        """Outputs and Mach of a batch whose extras give ``inp`` (:class:`SimInputs`)."""
+        B = thetas.shape[0]
         shift = np.zeros(B) if inp.time_shift is None else np.asarray(inp.time_shift, float)
         y = np.full((B, self.track.n, len(self.channels)), np.nan)
         mach = np.full((B, self.track.n), np.nan)
@@ -164,6 +259,8 @@ class OutputErrorProblem:
                 continue  # too far before the initial state: left NaN, the fit rejects the step
             ov = {k: np.asarray(v, float)[g] for k, v in inp.overrides.items()}
             atm = None if inp.atmospheres is None else [inp.atmospheres[i] for i in g]
+            if inp.atmosphere_tables is not None:
+                atm = np.asarray(inp.atmosphere_tables)[g]
             state, m = self._simulate_shifted(thetas[g], t_out, ov, atm)
             y[g] = outputs(state, self.channels)
             mach[g] = m
@@ -225,7 +322,9 @@ class OutputErrorProblem:
         J = np.zeros((len(self.priors), idx.size))
         lin = np.array([p.row is not None for p in self.priors])
         if lin.any():
-            rows = np.array([np.asarray(p.row, float) for p in self.priors if p.row is not None])
+            n = theta.size
+            rows = np.array([np.pad(np.asarray(p.row, float), (0, n - len(p.row))) for p in self.priors
+                             if p.row is not None])
             sds = np.array([p.sd for p in self.priors if p.row is not None])
             J[lin] = rows[:, idx] / sds[:, None]
         other = [k for k, p in enumerate(self.priors) if p.row is None]
@@ -277,9 +376,9 @@ class OutputErrorProblem:
                 sig[c] = max(float(np.sqrt(np.sum(w * resid[:, j] ** 2) / max(np.sum(w), 1.0))), 1e-9)
         return sig
 
-    def cost(self, resid, sigma, theta):
-        W = 1.0 / np.array([sigma[c] for c in self.channels]) ** 2
-        J = float(np.sum(resid**2 * W[None, :] * self.weights))
+    def cost(self, resid, sigma, theta, ar=None):
+        """Eq. 19 at noise ``sigma`` (and model-error parameters ``ar``), plus the prior terms."""
+        J = float(np.sum(self.weighted(resid, sigma, ar) ** 2))
         if self.priors:
             J += float(sum(((p.mean - p.fn(theta)) / p.sd) ** 2 for p in self.priors))
         return J

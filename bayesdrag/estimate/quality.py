@@ -169,9 +169,12 @@ def assess(fit1, rows, track, sigma_given=None):
         problems.append(f"channel {c}: residual rms {f['rms']:.3g} against a noise sd of {f['noise_sd']:.3g} "
                         f"({'the round' if f['noise_source'] == 'round' else 'estimated from the track'}): "
                         f"the model misses the track (chi2 per sample {f['chi2_per_sample']:.1f})")
+    ar = set(prob.ar_channels)
     for c in structured:
+        how = ("fitted as white noise plus an AR(1) model-error process (generalised least squares)"
+               if c in ar else "the band uses the colored-residual sd")
         problems.append(f"channel {c}: residuals strongly autocorrelated (lag-1 {fit[c]['lag1']:.2f}): model "
-                        f"error, not noise; the band uses the colored-residual sd")
+                        f"error, not noise; {how}")
     honest_colored = bool(misfit or structured or any(f["chi2_per_sample"] > 1.5 for f in fit.values()))
     mach = np.array([r["mach"] for r in rows], float)
     ml = np.array([r["ml"] for r in rows], float)

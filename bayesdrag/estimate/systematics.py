@@ -1,0 +1,263 @@
+"""Declared systematic sources as nuisance parameters, and the uncertainty budget of Cd.
+
+A round may declare how well it knows the quantities the fit otherwise holds at their nominal
+values (:class:`bayesdrag.round.Systematics`, the ``_sd`` keys of the round file). Each declared
+quantity becomes one extra parameter after the initial state, with a Gaussian prior (mean the
+nominal value, sd as declared), estimated with Cd by the ML fit and sampled by emcee:
+
+===============  =====================  =====================================================
+source           parameter [unit]       what it does to the simulation
+===============  =====================  =====================================================
+mass             ``mass`` [kg]          drag constant ``k = pi d^2 / (8 m)`` (with diameter)
+diameter         ``diameter`` [m]       the same constant
+density          ``density.ratio`` [-]  air density multiplier (the ``density`` effect)
+temperature      ``temperature.dT`` [K] the whole temperature profile offset (the
+                                        ``temperature`` effect): density and speed of sound
+position_scale   ``position_scale`` [-] the radar reports ``(1 + s)`` times x, y, z
+velocity_scale   ``velocity_scale`` [-] the radar reports ``(1 + s)`` times v
+time_offset      ``radar_time.dt`` [s]  the radar clock is late by dt (the ``radar_time``
+                                        effect, same sign)
+===============  =====================  =====================================================
+
+One quantity is one parameter: the names of the density, temperature and clock sources are the
+parameters of the diagnosis effects of the same quantity, so a ``--with`` of such an effect adds
+nothing new (:func:`merge_with_effects`).
+
+Temperature enters through the atmosphere's tables: building an atmosphere per walker would cost
+more than the trajectory, so the tables at ``dT = -h, 0, +h`` (``h`` = :data:`T_NODE_SDS` sd,
+at least :data:`T_NODE_MIN` K) are interpolated quadratically in dT (the density and 1/a are
+smooth in dT: the interpolation error is below 1e-7 relative within the nodes).
+
+The budget (:func:`uncertainty_budget`) is the GUM's linearised split of the joint covariance:
+with ``Sigma`` the covariance of (drag coefficients d, sources s) at the ML estimate,
+
+    Sigma_dd = Sigma_d|s + A Sigma_ss A^T,   A = Sigma_ds Sigma_ss^-1,
+
+``statistical`` is the Cd sd from ``Sigma_d|s`` (what the track alone leaves, sources held),
+a source's share is ``|g^T A_i| sqrt(Sigma_ss,ii)`` (``g`` the Cd row of the drag basis) and
+``cross`` is what the sources' correlations add (signed, in variance units), so that
+``statistical^2 + sum share^2 + cross = total^2``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..dynamics import kernel as K
+from ..dynamics.pointmass import atmosphere_table
+from ..effect_inputs import ExtraParam, SimInputs
+from .problem import Prior
+
+__all__ = ["SOURCE_PARAMS", "source_extras", "source_priors", "source_fn", "uncertainty_budget",
+           "budget_rows"]
+
+#: parameter name of each source (the diagnosis effect's name where one exists)
+SOURCE_PARAMS = {"mass": "mass", "diameter": "diameter", "density": "density.ratio",
+                 "temperature": "temperature.dT", "position_scale": "position_scale",
+                 "velocity_scale": "velocity_scale", "time_offset": "radar_time.dt"}
+#: temperature interpolation nodes at +-T_NODE_SDS declared sd ...
+T_NODE_SDS = 3.0
+#: ... and at least this far [K]
+T_NODE_MIN = 0.5
+#: how far (in declared sd) a source's bounds lie from its nominal value
+BOUND_SDS = 20.0
+
+
+def source_extras(rnd):
+    """Extra parameters of the round's declared sources (in :data:`SOURCE_PARAMS` order).
+
+    Parameters
+    ----------
+    rnd : Round
+
+    Returns
+    -------
+    tuple of (stem, ExtraParam, nominal, sd)
+    """
+    out = []
+    m, d = rnd.projectile.mass, rnd.projectile.diameter
+    nominal = {"mass": m, "diameter": d, "density": 1.0, "temperature": 0.0, "position_scale": 0.0,
+               "velocity_scale": 0.0, "time_offset": 0.0}
+    for stem, sd in rnd.systematics.declared().items():
+        nom = nominal[stem]
+        lo, hi = nom - BOUND_SDS * sd, nom + BOUND_SDS * sd
+        if stem in ("mass", "diameter", "density"):
+            lo = max(lo, 0.2 * nom)
+        out.append((stem, ExtraParam(SOURCE_PARAMS[stem], nom, lo, hi, max(sd * 0.01, 1e-9)), nom, sd))
+    return tuple(out)
+
+
+def source_priors(extras, offset):
+    """Gaussian priors of the sources whose parameters start at index ``offset`` of theta."""
+    pri = []
+    for k, (stem, ep, nom, sd) in enumerate(extras):
+        j = offset + k
+        row = np.zeros(j + 1)
+        row[j] = 1.0
+        pri.append(Prior(f"{stem}_sd", (lambda th, j=j: th[..., j]), float(nom), float(sd), row=row))
+    return tuple(pri)
+
+
+def _temperature_tables(atm, h):
+    """Kernel tables of ``atm`` shifted by -h, 0, +h K (each (n, 2)), on one grid."""
+    tabs = []
+    for dT in (-h, 0.0, h):
+        a = replace(atm, temperature_offset=round(atm.temperature_offset + dT, 9))
+        z0, dz, tab = atmosphere_table(a)
+        tabs.append((z0, dz, tab))
+    if len({(t[0], t[1], t[2].shape) for t in tabs}) != 1:
+        raise ValueError("the shifted atmospheres' tables are on different height grids")
+    return np.stack([t[2] for t in tabs])
+
+
+def source_fn(extras, rnd, model, inner=None, n_inner=0):
+    """``effect_fn`` of the sources (and of effects ``inner`` fitted before them).
+
+    Parameters
+    ----------
+    extras : tuple from :func:`source_extras`
+    rnd : Round
+    model : PointMassModel
+        The fit's model (its atmosphere is the nominal one).
+    inner : callable, optional
+        ``effect_fn`` of the first ``n_inner`` extra parameters (``--with`` effects).
+    n_inner : int
+
+    Returns
+    -------
+    callable ``E (B, n_inner + len(extras)) -> SimInputs``
+    """
+    stems = [e[0] for e in extras]
+    col = {s: n_inner + k for k, s in enumerate(stems)}
+    m0, d0 = rnd.projectile.mass, rnd.projectile.diameter
+    T_tabs = None
+    if "temperature" in col:
+        sd = dict((e[0], e[3]) for e in extras)["temperature"]
+        h = max(T_NODE_SDS * sd, T_NODE_MIN)
+        T_tabs = (h, _temperature_tables(model.atmosphere, h))
+
+    def fn(E):
+        E = np.atleast_2d(np.asarray(E, float))
+        B = E.shape[0]
+        base = inner(E[:, :n_inner]) if inner is not None else SimInputs()
+        ov = dict(base.overrides)
+        if "mass" in col or "diameter" in col:
+            m = E[:, col["mass"]] if "mass" in col else np.full(B, m0)
+            d = E[:, col["diameter"]] if "diameter" in col else np.full(B, d0)
+            ov[K.P_KREF] = math.pi * d * d / (8.0 * m)
+        if "density" in col:
+            ov[K.P_RHO_SCALE] = E[:, col["density"]] * ov.get(K.P_RHO_SCALE, 1.0)
+        tables = base.atmosphere_tables
+        if T_tabs is not None:
+            h, (lo, mid, hi) = T_tabs
+            x = (E[:, col["temperature"]] / h)[:, None, None]
+            # quadratic Lagrange interpolation through -h, 0, +h
+            tables = mid + 0.5 * x * (hi - lo) + 0.5 * x * x * (hi - 2.0 * mid + lo)
+        shift = base.time_shift
+        if "time_offset" in col:
+            dt = E[:, col["time_offset"]]
+            shift = dt if shift is None else np.asarray(shift, float) + dt
+        scale = dict(base.output_scale)
+        if "position_scale" in col:
+            for c in ("x", "y", "z"):
+                scale[c] = (1.0 + E[:, col["position_scale"]]) * scale.get(c, 1.0)
+        if "velocity_scale" in col:
+            scale["v"] = (1.0 + E[:, col["velocity_scale"]]) * scale.get("v", 1.0)
+        return SimInputs(ov, base.atmospheres, shift, scale, tables)
+
+    return fn
+
+
+def uncertainty_budget(cov, B, drag_slice, source_idx, names):
+    """Linearised split of the Cd variance by source (GUM).
+
+    Parameters
+    ----------
+    cov : (n, n) ndarray
+        Joint covariance of the full parameter vector (zero rows for fixed parameters).
+    B : (M, P) ndarray
+        Drag basis rows at the Mach grid (``dm.jacobian(mach)``).
+    drag_slice : slice
+        The drag coefficients in theta.
+    source_idx : sequence of int
+        Indices of the source (and fitted effect) parameters.
+    names : sequence of str
+        Their budget keys.
+
+    Returns
+    -------
+    dict
+        ``total_sd`` (M,), ``by_source`` {``statistical``, name..., ``cross``} (sd for the
+        sources, signed variance for ``cross``).
+    """
+    d = np.arange(cov.shape[0])[drag_slice]
+    s = np.asarray(source_idx, int)
+    S_dd = cov[np.ix_(d, d)]
+    total = np.einsum("ij,jk,ik->i", B, S_dd, B)
+    out = {"total_sd": np.sqrt(np.clip(total, 0, None)), "by_source": {}}
+    if s.size == 0:
+        out["by_source"]["statistical"] = out["total_sd"].copy()
+        out["by_source"]["cross"] = np.zeros_like(total)
+        return out
+    S_ds = cov[np.ix_(d, s)]
+    S_ss = cov[np.ix_(s, s)]
+    A = S_ds @ np.linalg.pinv(S_ss)
+    cond = S_dd - A @ S_ss @ A.T
+    stat = np.einsum("ij,jk,ik->i", B, cond, B)
+    out["by_source"]["statistical"] = np.sqrt(np.clip(stat, 0, None))
+    acc = np.clip(stat, 0, None)
+    for k, n in enumerate(names):
+        share = np.abs(B @ A[:, k]) * math.sqrt(max(S_ss[k, k], 0.0))
+        out["by_source"][n] = share
+        acc = acc + share ** 2
+    out["by_source"]["cross"] = total - acc
+    return out
+
+
+def budget_rows(budget, mach):
+    """The ``uncertainty_budget`` of result.json (lists, 6 significant digits)."""
+    r = lambda a: [float(f"{v:.6g}") for v in np.asarray(a, float)]  # noqa: E731
+    return {"mach": [round(float(m), 4) for m in mach], "total_sd": r(budget["total_sd"]),
+            "by_source": {k: r(v) for k, v in budget["by_source"].items()}}
+
+
+def fit_with_sources(prob, res, rnd):
+    """Stage C of Scheme 1: the fit again with the declared sources as nuisance parameters.
+
+    The drag model, the chosen smoothing, the launch priors, the sample weights and the noise
+    model stay as ``prob`` has them; the sources start at their nominal values (the previous
+    fit is their conditional optimum) with their priors added.
+
+    Parameters
+    ----------
+    prob : OutputErrorProblem
+        The Scheme 1 problem as finally defined.
+    res : MLResult
+        Its fit.
+    rnd : Round
+
+    Returns
+    -------
+    (OutputErrorProblem, MLResult, tuple)
+        The problem with the sources, its fit and the sources (:func:`source_extras`); the
+        inputs unchanged when nothing is declared or the fit fails (the tuple is then empty).
+    """
+    from .problem import OutputErrorProblem
+
+    extras = source_extras(rnd)
+    if not extras:
+        return prob, res, ()
+    n = res.theta.size
+    theta0 = np.concatenate([res.theta, [e[2] for e in extras]])
+    free = np.concatenate([res.free, np.ones(len(extras), bool)])
+    fn = source_fn(extras, rnd, prob.model, inner=prob.effect_fn if prob.E else None, n_inner=prob.E)
+    p2 = OutputErrorProblem(prob.model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
+                            priors=tuple(prob.priors) + source_priors(extras, n), channels=prob.channels,
+                            extras=tuple(prob.extras) + tuple(e[1] for e in extras), effect_fn=fn,
+                            t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model)
+    res2 = p2.fit(fallback=True)
+    if not res2.success:
+        return prob, res, ()
+    return p2, res2, extras

@@ -1,0 +1,56 @@
+"""White + AR(1) model-error noise (bayesdrag.estimate.colored): the Kalman whitening is the exact
+Gaussian likelihood, and the noise fit tells white from model-error residuals."""
+import numpy as np
+import pytest
+from scipy.linalg import cholesky, solve_triangular
+
+from bayesdrag.estimate import colored
+
+#: relative agreement of the Kalman filter with the dense Cholesky factor [-]
+EXACT_TOL = 1e-9
+
+
+def _ar_white(rng, n, rho, q, sigma=1.0):
+    d = np.empty(n)
+    d[0] = np.sqrt(q) * rng.standard_normal()
+    for i in range(1, n):
+        d[i] = rho * d[i - 1] + np.sqrt(q * (1 - rho * rho)) * rng.standard_normal()
+    return sigma * (rng.standard_normal(n) + d)
+
+
+@pytest.mark.parametrize("rho,q,irregular", [(0.98, 3.0, False), (0.5, 0.2, False), (0.99, 10.0, True)])
+def test_kalman_whitening_is_the_exact_gaussian_likelihood(rho, q, irregular):
+    rng = np.random.default_rng(1)
+    n = 300
+    t = np.cumsum(rng.uniform(0.5, 1.5, n)) if irregular else np.arange(n, dtype=float)
+    dt_ratio = np.diff(t) / np.median(np.diff(t))
+    lag = np.abs(t[:, None] - t[None, :]) / np.median(np.diff(t))
+    C = np.eye(n) + q * rho ** lag
+    L = cholesky(C, lower=True)
+    e = rng.standard_normal(n)
+    ss_exact = float(np.sum(solve_triangular(L, e, lower=True) ** 2))
+    ld_exact = 2.0 * float(np.sum(np.log(np.diag(L))))
+    u, ld = colored.standardize(e, rho, q, dt_ratio)
+    assert u @ u == pytest.approx(ss_exact, rel=EXACT_TOL)
+    assert ld == pytest.approx(ld_exact, rel=EXACT_TOL)
+    ss_b, ld_b = colored.whitened_ss(np.stack([e, 2 * e]), np.array([rho, rho]), np.array([q, q]), dt_ratio)
+    assert ss_b == pytest.approx([ss_exact, 4 * ss_exact], rel=EXACT_TOL)
+    assert ld_b == pytest.approx([ld_exact, ld_exact], rel=EXACT_TOL)
+
+
+def test_white_residuals_stay_white():
+    """A white channel is switched to ar1 only when the likelihood ratio passes the chi2(2)
+    0.999 quantile: of 20 white series at most one may."""
+    rng = np.random.default_rng(2)
+    lrs = [colored.fit_noise(rng.standard_normal(800), np.ones(799))[3] for _ in range(20)]
+    assert sum(lr > colored.LR_THRESHOLD for lr in lrs) <= 1
+
+
+def test_model_error_is_found_and_its_size_estimated():
+    rng = np.random.default_rng(3)
+    e = _ar_white(rng, 2000, 0.99, 4.0, sigma=2.0)
+    sigma, rho, q, lr = colored.fit_noise(e, np.ones(1999))
+    assert lr > colored.LR_THRESHOLD
+    assert sigma == pytest.approx(2.0, rel=0.1)          # the white part [m]
+    assert 0.95 < rho < 0.999                             # correlation time 20-1000 samples
+    assert 4.0 / 3 < q < 4.0 * 3                          # variance ratio within a factor 3
