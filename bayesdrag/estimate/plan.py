@@ -88,7 +88,7 @@ from .scheme1 import build_drag_model, coriolis_of
 from .smoothing import SMOOTHING_GRID, penalty
 from .start import data_start
 
-__all__ = ["CasePlan", "plan_case", "generic_drag", "drag_assumption", "expected_log_evidence",
+__all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
            "walk_evidence", "case_mach_grid", "systematic_parameters", "DEFAULT_DT", "PLAN_SEED",
            "PLAN_MACH_STEP", "MIN_TRACKED_SAMPLES"]
 
@@ -435,6 +435,11 @@ class CasePlan:
         The penalty sd the evidence would choose, its edf, ``at_grid_end`` and the grid.
     drag_model : str
         The fit's drag model for this track (name and number of coefficients).
+    notes : tuple of str
+    model : DragModel
+        That drag model itself, with ``base`` (the table and shape its penalty is relative to,
+        :func:`build_drag_model`) and ``truth_params`` (its coefficients of the assumed drag):
+        enough to rebuild the fit's problem for this case.
     """
 
     elevation_deg: float
@@ -453,6 +458,9 @@ class CasePlan:
     smoothing: dict
     drag_model: str
     notes: tuple = field(default=())
+    model: object = field(default=None, repr=False)
+    base: tuple | None = field(default=None, repr=False)
+    truth_params: np.ndarray = field(default=None, repr=False)
 
     @property
     def systematic(self):
@@ -539,7 +547,8 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     kind = "table x correction" if base is not None and base[0] is not None else "spline in Cd"
     return CasePlan(float(elevation_deg), float(velocity), int(rounds), float(scatter), float(dt),
                     (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, truth.value(grid),
-                    stat, shares, smoothing, f"{dm.name} ({kind}, {dm.n_params} coefficients)", tuple(notes))
+                    stat, shares, smoothing, f"{dm.name} ({kind}, {dm.n_params} coefficients)", tuple(notes),
+                    dm, base, theta_drag)
 
 
 def _choose_smoothing(info, pen, theta_drag):

@@ -335,7 +335,7 @@ def target_paragraph(plan):
     """The recommendation for ``plan.target`` in one paragraph."""
     b, cs, t = plan.best, plan.cases, plan.target
     names = [_case_name(cs[i]) for i in b["cases"]]
-    rounds = f"{plan.rounds} round{'s' if plan.rounds > 1 else ''} each"
+    rounds = f"{plan.rounds} round{'s' if plan.rounds > 1 else ''}" + (" each" if len(b["cases"]) > 1 else "")
     if b["mach_range"] is not None:
         lo, hi = b["mach_range"]
         text = (f"Target {_pct(t)}: firing {_join(names)} ({rounds}) reaches it over Mach {lo:.2f}-{hi:.2f}, "
@@ -350,7 +350,8 @@ def target_paragraph(plan):
                 f"{b['best_mach']:.2f} with {_join(names)} ({rounds}).")
     fl = b.get("floor")
     if fl is not None:
-        text += (f" The shared systematic sources alone give {_pct(fl['relative_sd_min'])}-{_pct(fl['relative_sd_max'])} "
+        lo_hi = sorted({_pct(fl['relative_sd_min']), _pct(fl['relative_sd_max'])}, key=lambda v: float(v.split()[0]))
+        text += (f" The shared systematic sources alone give {' to '.join(lo_hi)} "
                  f"(largest: {fl['largest_source']}, {_pct(fl['largest_relative_sd'])}), which no number of rounds lowers.")
     rn = b.get("rounds_needed")
     if rn is not None and (b["mach_range"] is None or rn["mach_range"][1] - rn["mach_range"][0] > b["width"] + 1e-9):
