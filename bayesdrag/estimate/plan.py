@@ -61,8 +61,8 @@ yaw drag; see ``bayesdrag diagnose``), the noise is white Gaussian with the stat
 assumed drag is near the shell's (the Fisher information depends on the drag curve through the
 trajectory), and the fit converges (it does on such tracks). A penalised fit's reported sd is
 its posterior sd under the smoothness prior, which exceeds the spread of its estimates over
-noise realisations where the penalty carries information (measured 1.4-1.7x on a 105 mm G2
-track without a table); the plan predicts the reported sd.
+noise realisations where the penalty carries information (up to 1.6x on a 105 mm G2 track
+without a table, ``tests/acceptance/test_plan_mc.py``); the plan predicts the reported sd.
 """
 from __future__ import annotations
 

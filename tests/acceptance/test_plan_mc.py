@@ -21,8 +21,8 @@ impact, tracks from bayesdrag's point-mass reference integrator (as ``bayesdrag 
 Checked Mach: every 0.1 Mach inside the flown range less 5 % of its width at each end (the
 robustness suite's trim: a fit's ends are its least determined part).
 
-Measured (40 replicates, seed 100; ``pytest -m slow -s``): predicted / reported 0.92-1.06, predicted /
-Monte Carlo 0.69-1.50 over the four cases (docs/planning.md has the table).
+Measured (40 replicates, seed 100; ``pytest -m slow -s``): predicted / reported 0.90-1.02, predicted /
+Monte Carlo 0.69-1.63 over the four cases (docs/planning.md has the table per case).
 
 The quick test runs one case with :data:`QUICK_REPLICATES` replicates, the spread band widened
 by the 99.9 % chi-square interval of an sd from that many samples, and checks that the
