@@ -98,23 +98,30 @@ class Plan:
 
 
 def _f(v, digits=6):
+    """A float rounded to ``digits`` decimals (None when not finite)."""
     v = float(v)
     return round(v, digits) if math.isfinite(v) else None
+
+
+def _sig(v, digits=6):
+    """A float rounded to ``digits`` significant digits (None when not finite)."""
+    v = float(v)
+    return float(f"{v:.{digits}g}") if math.isfinite(v) else None
 
 
 def _case_dict(c, target):
     sd, one = c.sd, c.sd_one_round
     rows = []
     for i, m in enumerate(c.mach):
-        rows.append({"mach": float(m), "sd": _f(sd[i], 8), "relative_sd": _f(sd[i] / c.cd[i], 7),
-                     "reference": _f(c.cd[i]), "sd_one_round": _f(one[i], 8), "statistical": _f(c.statistical[i], 8),
-                     "by_source": {k: _f(abs(v[i]), 8) for k, v in c.by_source.items()}})
+        rows.append({"mach": float(m), "sd": _sig(sd[i]), "relative_sd": _sig(sd[i] / c.cd[i]),
+                     "reference": _sig(c.cd[i]), "sd_one_round": _sig(one[i]), "statistical": _sig(c.statistical[i]),
+                     "by_source": {k: _sig(abs(v[i])) for k, v in c.by_source.items()}})
     out = {"elevation": c.elevation_deg, "velocity": c.velocity, "rounds": c.rounds,
            "mach_range": [_f(c.mach_range[0], 4), _f(c.mach_range[1], 4)], "cd": rows, "dt": c.dt,
            "tracked": {"t_start": _f(c.t_tracked[0], 4), "t_end": _f(c.t_tracked[1], 4), "samples": c.samples,
                        "t_impact": _f(c.t_impact, 4)},
            "smoothing": {k: c.smoothing[k] for k in ("sd", "edf", "at_grid_end")}, "drag_model": c.drag_model,
-           "best_relative_sd": _f(np.min(sd / c.cd), 7), "notes": list(c.notes)}
+           "best_relative_sd": _sig(np.min(sd / c.cd), 4), "notes": list(c.notes)}
     if target is not None:
         run = _longest_run(c.mach, sd / c.cd <= target)
         out["target_mach_range"] = None if run is None else [float(c.mach[run[0]]), float(c.mach[run[1]])]
