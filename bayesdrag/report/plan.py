@@ -23,7 +23,8 @@ def plan_figures(plan):
     figs = [("plan.png", "Predicted sd of Cd by Mach",
              "Relative sd of Cd each planned case will give (log scale), with its rounds pooled; dotted: the part of "
              "the shared systematic sources; dashed: the target; thick grey: the recommended cases pooled, the "
-             "green band the Mach interval where they reach the target.", plot_plan(plan).figure)]
+             "green band the Mach interval where they reach the target. A ripple at the spline's knot spacing is the "
+             "fit's own: its reported band has it too.", plot_plan(plan).figure)]
     c = _best_case(plan)
     if c is not None and (c.by_source or c.rounds > 1 or c.scatter > 0):
         figs.append(("plan_budget.png", f"Uncertainty budget of QE {c.elevation_deg:g}°, {c.velocity:g} m/s",
