@@ -103,7 +103,8 @@ MIN_TRACKED_SAMPLES = 30
 #: longest flight simulated [s]
 MAX_FLIGHT_TIME = 600.0
 #: tolerances of the nominal flight's integration (relative; absolute [m, m/s]): millimetres over
-#: a flight, far below any radar's noise, at a third of the steps of the simulator's defaults
+#: a flight, far below any radar's noise (the simulator's tighter 1e-11 is for reference tracks;
+#: here the nominal track only sets where the sensitivities are taken)
 NOMINAL_RTOL = 1e-8
 NOMINAL_ATOL = 1e-6
 #: relative finite-difference step of mass and diameter [-] (a 1e-4 change of the drag constant
