@@ -6,7 +6,7 @@ velocity of the round, the radar's noise and sample interval, the tracked part o
 into the sd of Cd by Mach that the default fit (``bayesdrag fit``, Scheme 1, penalised spline)
 will report, and splits it into the statistical part and the share of each declared systematic
 source. :func:`plan` runs every elevation x velocity case and
-:mod:`bayesdrag.estimate.plan_combine` answers "which cases reach the target".
+:mod:`bayesdrag.estimate.plan_summary` answers "which cases reach the target".
 
 How one case is predicted, and why (decisions):
 
@@ -32,22 +32,28 @@ How one case is predicted, and why (decisions):
   g'F^-1 g`` with ``g = R'p``. Expected rather than one realisation's: one realisation's walk
   stops a grid step early or late at random, the expectation gives the typical choice and needs
   no fit (a fit per case would cost ~1 s; the plan of four cases runs in seconds).
-* **Systematic sources** (the round's declared ``_sd`` keys, DESIGN.md) are extra parameters
-  with Gaussian priors of precision ``1 / sd^2``; their track sensitivities are central
-  differences of the nominal track with the round perturbed (mass and diameter through the
-  drag constant ``pi d^2 / (8 m)``, density as the kernel's density factor at unchanged
-  temperature, temperature as the atmosphere's offset, the radar clock as a time shift: the
-  recorded time is the true time - dt), and analytic for the linear radar scale factors (``x, y,
-  z`` times ``1 + e``, ``v`` times ``1 + e``). They are marginalised in the augmented
+* **Systematic sources** (the round's declared ``_sd`` keys, DESIGN.md). Density, mass and
+  diameter (:data:`LEVEL_SOURCES`) are exactly confounded with the level of Cd: the track sees
+  only ``rho Cd d^2 / m``, so an error of one is an error of Cd by the same relative amount at
+  every Mach, and the data spend no information on it. Their shares are therefore analytic
+  (``-cd * density_sd``, ``cd * mass_sd / mass``, ``-2 cd * diameter_sd / diameter``), not
+  extra parameters: as parameters, a spline-in-Cd penalty (on the curvature of Cd itself, which
+  a scale factor changes) would seem to inform them and put the sd up to 5 % below the
+  density's share at some Mach (measured on a 105 mm track without a table), which no fit can
+  achieve. The others are extra parameters with Gaussian priors of precision ``1 / sd^2``;
+  their track sensitivities are central differences of the nominal track with the round
+  perturbed (temperature as the atmosphere's offset, the radar clock as a time shift: the
+  recorded time is the true time - dt), and analytic for the linear radar scale factors (``x,
+  y, z`` times ``1 + e``, ``v`` times ``1 + e``). They are marginalised in the augmented
   information matrix.
 * **The budget** (``by_source``): the information is a sum of independent sources (data noise,
   launch priors, smoothness prior, each systematic prior), so the covariance is exactly
   ``sum_s F^-1 G_s' G_s F^-1`` and the variance of Cd at a Mach splits into non-negative shares
   that add up to the total without a cross term. ``statistical`` is the share of the data, the
-  launch priors and the smoothness prior; each systematic source has its own share. Density,
-  mass and diameter are exactly confounded with the level of Cd (the track sees ``rho Cd d^2 /
-  m``), so their shares are ``cd * density_sd``, ``cd * mass_sd / mass`` and ``2 cd *
-  diameter_sd / diameter`` and the total never falls below any of them.
+  launch priors and the smoothness prior; each systematic source has its own share. The level
+  sources add their analytic shares independently (they are confounded with Cd, not with the
+  data), so the total never falls below any of them: with ``density_sd`` declared, never below
+  ``cd * density_sd`` (Cd ∝ 1/rho), whatever the rounds.
 * **Several rounds** (``rounds = N``): each round is fitted and the rounds are pooled, so the
   statistical part falls as ``1 / sqrt(N)``; the round-to-round scatter of Cd (``scatter``,
   relative) enters as the uncertainty of a population mean, ``scatter * cd / sqrt(N)``; the
@@ -73,7 +79,6 @@ import numpy as np
 
 from .._threads import single_blas
 from ..drag import ReferenceTable
-from ..dynamics import kernel as K
 from ..dynamics.pointmass import PointMassModel
 from ..dynamics.trajectory import initial_state
 from ..effect_inputs import ExtraParam, SimInputs
@@ -89,7 +94,7 @@ from .smoothing import SMOOTHING_GRID, penalty
 from .start import data_start
 
 __all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
-           "walk_evidence", "case_mach_grid", "systematic_parameters", "DEFAULT_DT", "PLAN_SEED",
+           "walk_evidence", "case_mach_grid", "systematic_parameters", "level_shares", "LEVEL_SOURCES", "DEFAULT_DT", "PLAN_SEED",
            "PLAN_MACH_STEP", "MIN_TRACKED_SAMPLES"]
 
 #: default radar sample interval [s] (the paper's radar, as ``bayesdrag simulate``)
@@ -107,13 +112,16 @@ MAX_FLIGHT_TIME = 600.0
 #: here the nominal track only sets where the sensitivities are taken)
 NOMINAL_RTOL = 1e-8
 NOMINAL_ATOL = 1e-6
-#: relative finite-difference step of mass and diameter [-] (a 1e-4 change of the drag constant
-#: moves a 155 mm track by decimetres: linear, and far above the kernel's rounding)
-REL_STEP = 1e-4
-#: finite-difference steps of the density factor [-], temperature offset [K], clock offset [s]
-DENSITY_STEP = 1e-4
+#: finite-difference steps of the temperature offset [K] and the clock offset [s]
 TEMPERATURE_STEP = 0.05
 TIME_STEP = 1e-4
+#: sources exactly confounded with the level of Cd (the track sees rho Cd d^2 / m): the signed
+#: relative Cd error per unit of the declared sd, as a function of (sd, mass [kg], diameter [m])
+LEVEL_SOURCES = {
+    "mass": lambda sd, m, d: sd / m,              # Cd ∝ m
+    "diameter": lambda sd, m, d: -2.0 * sd / d,   # Cd ∝ 1 / d^2
+    "density": lambda sd, m, d: -sd,              # Cd ∝ 1 / rho (density_sd is relative)
+}
 
 #: what every plan assumes (written in plan.json and plan.html)
 ASSUMPTIONS = (
@@ -222,16 +230,17 @@ def systematic_parameters(rnd):
     Returns
     -------
     (list of (stem, ExtraParam, prior sd), list of (stem, prior sd))
-        Sources entering the simulation (mass, diameter, density, temperature, time_offset:
-        finite differences by the problem) and the radar scale factors (position_scale,
-        velocity_scale: analytic sensitivities).
+        Sources entering the simulation (temperature, time_offset: finite differences by the
+        problem) and the radar scale factors (position_scale, velocity_scale: analytic
+        sensitivities). The level sources (:data:`LEVEL_SOURCES`) are not parameters: their
+        shares are :func:`level_shares`.
     """
     declared = rnd.systematics.declared()
-    m0, d0 = rnd.projectile.mass, rnd.projectile.diameter
-    steps = {"mass": (m0, REL_STEP * m0), "diameter": (d0, REL_STEP * d0), "density": (0.0, DENSITY_STEP),
-             "temperature": (0.0, TEMPERATURE_STEP), "time_offset": (0.0, TIME_STEP)}
+    steps = {"temperature": (0.0, TEMPERATURE_STEP), "time_offset": (0.0, TIME_STEP)}
     sim, scale = [], []
     for stem, sd in declared.items():
+        if stem in LEVEL_SOURCES:
+            continue
         if stem in steps:
             start, h = steps[stem]
             sim.append((stem, ExtraParam(f"systematic.{stem}", start, -np.inf, np.inf, h), float(sd)))
@@ -240,28 +249,29 @@ def systematic_parameters(rnd):
     return sim, scale
 
 
+def level_shares(rnd, cd):
+    """Signed Cd shares {stem: (K,)} of the declared level sources (mass, diameter, density) at
+    the assumed Cd ``cd`` (K,): exact, since the track cannot tell them from the level of Cd."""
+    m0, d0 = rnd.projectile.mass, rnd.projectile.diameter
+    return {stem: cd * LEVEL_SOURCES[stem](float(sd), m0, d0)
+            for stem, sd in rnd.systematics.declared().items() if stem in LEVEL_SOURCES}
+
+
 def _systematic_effect(rnd, sim):
     """``effect_fn`` of the simulated systematic sources (B, E) -> SimInputs."""
     stems = [s for s, _, _ in sim]
-    m0, d0 = rnd.projectile.mass, rnd.projectile.diameter
     atm = rnd.atmosphere
 
     def fn(E):
         E = np.atleast_2d(E)
         col = {s: E[:, j] for j, s in enumerate(stems)}
-        ov, atms, shift = {}, None, None
-        if "mass" in col or "diameter" in col:
-            m = col.get("mass", np.full(E.shape[0], m0))
-            d = col.get("diameter", np.full(E.shape[0], d0))
-            ov[K.P_KREF] = math.pi * d ** 2 / (8.0 * m)
-        if "density" in col:
-            ov[K.P_RHO_SCALE] = 1.0 + col["density"]
+        atms, shift = None, None
         if "temperature" in col:
             atms = [replace(atm, temperature_offset=round(atm.temperature_offset + float(v), 6))
                     for v in col["temperature"]]
         if "time_offset" in col:
             shift = col["time_offset"].copy()
-        return SimInputs(ov, atms, shift)
+        return SimInputs({}, atms, shift)
 
     return fn
 
@@ -538,7 +548,8 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     info = case_information(rc, dm, track, state[0], theta_drag, sigma, chans)
     smoothing, Finv = _choose_smoothing(info, penalty(dm, base), theta_drag)
     grid = case_mach_grid(lo, hi)
-    stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"])
+    cd = truth.value(grid)
+    stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"], level_shares(rc, cd))
     smoothing.pop("R")
     notes = []
     if loss is not None and loss > t_imp:
@@ -550,7 +561,7 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
                      f"(Mach {hi_table:.2f}): Cd is held at its end value above it")
     kind = "table x correction" if base is not None and base[0] is not None else "spline in Cd"
     return CasePlan(float(elevation_deg), float(velocity), int(rounds), float(scatter), float(dt),
-                    (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, truth.value(grid),
+                    (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, cd,
                     stat, shares, smoothing, f"{dm.name} ({kind}, {dm.n_params} coefficients)", tuple(notes),
                     dm, base, theta_drag)
 
@@ -579,9 +590,10 @@ def _choose_smoothing(info, pen, theta_drag):
     return record, Finv
 
 
-def _budget(info, Finv, B, R):
+def _budget(info, Finv, B, R, level):
     """Statistical share (K,) and signed systematic shares {stem: (K,)} of the Cd sd at the rows
-    of ``B`` (K, P) (module docstring: the shares add up in squares to the total)."""
+    of ``B`` (K, P), with the analytic shares ``level`` of the level sources (module docstring:
+    the shares add up in squares to the total)."""
     n = Finv.shape[0]
     Bemb = np.zeros((B.shape[0], n))
     Bemb[:, :info.P] = B
@@ -590,5 +602,6 @@ def _budget(info, Finv, B, R):
     if info.L.size:
         stat_var += np.sum((info.L @ X) ** 2, axis=0)
     shares = {stem: X[info.n_stat + j] / sd for j, (stem, sd) in enumerate(info.systematics)}
+    shares.update(level)
     order = [s for s in SYSTEMATIC_SOURCES if s in shares]
     return np.sqrt(stat_var), {s: shares[s] for s in order}

@@ -78,6 +78,18 @@ def test_density_floor_and_level_sources(plan_sys):
                                    rtol=ALGEBRA_RTOL)
 
 
+def test_density_floor_holds_for_a_spline_in_cd(rnd):
+    """Without a table the fit's model is a spline in Cd whose penalty (on Cd's own curvature)
+    changes with Cd's level; the density share must still be the whole cd * density_sd, at
+    every Mach and for any number of rounds (the track cannot tell density from Cd)."""
+    bare = replace(rnd, projectile=Projectile("105 mm", 15.0, 0.105), systematics=Systematics(density=0.003))
+    for c in bayesdrag.plan(bare, elevations=(10.0, 45.0), velocities=(600.0,)).cases:
+        assert "spline in Cd" in c.drag_model
+        np.testing.assert_allclose(np.abs(c.by_source["density"]), c.cd * 0.003, rtol=1e-12)
+        for n in (1, 10 ** 9):
+            assert np.all(c.sd_for(n) >= c.cd * 0.003)
+
+
 def test_rounds_shrink_the_statistical_part_not_the_systematic(plan_sys):
     for row in plan_sys.to_dict()["cases"][0]["cd"]:
         sys2 = sum(v ** 2 for v in row["by_source"].values())
