@@ -50,8 +50,16 @@ def plot_plan(plan, ax=None):
     _percent_log_axis(ax)
     ax.set(xlabel="Mach", ylabel="predicted sd of Cd [% of Cd]",
            title="Predicted Cd accuracy" + (" (dotted: shared systematic part)" if plan.declared else ""))
-    ax.legend(fontsize="x-small", ncol=2, loc="best")
+    _legend_below(ax)
     return ax
+
+
+def _legend_below(ax):
+    """The legend under the axes (outside them: the curves of many cases would hide behind it);
+    up to four entries a row."""
+    n = len(ax.get_legend_handles_labels()[0])
+    ax.legend(fontsize="small", ncol=min(4, max(n, 1)), loc="upper center", bbox_to_anchor=(0.5, -0.14),
+              frameon=False)
 
 
 def _percent_log_axis(ax):
@@ -87,9 +95,12 @@ def plot_budget(case, ax=None):
     for i, (stem, v) in enumerate(case.by_source.items()):
         ax.plot(case.mach, 100 * np.abs(v) / cd, color=cmap((i + 1) % 10), lw=1.0, ls="--", label=stem)
     _percent_log_axis(ax)
-    # shares far below the total do not matter: show two decades under the smallest total
-    ax.set_ylim(bottom=float(np.min(100 * case.sd / cd)) / 100.0)
+    # down to the smallest share drawn, but not below two decades under the smallest total
+    # (a share that small does not matter)
+    shown = [100 * stat / cd] + [100 * np.abs(v) / cd for v in case.by_source.values()]
+    total_min = float(np.min(100 * case.sd / cd))
+    ax.set_ylim(bottom=0.7 * max(float(np.min(shown)), total_min / 100.0))
     ax.set(xlabel="Mach", ylabel="sd of Cd [% of Cd]",
            title=f"Budget of QE {case.elevation_deg:g}°, {case.velocity:g} m/s")
-    ax.legend(fontsize="x-small", ncol=2, loc="best")
+    _legend_below(ax)
     return ax
