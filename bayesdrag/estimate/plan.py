@@ -159,7 +159,7 @@ def drag_assumption(rnd, assumed_drag=None):
         if not isinstance(assumed_drag, ReferenceTable):
             raise InputError(f"assumed_drag must be a ReferenceTable (a mach,cd table), got "
                              f"{type(assumed_drag).__name__}")
-        return assumed_drag, f"assumed drag: {assumed_drag.source or 'a mach,cd table'}", False
+        return assumed_drag, f"the table given as the assumed drag ({assumed_drag.source or 'a mach,cd table'})", False
     if rnd.reference_drag is not None:
         ref = rnd.reference_drag
         return ref, f"the round's reference drag ({rnd.projectile.reference_drag_path or ref.source})", False
@@ -559,10 +559,10 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     if hi > hi_table + 0.05:
         notes.append(f"the flight reaches Mach {hi:.2f}, beyond the assumed drag table's last row "
                      f"(Mach {hi_table:.2f}): Cd is held at its end value above it")
-    kind = "table x correction" if base is not None and base[0] is not None else "spline in Cd"
+    kind = "the table times a spline correction" if base is not None and base[0] is not None else "spline in Cd"
     return CasePlan(float(elevation_deg), float(velocity), int(rounds), float(scatter), float(dt),
                     (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, cd,
-                    stat, shares, smoothing, f"{dm.name} ({kind}, {dm.n_params} coefficients)", tuple(notes),
+                    stat, shares, smoothing, f"{kind}, {dm.n_params} coefficients", tuple(notes),
                     dm, base, theta_drag)
 
 

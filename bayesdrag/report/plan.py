@@ -49,7 +49,7 @@ def _rows(plan, doc):
                      "flight": f"{c.t_tracked[0]:.1f}-{c.t_tracked[1]:.1f} s ({c.samples} samples)",
                      "mach": f"{c.mach_range[0]:.2f}-{c.mach_range[1]:.2f}", "best": f"{100 * rel[k]:.3g} % at Mach {c.mach[k]:.2f}",
                      "worst": f"{100 * rel.max():.3g} %", "model": c.drag_model,
-                     "smoothing": f"{c.smoothing['sd']:g}" + (f" ({c.smoothing['at_grid_end']} end)" if c.smoothing["at_grid_end"] else ""),
+                     "smoothing": f"{c.smoothing['sd']:.3g}" + (f" ({c.smoothing['at_grid_end']} end)" if c.smoothing["at_grid_end"] else ""),
                      "target": (f"{d['target_mach_range'][0]:.2f}-{d['target_mach_range'][1]:.2f}"
                                 if d.get("target_mach_range") else ("—" if "target_mach_range" in d else None))})
     return rows
@@ -95,12 +95,19 @@ def write_plan(out, plan, *, round_name="", seconds=None):
 
 
 def _budget_rows(plan):
-    """Per case, the shares at the Mach of its best relative sd [% of Cd]."""
+    """Per case, the shares at the Mach of its best relative sd [% of Cd]: the statistical part
+    of one round, the statistical part pooled over the case's rounds (with the round-to-round
+    scatter) when that differs, each systematic source, and the total; the pooled statistical
+    part and the sources add up in squares to the total."""
     out = []
     for c in plan.cases:
         k = int(np.argmin(c.sd / c.cd))
         cd = c.cd[k]
-        parts = {"statistical (one round)": c.statistical[k] / cd}
+        parts = {"statistical, 1 round": c.statistical[k] / cd}
+        if c.rounds > 1 or c.scatter > 0:
+            pooled = np.sqrt((c.statistical[k] ** 2 + (c.scatter * cd) ** 2) / c.rounds) / cd
+            what = "statistical" + (" + scatter" if c.scatter > 0 else "")
+            parts[f"{what}, {c.rounds} round{'s' if c.rounds > 1 else ''}"] = pooled
         parts.update({s: abs(v[k]) / cd for s, v in c.by_source.items()})
         out.append({"case": f"QE {c.elevation_deg:g}°, {c.velocity:g} m/s", "mach": float(c.mach[k]),
                     "parts": {n: f"{100 * p:.3g} %" for n, p in parts.items()}, "total": f"{100 * c.sd[k] / cd:.3g} %"})
