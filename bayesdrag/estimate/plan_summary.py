@@ -324,6 +324,8 @@ def summary_paragraph(plan):
         parts.append(f"{_case_name(c)} flies Mach {c.mach_range[0]:.2f}-{c.mach_range[1]:.2f} and reaches "
                      f"{_pct(rel[k])} at Mach {c.mach[k]:.2f} ({_pct(rel.max())} at worst)")
     n = f"{plan.rounds} round{'s' if plan.rounds > 1 else ''} per case"
+    if plan.scatter > 0:
+        n += f" and a round-to-round scatter of Cd of {_pct(plan.scatter)}"
     text = (f"Predicted relative sd of Cd with {n}, radar sigma "
             f"{', '.join(f'{c} {s:g}' for c, s in plan.sigma.items())} every {plan.dt:g} s: " + "; ".join(parts) + ".")
     if plan.declared:
