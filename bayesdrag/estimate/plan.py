@@ -553,7 +553,7 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     smoothing.pop("R")
     notes = []
     if loss is not None and loss > t_imp:
-        notes.append(f"QE {elevation_deg:g} deg, {velocity:g} m/s lands at {t_imp:.1f} s, before the loss at "
+        notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s lands at {t_imp:.1f} s, before the loss at "
                      f"{loss:g} s: tracked to impact")
     hi_table = truth.mach_range[1]
     if hi > hi_table + 0.05:

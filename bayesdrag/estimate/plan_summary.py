@@ -347,7 +347,7 @@ def target_paragraph(plan):
     rounds = f"{plan.rounds} round{'s' if plan.rounds > 1 else ''}" + (" each" if len(b["cases"]) > 1 else "")
     if b["mach_range"] is not None:
         lo, hi = b["mach_range"]
-        text = (f"Target {_pct(t)}: firing {_join(names)} ({rounds}) reaches it over Mach {lo:.2f}-{hi:.2f}, "
+        text = (f"Target {100 * t:g} %: firing {_join(names)} ({rounds}) reaches it over Mach {lo:.2f}-{hi:.2f}, "
                 f"the widest interval of any combination of {_planned(len(cs))} (worst sd inside it "
                 f"{_pct(b['worst_relative_sd'])}).")
         others = [i for i in range(len(cs)) if i not in b["cases"]]
@@ -355,7 +355,7 @@ def target_paragraph(plan):
             text += f" Adding {_join(_case_name(cs[i]) for i in others)} does not widen it."
     else:
         who = f"no combination of {_planned(len(cs))} reaches" if len(cs) > 1 else "the planned case does not reach"
-        text = (f"Target {_pct(t)}: {who} it anywhere; the closest is {_pct(b['best_relative_sd'])} at Mach "
+        text = (f"Target {100 * t:g} %: {who} it anywhere; the closest is {_pct(b['best_relative_sd'])} at Mach "
                 f"{b['best_mach']:.2f} with {_join(names)} ({rounds}).")
     fl = b.get("floor")
     if fl is not None:
