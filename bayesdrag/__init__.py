@@ -43,6 +43,9 @@ _API = {
     "diagnose": "bayesdrag.commands.diagnose",
     "DiagnosisResult": "bayesdrag.results",
     "FitOptions": "bayesdrag.commands.options",
+    "plan": "bayesdrag.commands.plan",
+    "PlanResult": "bayesdrag.commands.plan",
+    "PlanOptions": "bayesdrag.commands.options",
     "SimulateOptions": "bayesdrag.commands.options",
     # errors
     "InputError": "bayesdrag.errors",

@@ -1,4 +1,4 @@
-"""Command line: ``bayesdrag simulate | fit | diagnose | batch | demo``.
+"""Command line: ``bayesdrag simulate | fit | diagnose | batch | plan | demo``.
 
 This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
 the command and maps what happened to the exit status: 0 success; 2 bad input, with
@@ -80,6 +80,62 @@ def _nu(value):
     return v
 
 
+def _number_list(unit, lo, hi, hi_open=False):
+    """An argparse type: comma-separated numbers in (lo, hi) or (lo, hi] (argparse names the option)."""
+    allowed = f"comma-separated numbers in ({lo:g}, {hi:g}{')' if hi_open else ']'} {unit}"
+
+    def parse(value):
+        out = []
+        for part in value.split(","):
+            try:
+                v = float(part)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()!r} is not a number; use {allowed}") from None
+            if not (v > lo and (v < hi if hi_open else v <= hi)) or v != v:
+                raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()} is outside; use {allowed}")
+            out.append(v)
+        return tuple(out)
+
+    return parse
+
+
+def _non_negative_float(value):
+    v = _finite_float(value)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value!r}")
+    return v
+
+
+def _add_plan_parser(sub):
+    from .commands.options import PLAN_ELEVATION_RANGE, PLAN_VELOCITY_MAX, PlanOptions
+
+    po = PlanOptions()
+    p = sub.add_parser("plan", help="predict, before firing, the Cd accuracy (sd by Mach) of planned cases "
+                                    "(Cramér-Rao of the default fit on simulated tracks)")
+    p.add_argument("round", help="round file (TOML): projectile, air, [radar] sigma, declared systematic sds")
+    p.add_argument("-o", "--output", required=True, help="output folder (plan.json, plan.html)")
+    p.add_argument("--elevations", type=_number_list("deg", *PLAN_ELEVATION_RANGE, hi_open=True),
+                   default=None, help="quadrant elevations [deg], e.g. 15,30,45 (default: the round's)")
+    p.add_argument("--velocities", type=_number_list("m/s", 0.0, PLAN_VELOCITY_MAX), default=None,
+                   help="launch velocities (charges) [m/s], e.g. 684,818 (default: the round's); the cases are "
+                        "every elevation x velocity pair")
+    p.add_argument("--dt", type=_positive_float, default=po.dt, help=f"radar sample interval [s] (default {po.dt})")
+    p.add_argument("--rounds", type=_integer(1, "--rounds"), default=po.rounds,
+                   help="rounds fired per case, pooled (default 1); systematic sources do not shrink with them")
+    p.add_argument("--scatter", type=_non_negative_float, default=po.scatter,
+                   help="round-to-round relative sd of Cd, e.g. 0.01 = 1 %% (default 0)")
+    p.add_argument("--target", type=_positive_float, default=None,
+                   help="target relative sd of Cd, e.g. 0.005 = 0.5 %%: which cases reach it over the widest Mach range")
+    p.add_argument("--lock-on", type=_non_negative_float, default=None,
+                   help="radar lock-on time after launch [s] (default 0: tracked from the muzzle)")
+    p.add_argument("--loss", type=_positive_float, default=None, help="radar loss time [s] (default: impact)")
+    p.add_argument("--assumed-drag", default=None, metavar="CSV",
+                   help="mach,cd table of the drag the shell is expected to have (default: the round's reference "
+                        "drag, else a generic 155 mm curve)")
+    p.add_argument("--seed", type=_seed, default=po.seed,
+                   help="seed of the noisy realisation that places the fit's knots (default 0)")
+
+
 def _add_fit_options(p, batch=False):
     """The options that change a fit's result (shared by ``fit`` and ``batch``)."""
     from .commands.options import LIKELIHOODS, MOVES, FitOptions
@@ -159,6 +215,8 @@ def build_parser():
     g.add_argument("track", help="radar track (CSV)")
     g.add_argument("round", help="round file (TOML)")
     g.add_argument("-o", "--output", required=True, help="output folder")
+
+    _add_plan_parser(sub)
 
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
@@ -246,6 +304,16 @@ def cmd_diagnose(args):
     return 0
 
 
+def cmd_plan(args):
+    from .commands.options import PlanOptions
+    from .commands.plan import run_plan
+
+    opts = PlanOptions(elevations=args.elevations, velocities=args.velocities, dt=args.dt, rounds=args.rounds,
+                       scatter=args.scatter, target=args.target, lock_on=args.lock_on, loss=args.loss, seed=args.seed)
+    run_plan(args.round, args.output, opts, assumed_drag_path=args.assumed_drag)
+    return 0
+
+
 def cmd_demo(args):
     from .commands.demo import run_demo
 
@@ -254,7 +322,7 @@ def cmd_demo(args):
 
 
 COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "batch": cmd_batch, "diagnose": cmd_diagnose,
-            "demo": cmd_demo}
+            "plan": cmd_plan, "demo": cmd_demo}
 
 
 def main(argv=None):

@@ -149,7 +149,7 @@ def test_no_import_cycles():
 
 
 @pytest.mark.parametrize("name", ["read_track", "read_round", "fit", "simulate", "FitResult", "diagnose",
-                                  "DiagnosisResult"])
+                                  "DiagnosisResult", "plan", "PlanResult", "PlanOptions"])
 def test_public_api_names(name):
     import bayesdrag
 
