@@ -3,7 +3,8 @@
 This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
 the command and maps what happened to the exit status: 0 success; 2 bad input, with
 one line on stderr naming the file, row or key, what was found and what is allowed (no
-traceback); 1 an internal failure or a fit that has no solution; 130 interrupted.
+traceback); 1 an internal failure, a fit that has no solution or an output folder that could not
+be written to the end (a full disk; one line); 130 interrupted.
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-from .errors import FitError, InputError
+from .errors import FitError, InputError, OutputError
 
 DESCRIPTION = ("Drag coefficient Cd(Mach) of projectiles from radar tracks: maximum likelihood with "
                "Cramér-Rao bounds, emcee posterior, and the diagnosis of the gap between a simulation and "
@@ -268,6 +269,9 @@ def main(argv=None):
         return 2
     except FitError as exc:
         print(f"bayesdrag: fit failed: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
+    except OutputError as exc:  # a full disk: nothing of the run kept, earlier outputs intact
+        print(f"bayesdrag: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("bayesdrag: interrupted", file=sys.stderr)

@@ -431,7 +431,8 @@ def _open_backend(path, resume, post, nwalkers, check_every, fingerprint):
     """(backend, steps already stored): the resumed chain file, a fresh one, or (None, 0)."""
     if path is None:
         return None, 0
-    cf = ChainFile(path, flush_every=check_every)
+    # a ChainFile given by the command carries the digest of the input files' bytes
+    cf = ChainFile(path, flush_every=check_every, inputs=getattr(path, "inputs", None))
     backend = None
     if resume and cf.exists():
         backend = cf.load_backend(nwalkers=nwalkers, ndim=post.ndim, nblobs=post.C, fingerprint=fingerprint)
