@@ -277,6 +277,11 @@ def main(argv=None):
         print("bayesdrag: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # internal failure: exit 1, traceback only on request
+        from ._signals import caused_by_interrupt
+
+        if caused_by_interrupt(exc):  # Ctrl-C inside compiled code (numba wraps it)
+            print("bayesdrag: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("BAYESDRAG_DEBUG"):
             raise
         print(f"bayesdrag: internal error: {type(exc).__name__}: {exc} "
