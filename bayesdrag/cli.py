@@ -160,6 +160,12 @@ def build_parser():
     g.add_argument("track", help="radar track (CSV)")
     g.add_argument("round", help="round file (TOML)")
     g.add_argument("-o", "--output", required=True, help="output folder")
+    g.add_argument("--material-cd", type=_positive_float, default=None, metavar="PERCENT",
+                   help="an effect is material when ignoring it would shift a fitted Cd by more than this many "
+                        "percent anywhere in the flown Mach range (default 0.1)")
+    g.add_argument("--material-end-sd", type=_positive_float, default=None, metavar="N",
+                   help="... or move the track's end by more than N noise sd (default 3)")
+    g.add_argument("--quiet", action="store_true", help="no notes or summary paragraph on stderr")
 
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
@@ -243,7 +249,14 @@ def cmd_batch(args):
 def cmd_diagnose(args):
     from .commands.diagnose import run_diagnose
 
-    run_diagnose(args.track, args.round, args.output)
+    from .commands.options import DiagnoseOptions
+
+    kw = {}
+    if args.material_cd is not None:
+        kw["material_cd_shift"] = args.material_cd / 100.0
+    if args.material_end_sd is not None:
+        kw["material_end_sd"] = args.material_end_sd
+    run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet)
     return 0
 
 
