@@ -497,7 +497,10 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
         if bar is not None:
             bar.close()
         stop.close()
-    message = (f"not converged after {done} steps (max_steps): tau max {np.nanmax(tau):.1f} "
+    if not np.isfinite(tau).any():       # a resumed chain already at max_steps: no block was run
+        tau = integrated_time(sampler.get_chain())
+    tau_txt = f"{np.max(tau):.1f}" if np.isfinite(tau).any() else "unknown"
+    message = (f"not converged after {done} steps (max_steps): tau max {tau_txt} "
                f"needs {TAU_FACTOR:g} tau; the draws are reported but check the diagnostics")
     return False, message, tau, tuple(tau_hist)
 
