@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.outputs import atomic_write, write_json
+from .io.outputs import atomic_write, ensure_space, write_json
 
 __all__ = ["FitResult", "DiagnosisResult", "PARTIAL", "CHAIN"]
 
@@ -187,6 +187,8 @@ class FitResult:
         write_json(out / "result.json", self.to_dict())
         idata = self.to_inference_data()
         if idata is not None:
+            # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
+            ensure_space(out, _netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
             atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
             written.append(out / "posterior.nc")
         written += write_fit_report(out, self, sources=sources or {})
@@ -258,3 +260,13 @@ class DiagnosisResult:
         write_diagnosis(out, self.diagnosis, track_name=str(sources.get("track", self.track.source)),
                         round_name=str(sources.get("round", self.round.path)))
         return [out / "diagnosis.json", out / "diagnosis.html"] + sorted(out.glob("diagnosis_*.png"))
+
+
+def _netcdf_bytes(idata):
+    """Bytes of the arrays of an InferenceData (what its NetCDF file holds, before overhead)."""
+    total = 0
+    for name in idata.groups():
+        ds = getattr(idata, name.lstrip("/"), None)
+        if ds is not None:
+            total += sum(int(v.nbytes) for v in ds.variables.values())
+    return total

@@ -409,6 +409,34 @@ def test_a_full_disk_while_sampling_keeps_the_chain_for_resume(case, capsys, mon
     assert not (out / "result.json").exists()
 
 
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 3 MB tmpfs (root only; skipped elsewhere), unmounted afterwards."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(mnt)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", str(mnt)], capture_output=True)
+
+
+def test_a_really_full_disk_while_sampling_is_one_line_not_a_segfault(case, small_disk):
+    """The issue's case on a real file system: 33 lines of h5py tracebacks and a segfault (exit
+    139) became one line, exit 1, with the unfinished chain kept."""
+    (small_disk / "filler").write_bytes(b"\0" * 1_500_000)
+    out = small_disk / "out"
+    r = subprocess.run([sys.executable, "-m", "bayesdrag", "fit", "track.csv", "round.toml", "-o", str(out),
+                        "--max-steps", "400", "--quiet", "--seed", "1"], env=ENV, cwd=case, capture_output=True,
+                       text=True, timeout=600)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 1, r.stderr
+    assert len(lines) == 1 and "the disk is full" in lines[0] and "Traceback" not in r.stderr, lines
+    assert not (out / "result.json").exists() and not _staging(out)
+
+
 @pytest.mark.parametrize("where", ["under a file", "is a file"])
 def test_an_unusable_output_folder_is_refused_before_any_work(case, capsys, monkeypatch, where):
     from bayesdrag.commands import fit as fit_module
@@ -677,3 +705,25 @@ def test_the_materiality_threshold_is_set_on_the_command_line(case, capsys):
     assert s["materiality"]["cd_shift"] == pytest.approx(0.05) and s["materiality"]["end_sd"] == 10.0
     code, lines = _cli(["diagnose", "track.csv", "round.toml", "-o", "out", "--material-cd", "-1"], capsys)
     _one_line(code, lines, 2, r"--material-cd: expected a positive finite number")
+
+
+def test_every_figure_of_the_paragraph_comes_from_the_verdicts_joint_fit():
+    """The paragraph printed the joint fit's wind, then the Cd shift of the wind-only fit (where the
+    wind stood in for a hot day): the values and the impact of a verdict effect are its joint
+    fit's; a lone fit's tailwind of 7.9 m/s appears nowhere."""
+    from bayesdrag.diagnosis.summary import summary_paragraph
+
+    row = {"name": "wind", "params": {"wx": 7.9, "wy": 0.1}, "sd": {"wx": 0.2, "wy": 0.3},
+           "params_joint": {"wx": -0.52, "wy": 0.08}, "sd_joint": {"wx": 0.05, "wy": 0.04},
+           "shrink": 0.9, "shrink_given_others": 0.1, "confounded_with": [], "cd_shift_max": 0.004,
+           "end_shift_sd": 4.2, "remaining_gap_fraction": 0.0}
+    temp = dict(row, name="temperature", params={"dT": 18.0}, sd={"dT": 0.5}, params_joint={"dT": 15.1},
+                sd_joint={"dT": 0.4}, shrink_given_others=0.95, cd_shift_max=0.19)
+    s = {"baseline": {"chi2_per_sample": 40.0, "gap": 5000.0}, "reference_drag": True,
+         "effects": [row, temp], "verdict": ["temperature", "wind"], "immaterial": [],
+         "joint": {"effects": ["temperature", "wind"], "shrink": 0.99, "strongly_correlated": []},
+         "materiality": {"cd_shift": 0.001, "end_sd": 3.0}, "where": [], "absorbed": []}
+    text = summary_paragraph(s)
+    assert "wx = -0.52" in text and "dT = 15.1" in text
+    assert "7.9" not in text and "dT = 18" not in text
+    assert "Cd shift 0.4 %" in text and "Cd shift 19 %" in text
