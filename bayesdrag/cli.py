@@ -3,7 +3,8 @@
 This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
 the command and maps what happened to the exit status: 0 success; 2 bad input, with
 one line on stderr naming the file, row or key, what was found and what is allowed (no
-traceback); 1 an internal failure or a fit that has no solution; 130 interrupted.
+traceback); 1 an internal failure, a fit that has no solution or an output folder that could not
+be written to the end (a full disk; one line); 130 interrupted.
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-from .errors import FitError, InputError
+from .errors import FitError, InputError, OutputError
 
 DESCRIPTION = ("Drag coefficient Cd(Mach) of projectiles from radar tracks: maximum likelihood with "
                "Cramér-Rao bounds, emcee posterior, and the diagnosis of the gap between a simulation and "
@@ -215,6 +216,12 @@ def build_parser():
     g.add_argument("track", help="radar track (CSV)")
     g.add_argument("round", help="round file (TOML)")
     g.add_argument("-o", "--output", required=True, help="output folder")
+    g.add_argument("--material-cd", type=_positive_float, default=None, metavar="PERCENT",
+                   help="an effect is material when ignoring it would shift a fitted Cd by more than this many "
+                        "percent anywhere in the flown Mach range (default 0.1)")
+    g.add_argument("--material-end-sd", type=_positive_float, default=None, metavar="N",
+                   help="... or move the track's end by more than N noise sd (default 3)")
+    g.add_argument("--quiet", action="store_true", help="no notes or summary paragraph on stderr")
 
     _add_plan_parser(sub)
 
@@ -300,7 +307,14 @@ def cmd_batch(args):
 def cmd_diagnose(args):
     from .commands.diagnose import run_diagnose
 
-    run_diagnose(args.track, args.round, args.output)
+    from .commands.options import DiagnoseOptions
+
+    kw = {}
+    if args.material_cd is not None:
+        kw["material_cd_shift"] = args.material_cd / 100.0
+    if args.material_end_sd is not None:
+        kw["material_end_sd"] = args.material_end_sd
+    run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet)
     return 0
 
 
@@ -337,10 +351,18 @@ def main(argv=None):
     except FitError as exc:
         print(f"bayesdrag: fit failed: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
+    except OutputError as exc:  # a full disk: nothing of the run kept, earlier outputs intact
+        print(f"bayesdrag: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("bayesdrag: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # internal failure: exit 1, traceback only on request
+        from ._signals import caused_by_interrupt
+
+        if caused_by_interrupt(exc):  # Ctrl-C inside compiled code (numba wraps it)
+            print("bayesdrag: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("BAYESDRAG_DEBUG"):
             raise
         print(f"bayesdrag: internal error: {type(exc).__name__}: {exc} "

@@ -27,6 +27,10 @@ SIMULATION_MODELS = ("pointmass", "6dof")
 JOBS = ("fit", "diagnose")
 #: the Student-t likelihood's default degrees of freedom (heavy tails, finite variance)
 DEFAULT_NU = 4.0
+#: the smallest sampler step limit: the sampler's first convergence check comes after 100 steps,
+#: and a shorter chain has no autocorrelation time, r_hat or ESS to report (``--max-steps 1``
+#: used to finish with "tau max nan")
+MIN_MAX_STEPS = 100
 
 
 def _bad(name, value, allowed):
@@ -65,7 +69,8 @@ class FitOptions:
     walkers : int or None
         emcee walkers (default: 16 with the ``auto`` moves, else 2 x parameters + 2).
     max_steps : int
-        Hard limit of sampler steps (the run stops earlier at convergence).
+        Hard limit of sampler steps (the run stops earlier at convergence); at least
+        :data:`MIN_MAX_STEPS`.
     moves : {"auto", "de", "stretch"}
         emcee moves.
     seed : int or None
@@ -112,7 +117,9 @@ class FitOptions:
         _int("overlap", self.overlap, 0)
         if self.walkers is not None:
             _int("walkers", self.walkers, 1)
-        _int("max_steps", self.max_steps, 1)
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < MIN_MAX_STEPS:
+            _bad("max_steps (--max-steps)", self.max_steps,
+                 f"use an integer >= {MIN_MAX_STEPS} (the sampler's first convergence check)")
         if self.moves not in MOVES:
             _bad("moves", self.moves, f"use one of {', '.join(MOVES)}")
         if self.seed is not None:
