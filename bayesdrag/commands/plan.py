@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,15 +119,25 @@ def run_plan(round_path, out, options=None, *, assumed_drag_path=None, echo=prin
     """``bayesdrag plan ROUND -o DIR``: read the round (and an assumed drag table), plan, write
     ``DIR/plan.json``, ``plan.html`` and the figures. Returns the :class:`PlanResult`."""
     from ..io.drag_tables import read_drag_table
-    from ..io.rounds import read_round
+    from ..io.outputs import OutputRun
+    from ..io.rounds import read_round, round_files
 
     rnd = read_round(round_path)
     drag = read_drag_table(assumed_drag_path) if assumed_drag_path is not None else None
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output path exists and is not a folder")
-    result = plan(rnd, options, assumed_drag=drag)
-    result.write(out, sources={"round": round_path})
-    echo(f"plan: {len(result.cases)} case(s) in {result.seconds:.1f} s; wrote {out / 'plan.json'}, plan.html")
+    inputs = dict(round_files(round_path, rnd))
+    if assumed_drag_path is not None:
+        inputs["assumed_drag"] = assumed_drag_path
+    opts = options.to_dict() if hasattr(options, "to_dict") else options
+    # one consistent set like every command's: checked and locked before the work, staged,
+    # swapped in with a manifest, an earlier plan's files superseded
+    with OutputRun(out, "plan", inputs=inputs, options=opts,
+                   echo=lambda m: print(m, file=sys.stderr, flush=True)) as run:
+        result = plan(rnd, options, assumed_drag=drag)
+        result.write(run.staging, sources={"round": round_path})
+    echo(f"plan: {len(result.cases)} case(s) in {result.seconds:.1f} s; wrote {out / 'plan.json'}, plan.html, "
+         f"manifest.json")
     echo(result.paragraph)
     return result

@@ -21,7 +21,7 @@ Decisions written down (and why):
   the pid is read from the holder's staging folder name). On a file system that cannot lock a
   folder the lock is taken on a hidden ``DIR/.bayesdrag.lock`` instead (kept, never in a manifest).
 * **Staging, then a journalled swap.** Outputs are written into ``DIR/.staging-<run>/`` (the same
-  file system, so moving them in is a rename). Committing first writes ``plan.json`` into the
+  file system, so moving them in is a rename). Committing first writes a journal ``.commit.json`` into the
   staging folder (the commit point, itself written by rename), then executes its renames: the
   earlier files out to ``DIR/superseded/<earlier run>/``, the new ones in, ``manifest.json``
   last. Moving an earlier file out is done only when it exists and its target does not, moving a
@@ -79,7 +79,8 @@ SUPERSEDED = "superseded"
 #: the lock file (hidden; held with flock)
 LOCK_NAME = ".bayesdrag.lock"
 STAGING_PREFIX = ".staging-"
-PLAN = "plan.json"
+#: the commit journal inside a staging folder (hidden: `bayesdrag plan` writes a `plan.json` output)
+PLAN = ".commit.json"
 PLAN_FORMAT = "bayesdrag-commit/1"
 #: what bayesdrag writes into an output folder (glob patterns): superseded in a folder that has
 #: no manifest (written by a version before manifests)
@@ -87,7 +88,8 @@ KNOWN_OUTPUTS = ("manifest.json", "result.json", "posterior.nc", "chain.h5", "re
                  "pooling.json", "done.*.json", "diagnosis.json", "diagnosis.html", "diagnosis_*.png",
                  "campaign.json", "campaign.html", "campaign_*.png", "cd.png", "cd_*.png", "corner.png",
                  "traces.png", "residuals.png", "residuals_*.png", "windows.png", "track_vs_pointmass.png",
-                 "differences.png", "reference_cd.png")
+                 "differences.png", "reference_cd.png", "plan.json", "plan.html", "plan.png",
+                 "plan_*.png")
 #: the unfinished chain: resume state, never an output of a finished run, never moved by a commit
 PARTIAL_CHAIN = "chain.partial.h5"
 #: largest manifest or plan read back [bytes]
@@ -358,6 +360,7 @@ class OutputRun:
         out = self.folder
         if out.exists() and not out.is_dir():
             raise InputError(f"{out}: output path exists and is not a folder")
+        self._created = not out.exists()
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -399,6 +402,11 @@ class OutputRun:
                     self._raise_if_full(ev)
         finally:
             self._unlock()
+            if et is not None and getattr(self, "_created", False):
+                # a refused or failed run leaves no folder it made (an empty one only: a kept
+                # unfinished chain keeps it)
+                with contextlib.suppress(OSError):
+                    self.folder.rmdir()
         return False
 
     def _raise_if_full(self, exc):

@@ -164,7 +164,7 @@ def test_a_planted_pickle_in_a_file_the_program_reads_never_runs(where, case, ca
         (out / "manifest.json").write_bytes(payload)
     elif where == "commit_plan":
         (out / ".staging-20260101T000000Z-1-abcd").mkdir(parents=True)
-        (out / ".staging-20260101T000000Z-1-abcd" / "plan.json").write_bytes(payload)
+        (out / ".staging-20260101T000000Z-1-abcd" / ".commit.json").write_bytes(payload)
     else:
         (case / "camp.toml").write_text('[campaign]\nname = "c"\n[[rounds]]\nname = "a"\ntrack = "track.csv"\n'
                                          'round = "round.toml"\n')

@@ -56,6 +56,26 @@ def test_plan_writes_json_html_and_figure(tmp_path, capsys):
     assert "Target 0.5 %" in capsys.readouterr().out
 
 
+def test_plan_output_folder_is_one_consistent_set(tmp_path):
+    """Like every command's: a manifest naming the files and the round's bytes, and a second plan
+    into the same folder moves the first one's files aside (its plan_budget.png is not left
+    looking current when the second writes none)."""
+    r = _round(tmp_path)
+    out = tmp_path / "plan"
+    assert main(["plan", str(r), "-o", str(out), "--elevations", "15"]) == 0
+    man = json.loads((out / "manifest.json").read_text())
+    assert man["command"] == "plan"
+    assert {"plan.json", "plan.html", "plan.png"} <= {f["name"] for f in man["files"]}
+    assert (out / "plan.json").exists()
+    first = set(p.name for p in out.iterdir())
+    r2 = tmp_path / "r2.toml"
+    r2.write_text(r.read_text().replace("mass_sd = 0.05\n", "").replace("density_sd = 0.003\n", ""))
+    assert main(["plan", str(r2), "-o", str(out), "--elevations", "30"]) == 0
+    assert (out / "superseded").is_dir() and "plan_budget.png" in first
+    names = {f["name"] for f in json.loads((out / "manifest.json").read_text())["files"]}
+    assert (out / "plan_budget.png").exists() == ("plan_budget.png" in names)
+
+
 def test_api_to_dict_is_plan_json(tmp_path):
     r = _round(tmp_path)
     res = bayesdrag.plan(bayesdrag.read_round(r), elevations=(30.0,), dt=0.05, lock_on=1.0)

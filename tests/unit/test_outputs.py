@@ -201,7 +201,7 @@ def test_a_plan_that_leaves_the_folder_is_refused(tmp_path):
     staging = out / ".staging-20260101T000000Z-1-abcd"
     staging.mkdir(parents=True)
     (tmp_path / "victim").write_text("keep")
-    (staging / "plan.json").write_text(json.dumps({"format": "bayesdrag-commit/1", "run": "x",
+    (staging / ".commit.json").write_text(json.dumps({"format": "bayesdrag-commit/1", "run": "x",
                                                    "moves": [["../victim", "stolen", "out"]]}))
     with pytest.raises(InputError, match="an interrupted commit whose plan cannot be used"):
         OutputRun(out, "fit").__enter__()
