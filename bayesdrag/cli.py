@@ -9,6 +9,7 @@ be written to the end (a full disk; one line); 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -357,6 +358,12 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("bayesdrag: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``bayesdrag ... | head``): the files are written; stop
+        # quietly like other Unix tools, and keep Python from complaining again at exit
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except Exception as exc:  # internal failure: exit 1, traceback only on request
         from ._signals import caused_by_interrupt
 

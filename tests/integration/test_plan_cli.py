@@ -127,3 +127,16 @@ def test_console_script_runs(tmp_path):
                         "--dt", "0.1"], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "o" / "plan.html").exists()
+
+
+def test_a_closed_stdout_is_not_an_internal_error(tmp_path):
+    """``bayesdrag plan ... | head -c 1``: the reader goes away; the files are written and the
+    command stops quietly with 141 (128 + SIGPIPE), no "internal error"."""
+    r = _round(tmp_path)
+    p = subprocess.Popen([sys.executable, "-m", "bayesdrag.cli", "plan", str(r), "-o", str(tmp_path / "o"),
+                          "--dt", "0.1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()                       # nobody reads stdout
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=300) in (0, 141), err
+    assert "internal error" not in err and "Traceback" not in err
+    assert (tmp_path / "o" / "plan.json").exists()
