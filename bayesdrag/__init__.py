@@ -15,8 +15,48 @@ only reads a track does not load the compiled kernel.
 from __future__ import annotations
 
 import importlib
+import os
+import stat
+import sys
+import tempfile
 
 __version__ = "0.1.0"
+
+
+def _private_dir(path):
+    """``path`` created 0700 when missing; returned when it is a real folder of this user that
+    no one else may write, else None."""
+    try:
+        os.makedirs(path, mode=0o700, exist_ok=True)
+        st = os.lstat(path)
+    except OSError:
+        return None
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or st.st_mode & 0o022:
+        return None
+    return path
+
+
+def _use_private_numba_cache():
+    """numba's compilation cache is pickled by numba and loaded when the kernel is compiled: the
+    one file bayesdrag lets be unpickled (DESIGN.md). It is kept in a per-user folder,
+    ``$XDG_CACHE_HOME/bayesdrag/numba`` (default ``~/.cache/bayesdrag/numba``, or
+    ``$TMPDIR/bayesdrag-<uid>/numba`` when the home folder cannot be written), created 0700 and
+    used only when owned by the user and writable by no one else -- never beside the installed
+    package (which other users may share) and never in an output folder. A ``NUMBA_CACHE_DIR``
+    the user set is respected. Child processes (Dask workers) inherit the setting."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    for base in (os.path.join(home, "bayesdrag"), os.path.join(tempfile.gettempdir(), f"bayesdrag-{os.getuid()}")):
+        if _private_dir(base) and _private_dir(os.path.join(base, "numba")):
+            os.environ["NUMBA_CACHE_DIR"] = os.path.join(base, "numba")
+            config = getattr(sys.modules.get("numba"), "config", None)
+            if config is not None:       # numba imported before bayesdrag: it read the environment already
+                config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
+            return
+
+
+_use_private_numba_cache()
 
 #: public name -> module that defines it
 _API = {
@@ -43,6 +83,9 @@ _API = {
     "diagnose": "bayesdrag.commands.diagnose",
     "DiagnosisResult": "bayesdrag.results",
     "FitOptions": "bayesdrag.commands.options",
+    "plan": "bayesdrag.commands.plan",
+    "PlanResult": "bayesdrag.commands.plan",
+    "PlanOptions": "bayesdrag.commands.options",
     "SimulateOptions": "bayesdrag.commands.options",
     # errors
     "InputError": "bayesdrag.errors",

@@ -1,18 +1,20 @@
-"""Command line: ``bayesdrag simulate | fit | diagnose | batch | demo``.
+"""Command line: ``bayesdrag simulate | fit | diagnose | batch | plan | demo``.
 
 This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
 the command and maps what happened to the exit status: 0 success; 2 bad input, with
 one line on stderr naming the file, row or key, what was found and what is allowed (no
-traceback); 1 an internal failure or a fit that has no solution; 130 interrupted.
+traceback); 1 an internal failure, a fit that has no solution or an output folder that could not
+be written to the end (a full disk; one line); 130 interrupted.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from pathlib import Path
 
-from .errors import FitError, InputError
+from .errors import FitError, InputError, OutputError
 
 DESCRIPTION = ("Drag coefficient Cd(Mach) of projectiles from radar tracks: maximum likelihood with "
                "Cramér-Rao bounds, emcee posterior, and the diagnosis of the gap between a simulation and "
@@ -78,6 +80,62 @@ def _nu(value):
     if not v > 0 or v == float("inf"):
         raise argparse.ArgumentTypeError(f"--nu must be a positive number or 'sample', got {value!r}")
     return v
+
+
+def _number_list(unit, lo, hi, hi_open=False):
+    """An argparse type: comma-separated numbers in (lo, hi) or (lo, hi] (argparse names the option)."""
+    allowed = f"comma-separated numbers in ({lo:g}, {hi:g}{')' if hi_open else ']'} {unit}"
+
+    def parse(value):
+        out = []
+        for part in value.split(","):
+            try:
+                v = float(part)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()!r} is not a number; use {allowed}") from None
+            if not (v > lo and (v < hi if hi_open else v <= hi)) or v != v:
+                raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()} is outside; use {allowed}")
+            out.append(v)
+        return tuple(out)
+
+    return parse
+
+
+def _non_negative_float(value):
+    v = _finite_float(value)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value!r}")
+    return v
+
+
+def _add_plan_parser(sub):
+    from .commands.options import PLAN_ELEVATION_RANGE, PLAN_VELOCITY_MAX, PlanOptions
+
+    po = PlanOptions()
+    p = sub.add_parser("plan", help="predict, before firing, the Cd accuracy (sd by Mach) of planned cases "
+                                    "(Cramér-Rao of the default fit on simulated tracks)")
+    p.add_argument("round", help="round file (TOML): projectile, air, [radar] sigma, declared systematic sds")
+    p.add_argument("-o", "--output", required=True, help="output folder (plan.json, plan.html)")
+    p.add_argument("--elevations", type=_number_list("deg", *PLAN_ELEVATION_RANGE, hi_open=True),
+                   default=None, help="quadrant elevations [deg], e.g. 15,30,45 (default: the round's)")
+    p.add_argument("--velocities", type=_number_list("m/s", 0.0, PLAN_VELOCITY_MAX), default=None,
+                   help="launch velocities (charges) [m/s], e.g. 684,818 (default: the round's); the cases are "
+                        "every elevation x velocity pair")
+    p.add_argument("--dt", type=_positive_float, default=po.dt, help=f"radar sample interval [s] (default {po.dt})")
+    p.add_argument("--rounds", type=_integer(1, "--rounds"), default=po.rounds,
+                   help="rounds fired per case, pooled (default 1); systematic sources do not shrink with them")
+    p.add_argument("--scatter", type=_non_negative_float, default=po.scatter,
+                   help="round-to-round relative sd of Cd, e.g. 0.01 = 1 %% (default 0)")
+    p.add_argument("--target", type=_positive_float, default=None,
+                   help="target relative sd of Cd, e.g. 0.005 = 0.5 %%: which cases reach it over the widest Mach range")
+    p.add_argument("--lock-on", type=_non_negative_float, default=None,
+                   help="radar lock-on time after launch [s] (default 0: tracked from the muzzle)")
+    p.add_argument("--loss", type=_positive_float, default=None, help="radar loss time [s] (default: impact)")
+    p.add_argument("--assumed-drag", default=None, metavar="CSV",
+                   help="mach,cd table of the drag the shell is expected to have (default: the round's reference "
+                        "drag, else a generic 155 mm curve)")
+    p.add_argument("--seed", type=_seed, default=po.seed,
+                   help="seed of the noisy realisation that places the fit's knots (default 0)")
 
 
 def _add_fit_options(p, batch=False):
@@ -162,6 +220,14 @@ def build_parser():
     g.add_argument("track", help="radar track (CSV)")
     g.add_argument("round", help="round file (TOML)")
     g.add_argument("-o", "--output", required=True, help="output folder")
+    g.add_argument("--material-cd", type=_positive_float, default=None, metavar="PERCENT",
+                   help="an effect is material when ignoring it would shift a fitted Cd by more than this many "
+                        "percent anywhere in the flown Mach range (default 0.1)")
+    g.add_argument("--material-end-sd", type=_positive_float, default=None, metavar="N",
+                   help="... or move the track's end by more than N noise sd (default 3)")
+    g.add_argument("--quiet", action="store_true", help="no notes or summary paragraph on stderr")
+
+    _add_plan_parser(sub)
 
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
@@ -245,7 +311,24 @@ def cmd_batch(args):
 def cmd_diagnose(args):
     from .commands.diagnose import run_diagnose
 
-    run_diagnose(args.track, args.round, args.output)
+    from .commands.options import DiagnoseOptions
+
+    kw = {}
+    if args.material_cd is not None:
+        kw["material_cd_shift"] = args.material_cd / 100.0
+    if args.material_end_sd is not None:
+        kw["material_end_sd"] = args.material_end_sd
+    run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet)
+    return 0
+
+
+def cmd_plan(args):
+    from .commands.options import PlanOptions
+    from .commands.plan import run_plan
+
+    opts = PlanOptions(elevations=args.elevations, velocities=args.velocities, dt=args.dt, rounds=args.rounds,
+                       scatter=args.scatter, target=args.target, lock_on=args.lock_on, loss=args.loss, seed=args.seed)
+    run_plan(args.round, args.output, opts, assumed_drag_path=args.assumed_drag)
     return 0
 
 
@@ -257,7 +340,7 @@ def cmd_demo(args):
 
 
 COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "batch": cmd_batch, "diagnose": cmd_diagnose,
-            "demo": cmd_demo}
+            "plan": cmd_plan, "demo": cmd_demo}
 
 
 def main(argv=None):
@@ -272,10 +355,24 @@ def main(argv=None):
     except FitError as exc:
         print(f"bayesdrag: fit failed: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
+    except OutputError as exc:  # a full disk: nothing of the run kept, earlier outputs intact
+        print(f"bayesdrag: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("bayesdrag: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``bayesdrag ... | head``): the files are written; stop
+        # quietly like other Unix tools, and keep Python from complaining again at exit
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except Exception as exc:  # internal failure: exit 1, traceback only on request
+        from ._signals import caused_by_interrupt
+
+        if caused_by_interrupt(exc):  # Ctrl-C inside compiled code (numba wraps it)
+            print("bayesdrag: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("BAYESDRAG_DEBUG"):
             raise
         print(f"bayesdrag: internal error: {type(exc).__name__}: {exc} "

@@ -1,4 +1,4 @@
-"""The unmodelled-effect library of the sim-to-real gap diagnosis (DESIGN.md, ``diagnosis.json``).
+"""The unmodelled-effect library of the sim-to-real gap diagnosis (``diagnosis.json``).
 
 Each :class:`Effect` is one physical reason a point-mass simulation with the firing-table drag
 and the round's atmosphere misses a measured track. It has named parameters (with units,
@@ -213,7 +213,7 @@ class Effect:
         raise ValueError(f"unknown effect {n!r}; known: {', '.join(EFFECTS)}")
 
     def report_params(self, values):
-        """Parameters as reported in diagnosis.json (DESIGN.md names and units)."""
+        """Parameters as reported in diagnosis.json (names and units of the file format)."""
         values = np.asarray(values, dtype=float)
         if self.name == "yaw_drag":
             a = float(values[0])
@@ -278,7 +278,7 @@ def _make_effects():
     return {e.name: e for e in E}
 
 
-#: the effect library by name (DESIGN.md order)
+#: the effect library by name (the order of diagnosis.json)
 EFFECTS = _make_effects()
 
 
@@ -568,7 +568,7 @@ def simulate_with_effects(model, drag_params, state0, t_out, effects=(), values=
     state0 : (6,) array, state at ``t_start``
     t_out : (N,) array, s (radar times; ``radar_time`` evaluates the model at t + dt)
     effects : sequence of Effect or names
-    values : sequence of float, the effects' parameters side by side (DESIGN.md units, but
+    values : sequence of float, the effects' parameters side by side (diagnosis.json units, but
         ``yaw_drag`` takes its fitted amplitude ``k delta0^2``)
     ctx : EffectContext
 

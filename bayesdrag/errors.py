@@ -1,5 +1,6 @@
 """Exception types. The CLI turns :class:`InputError` into exit status 2 with its one-line
-message, and any other exception into exit status 1."""
+message, :class:`OutputError` and :class:`FitError` into exit status 1 with theirs, and any
+other exception into exit status 1."""
 
 
 class InputError(ValueError):
@@ -10,3 +11,8 @@ class InputError(ValueError):
 class FitError(RuntimeError):
     """An estimation that could not produce a trustworthy answer (divergence, singular
     information matrix, an ODE that cannot be integrated)."""
+
+
+class OutputError(RuntimeError):
+    """The output folder could not be written to the end (a full disk, a quota): nothing of
+    the run was kept and the earlier outputs are untouched. One line, exit status 1."""

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import copy
 import json
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .io.outputs import atomic_write, write_json
+from .io.outputs import atomic_write, ensure_space, write_json
 
 __all__ = ["FitResult", "DiagnosisResult", "PARTIAL", "CHAIN"]
 
@@ -142,33 +141,56 @@ class FitResult:
     def write(self, directory, *, sources=None):
         """Write the folder the command line writes: ``result.json``, ``posterior.nc`` (after
         sampling), the figures and ``report.html``; a finished chain ``chain.partial.h5`` in it
-        becomes ``chain.h5``.
+        becomes ``chain.h5``. The folder is written as one consistent set
+        (:class:`~bayesdrag.io.outputs.OutputRun`): ``manifest.json`` lists the files, an earlier
+        run's files are moved to ``superseded/``.
 
         Parameters
         ----------
         directory : path
             Created if needed.
         sources : dict, optional
-            ``{"track": ..., "round": ...}`` file names shown in the report.
+            ``{"track": ..., "round": ...}`` file names shown in the report (and, when they are
+            files, recorded with their SHA-256 in the manifest).
 
         Returns
         -------
         list of Path
             The files written.
         """
+        from .io.outputs import OutputRun
+
+        files = {k: v for k, v in (sources or {}).items() if v is not None and Path(v).is_file()}
+        with OutputRun(directory, "fit", inputs=files) as run:
+            self.write_into(run, sources=sources)
+        return [run.folder / f["name"] for f in run.manifest["files"]]
+
+    def write_into(self, run, *, sources=None):
+        """Write the outputs into an open :class:`~bayesdrag.io.outputs.OutputRun` (its staging
+        folder) and hand it the finished chain; the run commits them."""
+        self.write_files(run.staging, sources=sources)
+        if self.posterior is not None:
+            run.adopt(PARTIAL, CHAIN)
+
+    def write_files(self, directory, *, sources=None):
+        """Write ``result.json``, ``posterior.nc`` (after sampling), the figures and
+        ``report.html`` into ``directory`` as plain files (no manifest, nothing moved).
+
+        Returns
+        -------
+        list of Path
+        """
         from .report.fit import write_fit_report
 
         out = Path(directory)
-        out.mkdir(parents=True, exist_ok=True)
         written = [out / "result.json"]
         write_json(out / "result.json", self.to_dict())
         idata = self.to_inference_data()
         if idata is not None:
+            # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
+            ensure_space(out, _netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
             atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
             written.append(out / "posterior.nc")
-        if self.posterior is not None and (out / PARTIAL).exists():
-            os.replace(out / PARTIAL, out / CHAIN)
-            written.append(out / CHAIN)
         written += write_fit_report(out, self, sources=sources or {})
         return written
 
@@ -214,12 +236,23 @@ class DiagnosisResult:
         return json.loads(json.dumps(_jsonable(s), allow_nan=False))
 
     def write(self, directory, *, sources=None):
-        """Write ``diagnosis.json``, the figures and ``diagnosis.html`` into ``directory``.
+        """Write ``diagnosis.json``, the figures and ``diagnosis.html`` into ``directory`` as one
+        consistent set (:class:`~bayesdrag.io.outputs.OutputRun`, as :meth:`FitResult.write`).
 
         Returns
         -------
         list of Path
         """
+        from .io.outputs import OutputRun
+
+        files = {k: v for k, v in (sources or {}).items() if v is not None and Path(v).is_file()}
+        with OutputRun(directory, "diagnose", inputs=files) as run:
+            self.write_files(run.staging, sources=sources)
+        return [run.folder / f["name"] for f in run.manifest["files"]]
+
+    def write_files(self, directory, *, sources=None):
+        """Write ``diagnosis.json``, the figures and ``diagnosis.html`` into ``directory`` as
+        plain files. Returns the paths."""
         from .report.diagnosis import write_diagnosis
 
         sources = sources or {}
@@ -227,3 +260,13 @@ class DiagnosisResult:
         write_diagnosis(out, self.diagnosis, track_name=str(sources.get("track", self.track.source)),
                         round_name=str(sources.get("round", self.round.path)))
         return [out / "diagnosis.json", out / "diagnosis.html"] + sorted(out.glob("diagnosis_*.png"))
+
+
+def _netcdf_bytes(idata):
+    """Bytes of the arrays of an InferenceData (what its NetCDF file holds, before overhead)."""
+    total = 0
+    for name in idata.groups():
+        ds = getattr(idata, name.lstrip("/"), None)
+        if ds is not None:
+            total += sum(int(v.nbytes) for v in ds.variables.values())
+    return total

@@ -1,6 +1,5 @@
 """A simulated campaign of 7 rounds with 1 % round-to-round Cd scatter, run as a Dask batch and
-pooled; the campaign report is then redrawn with the simulation truth and checked
-(issue 8 acceptance).
+pooled; the campaign report is then redrawn with the simulation truth and checked.
 
     python3 examples/campaign_demo.py [-o DIR] [--rounds 7] [--scatter 0.01] [--seed 7]
                                       [--workers 2] [--mcmc] [--sequential]

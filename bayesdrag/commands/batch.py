@@ -9,7 +9,8 @@ Decisions written down:
   dict (status, seconds, message). Nothing big crosses the scheduler: the campaign pooling
   reads each round's ``pooling.json`` (Cd and its covariance on the campaign nodes, a few kB).
 * **Done means a marker**: a job is finished when ``DIR/<name>/done.<job>.json`` exists. It is
-  written atomically *after* every other output of the job, and records a fingerprint of the
+  one of the job's outputs, committed with them as one set (:class:`~bayesdrag.io.outputs.OutputRun`:
+  a kill leaves either the earlier set or the new one), and records a fingerprint of the
   inputs (SHA-256 of the track, the round file and the files it references) and of the
   options that change results. A rerun skips a job whose marker matches; a batch killed
   mid-way therefore resumes where it stopped, and a round whose inputs or options changed is
@@ -27,15 +28,13 @@ Decisions written down:
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import sys
 import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io.outputs import ensure_output_dir, write_json
+from ..io.outputs import OutputRun, ensure_output_dir, read_json, sha256_file, write_json
 from .options import JOBS, FitOptions
 
 __all__ = ["run_campaign", "round_task", "pool_campaign", "summarise", "fingerprint", "job_done"]
@@ -50,32 +49,19 @@ def marker_path(outdir, job):
     return Path(outdir) / f"done.{job}.json"
 
 
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def fingerprint(track, round_path, job, options):
     """Fingerprint of a job's inputs: file hashes (track, round, reference drag, met profile)
     and the options that change its results. Paths are not part of it (moving a campaign
     folder keeps its results valid)."""
-    from ..io.rounds import read_round
+    from ..io.rounds import read_round, round_files
 
-    files = {"track": _sha256(track), "round": _sha256(round_path)}
+    files = {"track": sha256_file(track), "round": sha256_file(round_path)}
     try:
         rnd = read_round(round_path)
     except InputError:
         rnd = None
     if rnd is not None:
-        ref = rnd.projectile.reference_drag_path
-        if ref and Path(ref).is_file():
-            files["reference_drag"] = _sha256(ref)
-        prof = getattr(rnd.atmosphere, "source", "")
-        if prof and Path(prof).is_file():
-            files["met_profile"] = _sha256(prof)
+        files.update({k: sha256_file(p) for k, p in round_files(round_path, rnd).items() if k != "round"})
     opts = options.to_dict() if job == "fit" else {}
     return {"job": job, "files": files, "options": opts}
 
@@ -86,33 +72,45 @@ def job_done(outdir, job, fp):
     if not m.is_file():
         return False
     try:
-        return json.loads(m.read_text(encoding="utf-8")).get("fingerprint") == fp
-    except (OSError, ValueError):
+        doc = read_json(m, "done marker", max_bytes=1 << 20)
+    except InputError:
         return False
+    return isinstance(doc, dict) and doc.get("fingerprint") == fp
 
 
-def run_fit_job(track, round_path, outdir, options, covariance="colored"):
+def run_fit_job(track, round_path, outdir, options, covariance="colored", marker=None):
     """The ``fit`` job of one round: :func:`bayesdrag.commands.fit.run_fit` into ``outdir`` plus
-    ``pooling.json`` (:func:`bayesdrag.campaign.pooling.pooling_input`, Scheme 1 only). A round
-    killed while sampling left its chain: it is continued (the sampler checks the chain belongs
-    to the same problem, walkers, moves and seed). Returns a message."""
+    ``pooling.json`` (:func:`bayesdrag.campaign.pooling.pooling_input`, Scheme 1 only) and the
+    done marker (``marker(message)`` gives its content), committed with the fit's outputs. A
+    round killed while sampling left its chain: it is continued (the sampler checks the chain
+    belongs to the same inputs, problem, walkers, moves and seed). Returns a message."""
     from ..campaign.pooling import pooling_input
     from .fit import run_fit
 
+    def also(result, folder):
+        if result.scheme1 is not None:
+            write_json(Path(folder) / POOLING, pooling_input(result.ml, result.scheme1.drag_model,
+                                                             result.round.reference_drag, covariance=covariance,
+                                                             name=Path(outdir).name))
+        if marker is not None:
+            write_json(Path(folder) / "done.fit.json", marker(result.message))
+
     resume = (Path(outdir) / "chain.partial.h5").exists()
-    result = run_fit(track, round_path, outdir, options, resume=resume, quiet=True, echo=lambda *a: None)
-    if result.scheme1 is not None:
-        write_json(Path(outdir) / POOLING, pooling_input(result.ml, result.scheme1.drag_model,
-                                                         result.round.reference_drag, covariance=covariance,
-                                                         name=Path(outdir).name))
+    result = run_fit(track, round_path, outdir, options, resume=resume, quiet=True, echo=lambda *a: None,
+                     also=also)
     return result.message
 
 
-def run_diagnose_job(track, round_path, outdir):
-    """The ``diagnose`` job of one round (as ``bayesdrag diagnose``). Returns the verdict text."""
+def run_diagnose_job(track, round_path, outdir, marker=None):
+    """The ``diagnose`` job of one round (as ``bayesdrag diagnose``), its done marker committed
+    with its outputs. Returns the verdict text."""
     from .diagnose import run_diagnose
 
-    d = run_diagnose(track, round_path, outdir, quiet=True, echo=lambda *a: None)
+    def also(result, folder):
+        if marker is not None:
+            write_json(Path(folder) / "done.diagnose.json", marker(f"verdict {result.verdict or 'none'}"))
+
+    d = run_diagnose(track, round_path, outdir, quiet=True, echo=lambda *a: None, also=also)
     return f"verdict {d.verdict or 'none'}"
 
 
@@ -153,15 +151,16 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
             if job_done(out, job, fp):
                 report["jobs"][job] = {"status": "skipped", "seconds": 0.0, "message": "done in an earlier run"}
                 continue
-            marker_path(out, job).unlink(missing_ok=True)
+            def marker(msg, fp=fp, t0=t0):
+                return {"fingerprint": fp, "seconds": round(time.perf_counter() - t0, 3), "message": msg}
+
             if job == "fit":
-                msg = run_fit_job(track, round_path, out, options, covariance)
+                msg = run_fit_job(track, round_path, out, options, covariance, marker)
             elif job == "diagnose":
-                msg = run_diagnose_job(track, round_path, out)
+                msg = run_diagnose_job(track, round_path, out, marker)
             else:
                 raise InputError(f"unknown job {job!r}; allowed: {', '.join(JOBS)}")
             secs = time.perf_counter() - t0
-            write_json(marker_path(out, job), {"fingerprint": fp, "seconds": round(secs, 3), "message": msg})
             report["jobs"][job] = {"status": "done", "seconds": secs, "message": msg,
                                    "cpu_seconds": time.process_time() - c0}
         except BaseException as exc:  # noqa: BLE001 - reported, the batch goes on
@@ -257,15 +256,28 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
         ``reports`` (per round), ``failed`` (list of {name, job, message}), ``campaign``
         (campaign.json document or None), ``seconds``.
     """
-    from tqdm import tqdm
-
     from ..io.campaign import read_campaign
 
     bad = [j for j in jobs if j not in JOBS]
     if bad or not jobs:
         raise InputError(f"jobs {','.join(jobs)!r} are not allowed; use a non-empty subset of {', '.join(JOBS)}")
     camp = read_campaign(campaign_path)
-    out = ensure_output_dir(output)
+    files = {"campaign": campaign_path}
+    for r in camp.rounds:
+        files.update({f"{r.name}/track": r.track, f"{r.name}/round": r.round})
+    with OutputRun(output, "campaign", inputs=files, options=(options or FitOptions()).to_dict(),
+                   echo=lambda m: print(m, file=sys.stderr)) as run:
+        res = _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covariance, quiet, echo,
+                          pool_seed)
+    return res
+
+
+def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covariance, quiet, echo, pool_seed):
+    """The rounds of a campaign into ``run.folder/<name>/`` and the pooled campaign into the
+    run's staging folder."""
+    from tqdm import tqdm
+
+    out = run.folder
     options = options if options is not None else FitOptions()
     calls = [dict(name=r.name, track=str(r.track), round_path=str(r.round), outdir=str(out / r.name),
                   jobs=tuple(jobs), options=options, covariance=covariance) for r in camp.rounds]
@@ -285,34 +297,59 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
     reports.sort(key=lambda r: order.get(r["name"], len(order)))
     doc = None
     if "fit" in jobs:
-        doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo)
+        doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo, into=run.staging)
     return {"reports": reports, "failed": failed, "campaign": doc, "seconds": time.perf_counter() - t0}
 
 
-def pool_campaign(camp, out, failed=(), seed=0, echo=print):
+def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
     """Pool the rounds of ``camp`` whose ``pooling.json`` exists in ``out`` and write
-    ``campaign.json``, ``campaign.html`` and the figures. Returns the document or None when no
-    round was fitted."""
+    ``campaign.json``, ``campaign.html`` and the figures into ``into`` (default ``out``).
+    Returns the document or None when no round was fitted. A round whose ``pooling.json`` cannot
+    be read as a pooling input of this version is left out and reported in ``failed``."""
     import numpy as np
 
     from ..campaign.pooling import campaign_json, pool_rounds
     from ..report.campaign import write_campaign_report
 
-    inputs = []
+    inputs, failed = [], list(failed)
     for r in camp.rounds:
         p = Path(out) / r.name / POOLING
         if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
-            inputs.append(json.loads(p.read_text(encoding="utf-8")))
+            try:
+                inputs.append(_pooling_doc(p))
+            except InputError as exc:
+                failed.append({"name": r.name, "job": "pool", "message": str(exc)})
+                print(f"bayesdrag: round {r.name} left out of the pooling: {exc}", file=sys.stderr)
     if not inputs:
         echo("campaign: no fitted round to pool")
         return None
     pooled = pool_rounds(inputs, rng=np.random.default_rng(seed))
     doc = campaign_json(pooled, inputs, camp.name, failed)
-    write_campaign_report(out, camp, inputs, pooled, doc)
+    write_campaign_report(into if into is not None else out, camp, inputs, pooled, doc)
     s = doc["scatter"]
     echo(f"campaign: pooled {len(inputs)} of {len(camp.rounds)} rounds; round-to-round scatter of Cd "
          f"{100 * s['median']:.2f} % (90 % interval {100 * s['q05']:.2f}-{100 * s['q95']:.2f} %); "
          f"wrote {Path(out) / 'campaign.json'}, campaign.html")
+    return doc
+
+
+def _pooling_doc(path):
+    """A round's ``pooling.json`` (bounded JSON, never evaluated), its arrays checked: ``mach``,
+    ``cd`` (n finite numbers), ``cov`` (n x n), ``mach_range``."""
+    import numpy as np
+
+    doc = read_json(path, "pooling input", max_bytes=16 << 20)
+    try:
+        m = np.asarray(doc["mach"], float)
+        cd = np.asarray(doc["cd"], float)
+        cov = np.asarray(doc["cov"], float)
+        lo, hi = (float(v) for v in doc["mach_range"])
+        ok = (m.ndim == 1 and m.size >= 1 and cd.shape == m.shape and cov.shape == (m.size, m.size)
+              and np.all(np.isfinite(m)) and np.all(np.isfinite(cd)) and np.all(np.isfinite(cov)) and lo <= hi)
+    except (KeyError, TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"{path}: not a pooling input of this version (mach, cd, cov, mach_range); refit the round")
     return doc
 
 

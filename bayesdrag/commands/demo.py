@@ -9,16 +9,16 @@ when run again.
 """
 from __future__ import annotations
 
-import json
 from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..io.outputs import write_figure
+from ..io.outputs import write_figure, write_json
 from .fit import run_fit
 from .options import FitOptions
+from .runs import output_run
 
 __all__ = ["demo_inputs", "run_demo"]
 
@@ -34,24 +34,43 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
 
     Writes ``track_vs_pointmass.png``, ``differences.png``, ``reference_cd.png``, the ``fit``
     outputs (``result.json``, ``posterior.nc``, ``chain.h5``, figures, ``report.html``) and
-    ``summary.json`` into ``outdir`` (created if needed) and returns the summary dict.
+    ``summary.json`` into ``outdir`` (created if needed) as one run (``manifest.json``; an
+    earlier demo's files moved to ``superseded/``) and returns the summary dict.
     """
-    from ..dynamics.pointmass import PointMassModel
-    from ..dynamics.trajectory import initial_state
     from ..io.rounds import read_round
     from ..io.tracks import read_track
+
+    outdir = Path(outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise InputError(f"{outdir}: output path exists and is not a folder")
+    track_path, round_path = demo_inputs()
+    track = read_track(track_path)
+    rnd = read_round(round_path)
+    with output_run(outdir, "demo", track_path, round_path, rnd, FitOptions(seed=seed)) as run:
+        summary, result = _demo_run(run, track, rnd, track_path, round_path, seed, quiet)
+    m = result["mcmc"]
+    det, worst = summary["mach_range_determined"], summary["max_rel_diff_posterior_mean_to_reference_in_determined_range"]
+    echo(f"demo: {track.n} samples of a 6-DOF track (paper Table 1 shell, M101 drag) vs the point-mass model")
+    echo("  rms differences with the firing-table drag: "
+         + ", ".join(f"{c} {v:.2f} {'m/s' if c == 'v' else 'm'}" for c, v in summary["rms_track_minus_pointmass"].items()))
+    echo(f"  ML + emcee (Scheme 1, spline): {m['message']}")
+    if worst is not None:
+        echo(f"  Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}; posterior mean within {100 * worst:.1f} % "
+             f"of the M101 firing table there")
+    echo(f"  report: {(outdir / 'report.html').resolve()}")
+    return summary
+
+
+def _demo_run(run, track, rnd, track_path, round_path, seed, quiet):
+    """The demo's work inside its output run: figures, the fit (into the same run), summary."""
+    from ..dynamics.pointmass import PointMassModel
+    from ..dynamics.trajectory import initial_state
     from ..plots.cd import plot_cd_ml, plot_drag_curve
     from ..plots.residuals import plot_residuals
     from ..plots.track import plot_differences, plot_track
     from ..track import RadarTrack
 
-    outdir = Path(outdir)
-    if outdir.exists() and not outdir.is_dir():
-        raise InputError(f"{outdir}: output path exists and is not a folder")
-    outdir.mkdir(parents=True, exist_ok=True)
-    track_path, round_path = demo_inputs()
-    track = read_track(track_path)
-    rnd = read_round(round_path)
+    stage = run.staging
     L = rnd.launch
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, rnd.reference_drag,
                            rnd.atmosphere)
@@ -64,19 +83,19 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     fig = plot_track(track, label="radar track (6-DOF + noise)", style=".")
     plot_track(sim_track, fig=fig, label="point mass, M101 drag")
     fig.suptitle("bayesdrag demo: paper Table 1 shell, 818 m/s, QE 15 deg")
-    write_figure(outdir / "track_vs_pointmass.png", fig)
+    write_figure(stage / "track_vs_pointmass.png", fig)
     ax = plot_differences(track.t, diffs, title="radar track minus point-mass simulation")
-    write_figure(outdir / "differences.png", ax.figure)
+    write_figure(stage / "differences.png", ax.figure)
     m = np.linspace(0.5, 2.6, 400)
     ax = plot_drag_curve(m, rnd.reference_drag.value(m), label="M101 (BRL MR-1167)")
     mach = sim.mach
     ax.axvspan(mach.min(), mach.max(), color="C1", alpha=0.15, label="Mach range of the flight")
     ax.legend(fontsize="small")
-    write_figure(outdir / "reference_cd.png", ax.figure)
+    write_figure(stage / "reference_cd.png", ax.figure)
 
     # the whole fit pipeline (ML + emcee + report), as `bayesdrag fit` runs it
-    fitted = run_fit(track_path, round_path, outdir, FitOptions(seed=seed),
-                     resume=(outdir / "chain.partial.h5").exists(), quiet=quiet, echo=lambda *a: None)
+    fitted = run_fit(track_path, round_path, run.folder, FitOptions(seed=seed),
+                     resume=(run.folder / "chain.partial.h5").exists(), quiet=quiet, echo=lambda *a: None, run=run)
     result = fitted.to_dict()
     det = result["ml"]["mach_range_determined"]
     rows = result["cd"]
@@ -87,8 +106,8 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     res = fitted.ml
     ax = plot_cd_ml(rows, label="ML, spline (from the 6-DOF track)")
     ax.set_title("Cd from the shipped 6-DOF track vs the M101 firing table (ML)")
-    write_figure(outdir / "cd_ml.png", ax.figure)
-    write_figure(outdir / "residuals_ml.png", plot_residuals(track.t, res.residuals, res.sigma))
+    write_figure(stage / "cd_ml.png", ax.figure)
+    write_figure(stage / "residuals_ml.png", plot_residuals(track.t, res.residuals, res.sigma))
     summary = {
         "track": str(track_path), "round": str(round_path), "samples": track.n,
         "rms_track_minus_pointmass": rms, "final_track_minus_pointmass": final,
@@ -99,20 +118,10 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
                    "mach_range_determined": det, "max_rel_diff_to_reference_in_determined_range": worst_ml,
                    "warnings": list(res.warnings)},
         "mcmc": {k: result["mcmc"][k] for k in ("converged", "message", "steps", "walkers", "tau_max", "seconds")},
-        "report": str((outdir / "report.html").resolve()),
+        "report": str((run.folder / "report.html").resolve()),
         "note": "the 6-DOF shell flies slightly longer and drifts right (yaw of repose, not in the "
                 "point-mass model), which the fit partly absorbs in Cd and the initial state; the "
                 "residual autocorrelation in the report shows it",
     }
-    with open(outdir / "summary.json", "w") as fh:
-        json.dump(summary, fh, indent=2)
-    m = result["mcmc"]
-    echo(f"demo: {track.n} samples of a 6-DOF track (paper Table 1 shell, M101 drag) vs the point-mass model")
-    echo("  rms differences with the firing-table drag: "
-         + ", ".join(f"{c} {v:.2f} {'m/s' if c == 'v' else 'm'}" for c, v in rms.items()))
-    echo(f"  ML + emcee (Scheme 1, spline): {m['message']}")
-    if worst is not None:
-        echo(f"  Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}; posterior mean within {100 * worst:.1f} % "
-             f"of the M101 firing table there")
-    echo(f"  report: {(outdir / 'report.html').resolve()}")
-    return summary
+    write_json(stage / "summary.json", summary)
+    return summary, result

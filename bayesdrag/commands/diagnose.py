@@ -9,6 +9,7 @@ from ..diagnosis import MIN_DIAGNOSIS_SAMPLES
 from ..diagnosis import diagnose as _analyse
 from ..errors import InputError
 from ..results import DiagnosisResult
+from ..track import thin_for_fit
 from .options import DiagnoseOptions
 
 __all__ = ["diagnose", "run_diagnose"]
@@ -33,6 +34,7 @@ def diagnose(track, rnd, options=None, **kwargs):
         ``verdict``, ``paragraph``, ``to_dict()`` (``diagnosis.json``), ``write(DIR)``.
     """
     opts = options if options is not None else DiagnoseOptions()
+    track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
     if kwargs:
         opts = DiagnoseOptions(**{**opts.__dict__, **kwargs})
     if track.n < MIN_DIAGNOSIS_SAMPLES:
@@ -43,9 +45,13 @@ def diagnose(track, rnd, options=None, **kwargs):
     return DiagnosisResult(d, track, rnd)
 
 
-def run_diagnose(track_path, round_path, out, *, quiet=False, echo=print):
+def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None):
     """Read a track and a round, diagnose them, write ``DIR/diagnosis.json``, the figures and
-    ``diagnosis.html``.
+    ``diagnosis.html`` as one consistent set (``manifest.json``; an earlier diagnosis's files
+    moved to ``DIR/superseded/``; the folder checked and locked before the work).
+
+    ``also(result, folder)``, when given, writes further outputs of the run into ``folder``
+    before it is committed (the batch's done marker).
 
     Returns
     -------
@@ -53,8 +59,9 @@ def run_diagnose(track_path, round_path, out, *, quiet=False, echo=print):
     """
     from ..io.rounds import read_round
     from ..io.tracks import read_track
+    from .runs import output_run
 
-    track = read_track(track_path)
+    track = thin_for_fit(read_track(track_path))
     rnd = read_round(round_path)
     if not quiet:
         for note in track.notes:
@@ -62,10 +69,13 @@ def run_diagnose(track_path, round_path, out, *, quiet=False, echo=print):
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output path exists and is not a folder")
-    result = diagnose(track, rnd)
-    result.write(out, sources={"track": track_path, "round": round_path})
+    with output_run(out, "diagnose", track_path, round_path, rnd) as run:
+        result = diagnose(track, rnd, options)
+        result.write_files(run.staging, sources={"track": track_path, "round": round_path})
+        if also is not None:
+            also(result, run.staging)
     if not quiet:
         print(f"bayesdrag: diagnosis: {result.paragraph}", file=sys.stderr)
     echo(f"diagnose: verdict {result.verdict or 'none'}; wrote {out / 'diagnosis.json'}, diagnosis.html, "
-         f"diagnosis_*.png")
+         f"diagnosis_*.png, manifest.json")
     return result

@@ -18,9 +18,14 @@ from ..estimate.quality import assess, check_against_flexible, intervals
 from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1
 from ..estimate.scheme2 import fit_scheme2, windows_table
 from ..results import PARTIAL, FitResult
+from ..track import thin_for_fit
 from .options import FitOptions
 
 __all__ = ["fit", "run_fit", "summary_line"]
+
+#: a track of at least this many samples gets a status line before its fit starts (the ML fit
+#: alone then takes seconds to a minute)
+PROGRESS_SAMPLES = 3000
 
 
 def _echo_err(msg):
@@ -60,6 +65,7 @@ def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, pr
         No solution: the message says why.
     """
     t_start = time.perf_counter()
+    track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
     opts = options if options is not None else FitOptions()
     if kwargs:
         opts = FitOptions(**{**opts.to_dict(), **kwargs})
@@ -295,24 +301,38 @@ def summary_line(result):
     return head + caveat
 
 
-def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print):
+def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print, run=None,
+            also=None):
     """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
 
     Outputs: ``result.json``, ``report.html`` and figures; with sampling also
-    ``posterior.nc`` (ArviZ) and ``chain.h5`` (the emcee chain). While sampling, the chain is
-    written to ``chain.partial.h5``; ``resume`` continues it after a kill, and it becomes
-    ``chain.h5`` when the run finishes. A fresh run refuses to start over an unfinished chain (it
-    would destroy it): resume it or delete it.
+    ``posterior.nc`` (ArviZ) and ``chain.h5`` (the emcee chain); ``manifest.json``. ``DIR`` is
+    written as one consistent set (:class:`~bayesdrag.io.outputs.OutputRun`): checked and locked
+    before the fit starts, the outputs staged and moved in at the end, an earlier run's files
+    moved to ``DIR/superseded/``. While sampling, the chain is written to
+    ``chain.partial.h5``; ``resume`` continues it after a kill, and it becomes ``chain.h5`` when
+    the run finishes. A fresh run refuses to start over an unfinished chain (it would destroy
+    it): resume it or delete it.
+
+    Parameters
+    ----------
+    run : OutputRun, optional
+        An open run to write into (the demo's), instead of one of its own.
+    also : callable, optional
+        ``also(result, folder)`` writes further outputs of the run into ``folder`` (the batch's
+        ``pooling.json``) before it is committed.
 
     Returns
     -------
     FitResult
     """
+    from ..io.chain import ChainFile
     from ..io.rounds import read_round
     from ..io.tracks import read_track
+    from .runs import output_run, throttled
 
     opts = options if options is not None else FitOptions()
-    track = read_track(track_path)
+    track = thin_for_fit(read_track(track_path))
     rnd = read_round(round_path)
     if not quiet:
         for note in track.notes:
@@ -320,19 +340,24 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output path exists and is not a folder")
-    partial = out / PARTIAL
-    sampling = opts.mcmc and opts.scheme == 1
-    if sampling and partial.exists() and not resume:
-        raise InputError(f"{partial}: an unfinished chain from an earlier run is there; resume it (fit --resume) "
-                         f"or delete the file to start afresh")
-    if resume and sampling and not partial.exists() and not quiet:
-        _echo_err(f"bayesdrag: note: --resume: no unfinished chain in {out}; starting afresh")
-    out.mkdir(parents=True, exist_ok=True)
-    show_bar = (not quiet) and sys.stderr.isatty()
-    log = None if (quiet or show_bar) else _echo_err
-    result = fit(track, rnd, opts, chain_path=partial if sampling else None, resume=resume, log=log,
-                 progress=show_bar)
-    written = result.write(out, sources={"track": str(track_path), "round": str(round_path)})
+    with output_run(out, "fit", track_path, round_path, rnd, opts, run=run) as run:
+        partial = out / PARTIAL
+        sampling = opts.mcmc and opts.scheme == 1
+        if sampling and partial.exists() and not resume:
+            raise InputError(f"{partial}: an unfinished chain from an earlier run is there; resume it (fit --resume) "
+                             f"or delete the file to start afresh")
+        if resume and sampling and not partial.exists() and not quiet:
+            _echo_err(f"bayesdrag: note: --resume: no unfinished chain in {out}; starting afresh")
+        show_bar = (not quiet) and sys.stderr.isatty()
+        log = None if (quiet or show_bar) else throttled(_echo_err)
+        if not quiet and track.n >= PROGRESS_SAMPLES:   # long work: say what is happening
+            _echo_err(f"bayesdrag: fitting {track.n} samples: maximum likelihood"
+                      + (", then the posterior (progress below)" if sampling else "") + " ...")
+        chain = ChainFile(partial, inputs=run.inputs_digest) if sampling else None
+        result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar)
+        result.write_into(run, sources={"track": str(track_path), "round": str(round_path)})
+        if also is not None:
+            also(result, run.staging)
     if not quiet:
         for w in result.warnings:
             _echo_err(f"bayesdrag: warning: {w}")
@@ -340,5 +365,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     if result.posterior is not None:
         b = result.posterior
         echo(f"mcmc: {b.message}; {b.steps} steps x {b.nwalkers} walkers in {b.elapsed:.1f} s")
-    echo(f"  wrote {out / 'result.json'}, " + ", ".join(p.name for p in written if p.name != "result.json"))
+    if run.manifest is not None:
+        names = [f["name"] for f in run.manifest["files"] if f["name"] != "result.json"]
+        echo(f"  wrote {out / 'result.json'}, " + ", ".join(names) + ", manifest.json")
     return result

@@ -14,7 +14,7 @@ from ..drag import DRAG_MODEL_NAMES
 from ..errors import InputError
 from ..track import CHANNELS
 
-__all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "LIKELIHOODS", "MOVES",
+__all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "PlanOptions", "LIKELIHOODS", "MOVES",
            "SIMULATION_MODELS", "JOBS"]
 
 #: noise models of the likelihood
@@ -29,6 +29,10 @@ JOBS = ("fit", "diagnose")
 NOISE_MODELS = ("auto", "white", "ar1")
 #: the Student-t likelihood's default degrees of freedom (heavy tails, finite variance)
 DEFAULT_NU = 4.0
+#: the smallest sampler step limit: the sampler's first convergence check comes after 100 steps,
+#: and a shorter chain has no autocorrelation time, r_hat or ESS to report (``--max-steps 1``
+#: used to finish with "tau max nan")
+MIN_MAX_STEPS = 100
 
 
 def _bad(name, value, allowed):
@@ -72,7 +76,8 @@ class FitOptions:
     walkers : int or None
         emcee walkers (default: 16 with the ``auto`` moves, else 2 x parameters + 2).
     max_steps : int
-        Hard limit of sampler steps (the run stops earlier at convergence).
+        Hard limit of sampler steps (the run stops earlier at convergence); at least
+        :data:`MIN_MAX_STEPS`.
     moves : {"auto", "de", "stretch"}
         emcee moves.
     seed : int or None
@@ -122,7 +127,9 @@ class FitOptions:
         _int("overlap", self.overlap, 0)
         if self.walkers is not None:
             _int("walkers", self.walkers, 1)
-        _int("max_steps", self.max_steps, 1)
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < MIN_MAX_STEPS:
+            _bad("max_steps (--max-steps)", self.max_steps,
+                 f"use an integer >= {MIN_MAX_STEPS} (the sampler's first convergence check)")
         if self.moves not in MOVES:
             _bad("moves", self.moves, f"use one of {', '.join(MOVES)}")
         if self.seed is not None:
@@ -250,3 +257,105 @@ class BatchOptions:
             _int("workers", self.workers, 1)
         if self.covariance not in ("colored", "crb"):
             _bad("covariance", self.covariance, "use colored or crb")
+
+
+#: a planned elevation must lie inside this open interval [deg]
+PLAN_ELEVATION_RANGE = (0.0, 90.0)
+#: largest planned launch velocity [m/s] (as the round's)
+PLAN_VELOCITY_MAX = 3000.0
+#: largest round-to-round scatter of Cd a plan accepts [-] (50 %: beyond it the shells differ)
+PLAN_SCATTER_MAX = 0.5
+#: most cases (elevations x velocities) one plan may hold
+PLAN_MAX_CASES = 64
+
+
+def _number_list(name, values, lo, hi, unit, lo_open=True):
+    """A tuple of floats in (lo, hi] (or [lo, hi] when not ``lo_open``), or None."""
+    if values is None:
+        return None
+    vals = (values,) if isinstance(values, (int, float)) and not isinstance(values, bool) else values
+    try:
+        out = tuple(float(v) for v in vals if not isinstance(v, bool))
+        if len(out) != len(tuple(vals)):
+            raise TypeError
+    except (TypeError, ValueError):
+        _bad(name, values, f"use a list of numbers in {unit}")
+    low_ok = (lambda v: v > lo) if lo_open else (lambda v: v >= lo)
+    if not out or not all(math.isfinite(v) and low_ok(v) and v <= hi for v in out):
+        _bad(name, values, f"use one or more values in {'(' if lo_open else '['}{lo:g}, {hi:g}] {unit}")
+    return out
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """Options of ``bayesdrag plan`` / :func:`bayesdrag.plan`.
+
+    Attributes
+    ----------
+    elevations : tuple of float or None, deg
+        Planned quadrant elevations, each in (0, 90) (default: the round's ``[launch] elevation``).
+    velocities : tuple of float or None, m/s
+        Planned launch velocities (charges) (default: the round's ``[launch] velocity``). The
+        cases are every elevation x velocity pair (at most 64).
+    dt : float, s
+        Radar sample interval (default 0.027, the paper's radar, as ``simulate``).
+    rounds : int
+        Rounds fired per case, pooled (default 1).
+    scatter : float
+        Round-to-round relative sd of Cd (0.01 = 1 %; default 0): with ``rounds`` the sd is that
+        of the population mean.
+    target : float or None
+        Target relative sd of Cd (0.005 = 0.5 %): the plan then says which combination of the
+        cases reaches it over the widest Mach interval.
+    lock_on, loss : float or None, s
+        The tracked part of the flight: from ``lock_on`` (default launch) to ``loss`` (default
+        impact).
+    seed : int
+        Seed of the noisy realisation whose start curve places the fit's knots (default 0).
+    """
+
+    elevations: tuple | None = None
+    velocities: tuple | None = None
+    dt: float = 0.027
+    rounds: int = 1
+    scatter: float = 0.0
+    target: float | None = None
+    lock_on: float | None = None
+    loss: float | None = None
+    seed: int = 0
+
+    def __post_init__(self):
+        lo, hi = PLAN_ELEVATION_RANGE
+        el = _number_list("elevations", self.elevations, lo, hi, "deg")
+        if el is not None and any(v >= hi for v in el):
+            _bad("elevations", self.elevations, f"use elevations in ({lo:g}, {hi:g}) deg")
+        object.__setattr__(self, "elevations", el)
+        object.__setattr__(self, "velocities", _number_list("velocities", self.velocities, 0.0, PLAN_VELOCITY_MAX, "m/s"))
+        if el is not None and self.velocities is not None and len(el) * len(self.velocities) > PLAN_MAX_CASES:
+            _bad("elevations x velocities", f"{len(el)} x {len(self.velocities)}",
+                 f"plan at most {PLAN_MAX_CASES} cases at once")
+        if isinstance(self.dt, bool) or not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt)
+                                             and 1e-4 <= self.dt <= 5.0):
+            _bad("dt", self.dt, "use a sample interval in [0.0001, 5] s")
+        _int("rounds", self.rounds, 1)
+        if isinstance(self.scatter, bool) or not (isinstance(self.scatter, (int, float))
+                                                  and 0.0 <= self.scatter <= PLAN_SCATTER_MAX):
+            _bad("scatter", self.scatter, f"use a relative sd in [0, {PLAN_SCATTER_MAX:g}] (0.01 = 1 %)")
+        if self.target is not None and (isinstance(self.target, bool) or not (
+                isinstance(self.target, (int, float)) and 0.0 < self.target < 1.0)):
+            _bad("target", self.target, "use a relative sd of Cd in (0, 1) (0.005 = 0.5 %)")
+        for name in ("lock_on", "loss"):
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0)):
+                _bad(name, v, "use a time since launch >= 0 s")
+        if self.loss is not None and not self.loss > (self.lock_on or 0.0):
+            _bad("loss", self.loss, f"use a time after the lock-on ({self.lock_on or 0.0:g} s)")
+        _int("seed", self.seed, 0)
+
+    def to_dict(self):
+        """The options as a plain dict."""
+        d = asdict(self)
+        for k in ("elevations", "velocities"):
+            if d[k] is not None:
+                d[k] = list(d[k])
+        return d

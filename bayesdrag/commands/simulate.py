@@ -2,6 +2,9 @@
 (:func:`run_simulate`)."""
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 
 from ..errors import InputError
@@ -39,12 +42,22 @@ def simulate(rnd, options=None, **kwargs):
 
 
 def run_simulate(round_path, output, options=None, *, echo=print):
-    """``bayesdrag simulate ROUND -o TRACK``: write the synthetic track as CSV. Returns it."""
-    from ..io.rounds import read_round
+    """``bayesdrag simulate ROUND -o TRACK``: write the synthetic track as CSV. Returns it.
+
+    ``TRACK`` must not be one of the run's inputs (the round file, its reference table or met
+    profile): that is refused before any work, never overwritten. The file is written under a
+    temporary name and renamed into place (mode ``0666 & ~umask``)."""
+    from ..io.rounds import read_round, round_files
     from ..io.tracks import write_track
 
     opts = options if options is not None else SimulateOptions()
     rnd = read_round(round_path)
+    out = Path(output)
+    for role, p in round_files(round_path, rnd).items():
+        if os.path.lexists(out) and out.exists() and os.path.samefile(out, p):
+            what = {"round": "the round file", "reference_drag": "the round's reference_drag table",
+                    "met_profile": "the round's met profile"}.get(role, role)
+            raise InputError(f"-o {output}: that is {what}, an input of this run; write the track to another file")
     track = simulate(rnd, opts)
     comment = f"synthetic track: {opts.model}, dt = {opts.dt} s, from {round_path}"
     if opts.noise:

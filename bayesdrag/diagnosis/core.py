@@ -17,7 +17,7 @@ from .selection import DRAG_EFFECTS, conditional_shrinks, select_effects, wrong_
 from .setup import edf, fit_effects, flown_mach_span, make_setup, n_weighted, noise_floor, report_params
 from .signatures import mark_confounded
 from .statistics import ALPHA
-from .where import where_segments, with_launch_misfit
+from .where import absorbed_by_launch, where_segments, with_launch_misfit
 
 __all__ = ["diagnose", "Diagnosis", "MIN_DIAGNOSIS_SAMPLES"]
 
@@ -275,11 +275,14 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     z_model = y_base[:, chans.index("z")] if "z" in chans else None
     where = where_segments(track.t, b.resid / sig_vec[None, :], setup.weights, b.mach, z_model, chans)
     where = with_launch_misfit(where, track.t[0], b.prior_terms, b.gap)
+    x_end = float(y_base[-1, chans.index("x")]) if "x" in chans else 0.0
+    absorbed = absorbed_by_launch(b.prior_terms, {p.name: p.sd for p in setup.priors}, x_end)
     for r in rows:
         r.pop("inflation_raw", None)
     summary = {
         "baseline": _baseline_summary(setup, track, b),
         "where": where,
+        "absorbed": absorbed,
         "effects": rows,
         "verdict": verdict,
         "immaterial": immaterial,

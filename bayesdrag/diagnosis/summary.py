@@ -2,7 +2,7 @@
 report shows for each effect ("Cd shift 0.05 %, end of track moved 0.3 noise sd")."""
 from __future__ import annotations
 
-__all__ = ["summary_paragraph", "impact_text", "reported_values"]
+__all__ = ["summary_paragraph", "impact_text", "reported_values", "absorbed_text"]
 
 
 def _pct(x):
@@ -134,4 +134,14 @@ def summary_paragraph(s):
         else:
             parts.append(f"Largest miss: {w['channel']} {w['t_start']:.1f}-{w['t_end']:.1f} s ({w['phase']}, "
                          f"{100 * w['share']:.0f} % of the systematic residual).")
+    parts += [absorbed_text(a) for a in s.get("absorbed") or []]
     return " ".join(parts)
+
+
+def absorbed_text(a):
+    """One sentence on a miss the baseline fit absorbed into its launch angles (a row of the
+    summary's ``absorbed``)."""
+    what = "cross drift (y)" if a["channel"] == "y" else "height (z)"
+    return (f"Absorbed: the fit turned the launch {a['name']} by {a['moved_deg']:+.3g} deg ({a['moved_sd']:.1f} sd of "
+            f"the round's launch uncertainty), which takes up a {what} of {a['drift_m']:.3g} m at the end of the "
+            f"track; the ranking of where the simulation misses counts only what is left.")

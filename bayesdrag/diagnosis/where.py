@@ -3,17 +3,27 @@
 The normalised baseline residuals are smoothed over ~1 % of the flight; a segment is where the
 smoothed residual exceeds the noise sd (merged over short breaks), by channel, with its time,
 Mach range, phase (ascent, apex = within ``APEX_FRACTION`` of the flight time of the summit,
-descent) and share of the systematic residual energy (:func:`where_segments`). A start that
-misses the muzzle at t = 0 is a segment of its own, ``launch`` (:func:`with_launch_misfit`).
+descent; ``whole flight`` for a segment through the apex that covers most of the track) and share
+of the systematic residual energy (:func:`where_segments`). A start that misses the muzzle at
+t = 0 by at least :data:`LAUNCH_MISFIT_SD` prior sd is a segment of its own, ``launch``
+(:func:`with_launch_misfit`); a smaller misfit is noise and is not reported. What the baseline
+fit absorbed into its launch state (a cross drift taken up by turning the launch heading) is not
+in any channel's residual; :func:`absorbed_by_launch` says how much it was.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["where_segments", "with_launch_misfit", "phase"]
+__all__ = ["where_segments", "with_launch_misfit", "phase", "absorbed_by_launch"]
 
 #: apex phase: within this fraction of the flight time of the summit
 APEX_FRACTION = 0.1
+#: a segment through the apex covering at least this fraction of the track is the whole flight
+WHOLE_FLIGHT_FRACTION = 0.8
+#: a launch-prior misfit below this many prior sd is noise: not reported as a miss
+LAUNCH_MISFIT_SD = 2.0
+#: a launch angle the fit moved by at least this many prior sd is reported as absorbing a miss
+ABSORBED_SD = 1.0
 
 
 def phase(t, t_apex, t_end, t0):
@@ -84,10 +94,49 @@ def where_segments(t, resid_norm, weights, mach, z_model, channels, window=None)
             segs.append({"channel": c, "t_start": float(t[a]), "t_end": float(t[b]),
                          "mach_min": float(m.min()) if m.size else None,
                          "mach_max": float(m.max()) if m.size else None,
-                         "phase": max(e_by, key=e_by.get), "phases": phases, "share": share,
+                         "phase": _phase_name(phases, e_by, t[a], t[b], t[0], t[-1]), "phases": phases,
+                         "share": share,
                          "peak_sigma": float(np.max(np.abs(smooth[sl, j])))})
     segs.sort(key=lambda s: -s["share"])
     return segs
+
+
+def _phase_name(phases, energy_by_phase, ta, tb, t0, t1):
+    """The phase a segment is named by: ``whole flight`` when it runs from ascent to descent over
+    most of the track, else the phase holding most of its residual energy."""
+    if "ascent" in phases and "descent" in phases and tb - ta >= WHOLE_FLIGHT_FRACTION * max(t1 - t0, 1e-9):
+        return "whole flight"
+    return max(energy_by_phase, key=energy_by_phase.get)
+
+
+def absorbed_by_launch(prior_terms, prior_sd, x_end):
+    """What the baseline fit took up by moving its launch angles from the round's values.
+
+    Parameters
+    ----------
+    prior_terms : dict name -> float
+        Normalised launch-prior misfit ``(mean - value) / sd`` of the baseline fit.
+    prior_sd : dict name -> float
+        The priors' sd (degrees for ``heading`` and ``elevation``).
+    x_end : float [m]
+        Range of the track's last sample.
+
+    Returns
+    -------
+    list of dict
+        ``{"name", "moved_deg", "moved_sd", "drift_m", "channel"}`` for ``heading`` (cross drift,
+        channel y) and ``elevation`` (height, channel z) moved by at least :data:`ABSORBED_SD`
+        prior sd: ``drift_m`` is how far that turn moves the track's end.
+    """
+    out = []
+    for name, channel in (("heading", "y"), ("elevation", "z")):
+        k = prior_terms.get(name)
+        if k is None or abs(k) < ABSORBED_SD or name not in prior_sd:
+            continue
+        moved = -float(k) * float(prior_sd[name])
+        out.append({"name": name, "moved_deg": moved, "moved_sd": abs(float(k)), "channel": channel,
+                    "drift_m": float(abs(x_end) * np.tan(np.radians(abs(moved))))})
+    return out
 
 
 def with_launch_misfit(where, t_first, prior_terms, gap):
@@ -112,7 +161,8 @@ def with_launch_misfit(where, t_first, prior_terms, gap):
         ``where``, sorted by share.
     """
     prior_chi2 = float(sum(v * v for v in prior_terms.values()))
-    if prior_chi2 > 0 and gap > 0:
+    worst = max((abs(v) for v in prior_terms.values()), default=0.0)
+    if prior_chi2 > 0 and gap > 0 and worst >= LAUNCH_MISFIT_SD:
         where.append({"channel": "launch", "t_start": 0.0, "t_end": float(t_first),
                       "mach_min": None, "mach_max": None, "phase": "launch", "phases": ["launch"],
                       "share": float(min(prior_chi2 / max(gap + prior_chi2, 1e-9), 1.0)),

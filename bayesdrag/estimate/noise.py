@@ -6,6 +6,17 @@ corrected for the part the smoother absorbs, estimates the noise sd; samples fur
 ``OUTLIER_K`` robust sd from the local curve are gross outliers. The fit's residuals are never
 used for this: a misfit would inflate the estimate and hide itself (the fit's goodness-of-fit
 gate, :mod:`bayesdrag.estimate.quality`, compares the two).
+
+The outlier rule is local. A gross outlier is a lone sample that stands out from its
+neighbours' residuals; where a projectile decelerates fast and the track is coarse (a bullet
+through the transonic drag rise sampled every 0.1 s), the local cubic cannot follow the flight
+and several neighbouring samples share a large, smooth residual that is flight, not error. The
+scale a sample is judged against is therefore the larger of the channel's robust sd, the robust
+sd of the residual over its own neighbourhood (:data:`LOCAL_WINDOW` samples) and
+:data:`OUTLIER_MIN_SD` (a noise-free track has a residual sd near zero, and without a floor the
+smoother's own round-off flagged half its samples). A sample whose interval to its neighbour
+differs from the one before by more than :data:`END_IRREGULARITY` at either end of the track (the
+impact sample of a simulated track) is not smoothed with the others.
 """
 from __future__ import annotations
 
@@ -18,6 +29,13 @@ from scipy.signal import savgol_coeffs, savgol_filter
 OUTLIER_K = 5.0
 #: Savitzky-Golay window (samples) and order of the local smoother for noise and outliers
 HF_WINDOW, HF_ORDER = 11, 3
+#: neighbourhood [samples] over which the local residual scale of the outlier rule is taken
+LOCAL_WINDOW = 11
+#: the smallest scale [m, m/s] a sample is judged an outlier against: 5 mm is never a gross error,
+#: and below it are round-off and the 4 decimals a track file holds
+OUTLIER_MIN_SD = 1e-3
+#: relative change of the sample interval at a track's first or last sample that sets it apart
+END_IRREGULARITY = 0.1
 
 
 def hf_residual_t(t, z, window=HF_WINDOW, order=HF_ORDER):
@@ -27,6 +45,13 @@ def hf_residual_t(t, z, window=HF_WINDOW, order=HF_ORDER):
     dtt = np.diff(t)
     med = np.median(dtt) if dtt.size else 1.0
     cuts = np.flatnonzero(dtt > 1.5 * med) + 1
+    if dtt.size >= 2:     # an end sample off the regular grid (the impact sample) stands apart
+        extra = []
+        if abs(dtt[0] / dtt[1] - 1.0) > END_IRREGULARITY:
+            extra.append(1)
+        if abs(dtt[-1] / dtt[-2] - 1.0) > END_IRREGULARITY:
+            extra.append(z.size - 1)
+        cuts = np.unique(np.concatenate([cuts, np.asarray(extra, dtype=cuts.dtype)]))
     e = np.zeros_like(z)
     valid = np.zeros(z.size, bool)
     fac = 1.0
@@ -83,6 +108,33 @@ def robust_sd(e):
     return 1.4826 * float(np.median(np.abs(e - med)))
 
 
+def local_robust_sd(e, valid, window=LOCAL_WINDOW):
+    """Robust sd (1.4826 MAD) of ``e`` over the ``window`` samples centred on each sample, from
+    the valid ones (0 where fewer than 3 are valid).
+
+    Parameters
+    ----------
+    e : (N,) array
+    valid : (N,) bool array
+    window : int, odd
+
+    Returns
+    -------
+    (N,) array, the unit of ``e``
+    """
+    h = window // 2
+    x = np.where(valid, e, np.nan)
+    pad = np.pad(x, h, constant_values=np.nan)
+    win = np.lib.stride_tricks.sliding_window_view(pad, window)
+    ok = np.isfinite(win).sum(axis=1) >= 3
+    out = np.zeros(e.size)
+    if ok.any():
+        w = win[ok]
+        med = np.nanmedian(w, axis=1)
+        out[ok] = 1.4826 * np.nanmedian(np.abs(w - med[:, None]), axis=1)
+    return out
+
+
 def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
     """Noise sd per channel and a gross-outlier mask, from the data's high-frequency content.
 
@@ -118,9 +170,8 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
                 # short or coarsely quantised track the smoother follows the data too closely
                 # and its residual sd is far below the noise (Warner's 16-sample reports)
                 s = max(s, float(sigma_given[c]))
-            if s <= 0:
-                break
-            new = valid & (np.abs(z - (zz - e)) > k * s)
+            scale = np.maximum(np.maximum(s, local_robust_sd(e, valid)), OUTLIER_MIN_SD)
+            new = valid & (np.abs(z - (zz - e)) > k * scale)
             if np.array_equal(new, flagged):
                 break
             flagged = new

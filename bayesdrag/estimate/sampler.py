@@ -24,6 +24,7 @@ Run (choices measured, see ``docs/bayes.md`` and ``benchmarks/fit.py --moves``)
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -37,6 +38,7 @@ from scipy.special import ndtri
 from scipy.stats import rankdata
 
 from .._threads import single_blas
+from .._signals import deferred_interrupt
 from ..errors import InputError
 from ..io.chain import ChainFile
 from .moves import describe_moves, make_moves
@@ -431,7 +433,8 @@ def _open_backend(path, resume, post, nwalkers, check_every, fingerprint):
     """(backend, steps already stored): the resumed chain file, a fresh one, or (None, 0)."""
     if path is None:
         return None, 0
-    cf = ChainFile(path, flush_every=check_every)
+    # a ChainFile given by the command carries the digest of the input files' bytes
+    cf = ChainFile(path, flush_every=check_every, inputs=getattr(path, "inputs", None))
     backend = None
     if resume and cf.exists():
         backend = cf.load_backend(nwalkers=nwalkers, ndim=post.ndim, nblobs=post.C, fingerprint=fingerprint)
@@ -451,6 +454,8 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
     old_tau = None
     tau = np.full(post.ndim, np.nan)
     tau_hist = []
+    stop = contextlib.ExitStack()
+    interrupted = stop.enter_context(deferred_interrupt())   # Ctrl-C between blocks, not inside numba/emcee
     try:
         while done < max_steps:
             n = min(check_every, max_steps - done) if done >= min_steps else max(min_steps - done, 1)
@@ -460,6 +465,7 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
             done = sampler.iteration
             if backend is not None:
                 backend.flush()
+            interrupted()
             if bar is not None:
                 bar.update(n)
             if done < min_steps:
@@ -490,7 +496,11 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
     finally:
         if bar is not None:
             bar.close()
-    message = (f"not converged after {done} steps (max_steps): tau max {np.nanmax(tau):.1f} "
+        stop.close()
+    if not np.isfinite(tau).any():       # a resumed chain already at max_steps: no block was run
+        tau = integrated_time(sampler.get_chain())
+    tau_txt = f"{np.max(tau):.1f}" if np.isfinite(tau).any() else "unknown"
+    message = (f"not converged after {done} steps (max_steps): tau max {tau_txt} "
                f"needs {TAU_FACTOR:g} tau; the draws are reported but check the diagnostics")
     return False, message, tau, tuple(tau_hist)
 

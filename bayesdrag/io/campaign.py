@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
+from .csv import read_text
 
 __all__ = ["CampaignRound", "Campaign", "is_campaign_file", "read_campaign", "write_campaign"]
 
@@ -61,9 +62,9 @@ def is_campaign_file(path):
     if p.suffix.lower() != ".toml" or not p.is_file():
         return False
     try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
-        return False
+        doc = tomllib.loads(read_text(p, "campaign file"))
+    except (tomllib.TOMLDecodeError, InputError, RecursionError):
+        return True     # read_campaign says what is wrong with it
     return "campaign" in doc or "rounds" in doc
 
 
@@ -86,16 +87,14 @@ def read_campaign(path):
         fewer than one round.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: campaign file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the campaign file ({exc})") from None
+    text = read_text(path, "campaign file")
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a campaign file: arrays or tables nested too deeply for TOML to be read "
+                         f"(a campaign lists [[rounds]] of name, track and round)") from None
     unknown = [k for k in doc if k not in ("campaign", "rounds")]
     if unknown:
         raise InputError(f"{path}: unknown top-level key {unknown[0]!r}; allowed: [campaign], [[rounds]]")

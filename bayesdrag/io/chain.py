@@ -30,17 +30,29 @@ attributes of           str, int, int,       ``bit_generator`` ("MT19937"), ``po
 
 The five random-state fields are those of ``numpy.random.RandomState.get_state()``; ``step`` is
 the chain step they belong to (equal to ``iteration`` in a consistent file).
+
+The fingerprint stored is the sampler's (problem, walkers, moves, seed) combined with the digest of
+the input files' bytes when the command gives one (``ChainFile(path, inputs=...)``): a chain made
+from other track or round files, or copied from another folder made from other inputs, is refused.
+The chain path must be a regular file (or absent): a symbolic link or a device planted at
+``chain.partial.h5`` is refused before it is opened, so starting a chain never truncates another
+file. Before each block is appended the free disk space is checked
+(:func:`bayesdrag.io.outputs.ensure_space`): a full disk stops the run with one line and the
+blocks already written intact, instead of an HDF5 write failing half-way (which crashed h5py).
 """
 from __future__ import annotations
 
+import hashlib
+import os
 import re
-from pathlib import Path
+import stat
 
 import emcee
 import h5py
 import numpy as np
 
 from ..errors import InputError
+from .outputs import DiskFullError, ensure_space, is_disk_full
 
 #: value of the ``format`` attribute written and accepted
 FORMAT = "bayesdrag-chain/2"
@@ -62,16 +74,40 @@ class ChainFile:
         The HDF5 file (``DIR/chain.partial.h5`` for ``bayesdrag fit``).
     flush_every : int, keyword-only
         Steps kept in memory before they are appended to the file (default 25).
+    inputs : str, keyword-only, optional
+        Digest of the input files' bytes (:attr:`bayesdrag.io.outputs.OutputRun.inputs_digest`),
+        combined with every fingerprint written and checked.
     """
 
-    def __init__(self, path, *, flush_every=25):
-        self.path = str(path)
+    def __init__(self, path, *, flush_every=25, inputs=None):
+        self.path = os.fspath(path)
         self.flush_every = int(flush_every)
+        self.inputs = None if inputs is None else str(inputs)
+
+    def __fspath__(self):
+        return self.path
 
     def exists(self):
         """True when something is stored at ``path`` (whether it is a valid chain is checked by
         :meth:`load_backend`)."""
-        return Path(self.path).exists()
+        return os.path.lexists(self.path)
+
+    def fingerprint(self, base):
+        """The fingerprint stored for a sampler fingerprint ``base``: ``base`` itself, or its hash
+        with the inputs' digest."""
+        if self.inputs is None:
+            return str(base)
+        return hashlib.sha256(f"{base}:{self.inputs}".encode()).hexdigest()[:16]
+
+    def _check_kind(self):
+        """Refuse a path that is a symbolic link or not a regular file (opened by name later)."""
+        try:
+            st = os.lstat(self.path)
+        except FileNotFoundError:
+            return
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a symbolic link" if stat.S_ISLNK(st.st_mode) else "not a regular file"
+            raise InputError(f"{self.path}: the chain file is {kind}; {_AFRESH}")
 
     def new_backend(self, nwalkers, ndim, *, fingerprint):
         """A fresh :class:`ChainBackend`; the file is (re)created holding no step.
@@ -83,6 +119,8 @@ class ChainFile:
         fingerprint : str
             Hex digest of what defines the chain (data, settings), checked when resuming.
         """
+        self._check_kind()
+        fingerprint = self.fingerprint(fingerprint)
         with h5py.File(self.path, "w") as f:
             g = f.create_group(GROUP)
             g.attrs["format"] = FORMAT
@@ -114,9 +152,10 @@ class ChainFile:
             chain of this format (a file with a pickled random state included), another problem or settings, datasets of the wrong type or shape,
             non-finite values, or a malformed random state.
         """
+        self._check_kind()
         try:
             with h5py.File(self.path, "r") as f:
-                return self._read(f, int(nwalkers), int(ndim), int(nblobs), str(fingerprint))
+                return self._read(f, int(nwalkers), int(ndim), int(nblobs), self.fingerprint(fingerprint))
         except InputError:
             raise
         except (OSError, KeyError, ValueError, TypeError, RuntimeError, MemoryError) as exc:
@@ -240,6 +279,22 @@ class ChainBackend(emcee.backends.Backend):
         n0, n1 = self.flushed, self.iteration
         if n1 <= n0:
             return
+        W, D = self.nwalkers, self.ndim
+        C = 0 if self.blobs is None else (self.blobs.shape[2] if self.blobs.ndim == 3 else 1)
+        # HDF5 allocates whole chunks of 32 steps; twice the block and a chunk spare
+        need = 8 * W * (D + 1 + C) * (2 * (n1 - n0) + 64) + 8 * W + 8192
+        path = self.file.path
+        ensure_space(os.path.dirname(os.path.abspath(path)), need, os.path.basename(path))
+        try:
+            self._append(n0, n1)
+        except (OSError, RuntimeError) as exc:
+            if is_disk_full(exc, os.path.dirname(os.path.abspath(path))):
+                raise DiskFullError(f"{path}: the disk is full (No space left on device) while writing the "
+                                  f"chain") from None
+            raise
+        self.flushed = n1
+
+    def _append(self, n0, n1):
         with h5py.File(self.file.path, "a") as f:
             g = f[GROUP]
             W, D = self.nwalkers, self.ndim
@@ -259,7 +314,6 @@ class ChainBackend(emcee.backends.Backend):
             g.create_dataset("accepted", data=np.asarray(self.accepted, float))
             _write_random_state(g, self.random_state, n1)
             g.attrs["iteration"] = n1
-        self.flushed = n1
 
 
 def _write_random_state(g, state, step):

@@ -7,24 +7,81 @@ allowed.
 """
 from __future__ import annotations
 
+import os
+import re
+import stat
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["read_text", "read_table", "read_csv_columns"]
+__all__ = ["read_bytes", "read_text", "read_table", "read_csv_columns", "MAX_BYTES"]
+
+#: the largest file of each role read [bytes]: a bound on the memory a file can take (a track of a
+#: million samples is ~50 MB of text; nothing a fit needs comes near these); reading stops there
+MAX_BYTES = {"track": 256 << 20, "round file": 1 << 20, "campaign file": 1 << 20, "drag table": 16 << 20,
+             "met profile": 16 << 20}
+DEFAULT_MAX_BYTES = 256 << 20
+_ADVICE = {"track": "thin it (every k-th row) or split it",
+           "round file": "a round file holds a few sections of keys"}
 
 
-def read_text(path: Path, what: str) -> str:
+def _kind(mode):
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISFIFO(mode):
+        return "a pipe"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def read_bytes(path, what, max_bytes=None, *, head=False):
+    """The bytes of a regular file, at most ``max_bytes`` (default by role, :data:`MAX_BYTES`).
+
+    A device (``/dev/zero``), pipe or socket is refused before anything is read (opened without
+    blocking), and a file larger than the bound is refused by its size, never read to the end.
+    With ``head=True`` the first ``max_bytes`` are returned whatever the file's size.
+
+    Raises
+    ------
+    InputError
+        Not found, a directory, not a regular file, unreadable, or too large.
+    """
+    path = Path(path)
+    limit = int(max_bytes or MAX_BYTES.get(what, DEFAULT_MAX_BYTES))
     try:
-        raw = path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
         raise InputError(f"{path}: {what} not found") from None
     except IsADirectoryError:
         raise InputError(f"{path}: {what} expected, found a directory") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    st = os.fstat(fd)                 # before fdopen, which refuses a directory with its own error
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise InputError(f"{path}: {what} expected, found a directory")
+        raise InputError(f"{path}: {what} is {_kind(st.st_mode)}, not a regular file; give a file")
+    with os.fdopen(fd, "rb") as fh:
+        if not head and st.st_size > limit:
+            raise InputError(f"{path}: {what} is {st.st_size} bytes, more than the {limit} allowed"
+                             + (f"; {_ADVICE[what]}" if what in _ADVICE else ""))
+        try:
+            raw = fh.read(limit if head else limit + 1)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    if len(raw) > limit:
+        raise InputError(f"{path}: {what} is more than the {limit} bytes allowed")
+    return raw
+
+
+def read_text(path: Path, what: str, max_bytes=None) -> str:
+    """The UTF-8 text of a regular file (:func:`read_bytes`), refusing UTF-16 and binary files."""
+    path = Path(path)
+    raw = read_bytes(path, what, max_bytes)
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise InputError(f"{path}: {what} is UTF-16 encoded; save it as UTF-8 (or ASCII) text")
     try:
@@ -55,8 +112,19 @@ def _clean_name(s: str) -> str:
     return s
 
 
-def read_table(path, what, required=(), allowed=None, header_check=None):
-    """Parse a strict numeric CSV. Returns (path, names, data (N, K), line numbers (N,))."""
+#: the largest magnitude a number in any table may have: far beyond anything physical here, and
+#: small enough that squares and sums of squares stay finite (1e300 overflowed inside the fit)
+MAX_MAGNITUDE = 1e15
+
+
+def read_table(path, what, required=(), allowed=None, header_check=None, quote=True):
+    """Parse a strict numeric CSV. Returns (path, names, data (N, K), line numbers (N,)).
+
+    ``quote=False`` for a file named inside another file (a round's reference table or met
+    profile): its content is then not repeated in a message (a round pointing at any readable
+    file would otherwise echo that file's first line): a header problem is shown with the names
+    only when the line is a few plain column names, else the message names the file, the line
+    and the header expected; values are never quoted."""
     path = Path(path)
     text = read_text(path, what)
     if not text.strip():
@@ -67,6 +135,59 @@ def read_table(path, what, required=(), allowed=None, header_check=None):
         raise InputError(f"{path}: {what} has only comments; expected a header row and rows of numbers")
 
     hline, header = rows[0]
+    try:
+        names = _header(path, what, hline, header, required, allowed)
+    except InputError:
+        if quote or _plain_names(header):
+            raise
+        need = f"the columns {','.join(required)}" if required else "column names"
+        raise InputError(f"{path}: line {hline}: not a {what}: the first line that is not a comment must be a "
+                         f"header naming {need}"
+                         + (f" (allowed: {','.join(allowed)})" if allowed else "")
+                         + "; the line is not shown") from None
+    if header_check is not None:
+        header_check(path, hline, names)
+
+    body = rows[1:]
+    if not body:
+        raise InputError(f"{path}: {what} has a header (line {hline}) but no data rows")
+    ncol = len(names)
+    data_lines = [ln for _, ln in body]
+    try:  # fast path (C parser); any problem is located precisely by the slow path below
+        data = np.loadtxt(data_lines, delimiter=",", ndmin=2, comments=None, dtype=float)
+        if data.shape[1] != ncol:
+            raise ValueError
+    except ValueError:
+        data = _slow_parse(path, body, names, quote)
+    line_no = np.fromiter((i for i, _ in body), dtype=np.int64, count=len(body))
+    finite = np.isfinite(data)
+    if not finite.all():
+        r, c = np.argwhere(~finite)[0]
+        field_text = body[r][1].split(",")[c].strip()
+        shown = f"{field_text!r} is" if quote else "the value is"
+        raise InputError(f"{path}: line {line_no[r]}, column {names[c]!r}: {shown} not a "
+                         f"finite number; NaN and infinity are not allowed (drop the row instead)")
+    big = np.abs(data) > MAX_MAGNITUDE
+    if big.any():
+        r, c = np.argwhere(big)[0]
+        shown = f"{data[r, c]:.6g}" if quote else "the value"
+        raise InputError(f"{path}: line {line_no[r]}, column {names[c]!r}: {shown} is out of range; numbers "
+                         f"in a {what} must be within +-{MAX_MAGNITUDE:g} (a unit or typing mistake?)")
+    return path, names, data, line_no
+
+
+_PLAIN_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_ .()\[\]/%-]{0,40}$")
+
+
+def _plain_names(header):
+    """True when a header line is a few plain column names (quoting them reveals nothing of a
+    file that is not a table: ``root:x:0:0:...`` or a key's first line are not)."""
+    names = [_clean_name(n) for n in header.split(",")]
+    return 0 < len(names) <= 16 and all(_PLAIN_NAME.match(n) for n in names)
+
+
+def _header(path, what, hline, header, required, allowed):
+    """The column names of the header line, checked."""
     names = [_clean_name(s) for s in header.split(",")]
     if all(_is_number(s) for s in names):
         raise InputError(f"{path}: line {hline}: {what} has no header row; found numbers "
@@ -100,31 +221,10 @@ def read_table(path, what, required=(), allowed=None, header_check=None):
         if bad:
             raise InputError(f"{path}: line {hline}: unknown column(s) {', '.join(bad)} in {what}; "
                              f"allowed: {', '.join(allowed)}")
-    if header_check is not None:
-        header_check(path, hline, names)
-
-    body = rows[1:]
-    if not body:
-        raise InputError(f"{path}: {what} has a header (line {hline}) but no data rows")
-    ncol = len(names)
-    data_lines = [ln for _, ln in body]
-    try:  # fast path (C parser); any problem is located precisely by the slow path below
-        data = np.loadtxt(data_lines, delimiter=",", ndmin=2, comments=None, dtype=float)
-        if data.shape[1] != ncol:
-            raise ValueError
-    except ValueError:
-        data = _slow_parse(path, body, names)
-    line_no = np.fromiter((i for i, _ in body), dtype=np.int64, count=len(body))
-    finite = np.isfinite(data)
-    if not finite.all():
-        r, c = np.argwhere(~finite)[0]
-        field_text = body[r][1].split(",")[c].strip()
-        raise InputError(f"{path}: line {line_no[r]}, column {names[c]!r}: {field_text!r} is not a "
-                         f"finite number; NaN and infinity are not allowed (drop the row instead)")
-    return path, names, data, line_no
+    return names
 
 
-def _slow_parse(path, body, names):
+def _slow_parse(path, body, names, quote=True):
     ncol = len(names)
     out = np.empty((len(body), ncol))
     for r, (i, ln) in enumerate(body):
@@ -136,13 +236,14 @@ def _slow_parse(path, body, names):
             try:
                 out[r, c] = float(f)
             except ValueError:
-                what = "empty field" if not f.strip() else f"{f.strip()!r} is not a number"
+                what = ("empty field" if not f.strip()
+                        else f"{f.strip()!r} is not a number" if quote else "not a number")
                 raise InputError(f"{path}: line {i}, column {names[c]!r}: {what}; "
                                  f"expected a decimal number like 12.5 or 1.25e3") from None
     return out
 
 
-def read_csv_columns(path, required=(), what="CSV file", allowed=None):
+def read_csv_columns(path, required=(), what="CSV file", allowed=None, quote=True):
     """Read a numeric CSV file into columns.
 
     Format: lines starting with ``#`` (and blank lines) are skipped anywhere; the first other
@@ -158,6 +259,8 @@ def read_csv_columns(path, required=(), what="CSV file", allowed=None):
         Name of the file's role in messages, e.g. ``"drag table"``.
     allowed : sequence of str, optional
         If given, every column must be one of these.
+    quote : bool
+        False: never repeat the file's content in a message (:func:`read_table`).
 
     Returns
     -------
@@ -172,5 +275,5 @@ def read_csv_columns(path, required=(), what="CSV file", allowed=None):
         lines, 1-based.
     """
     _, names, data, _ = read_table(path, what, tuple(required),
-                                    None if allowed is None else tuple(allowed))
+                                    None if allowed is None else tuple(allowed), quote=quote)
     return {n: np.ascontiguousarray(data[:, k]) for k, n in enumerate(names)}

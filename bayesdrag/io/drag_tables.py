@@ -20,7 +20,9 @@ def read_drag_table(path, source=None):
         naming the file and row when the table is missing, malformed or not physical.
     """
     path = Path(path)
-    cols = read_csv_columns(path, required=("mach", "cd"), what="drag table")
+    # named inside a round file: its content is never repeated in a message (any readable file
+    # could be named there), the message names the file and the header expected instead
+    cols = read_csv_columns(path, required=("mach", "cd"), what="drag table", quote=False)
     try:
         return ReferenceTable(tuple(cols["mach"]), tuple(cols["cd"]), source=source or str(path))
     except ValueError as exc:

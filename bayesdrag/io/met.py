@@ -42,7 +42,7 @@ def read_met_profile(path, gun_altitude=0.0, **offsets):
     """
     path, names, data, line_no = read_table(
         path, "met profile", required=PROFILE_COLUMNS,
-        allowed=PROFILE_COLUMNS + PROFILE_OPTIONAL_COLUMNS)
+        allowed=PROFILE_COLUMNS + PROFILE_OPTIONAL_COLUMNS, quote=False)
     cols = {n: data[:, k] for k, n in enumerate(names)}
     try:
         return MetProfile(tuple(cols["altitude"]), tuple(cols["temperature"]), tuple(cols["pressure"]),

@@ -1,37 +1,173 @@
-"""Writing outputs safely: every file is written under a temporary name in the target folder
-and renamed into place only when complete, so a failed or interrupted run never leaves a
-half-written file and never overwrites a file it did not finish."""
+"""The output folder: a run's outputs are one consistent set (DESIGN.md, command line).
+
+:class:`OutputRun` is the one way a command writes ``DIR``::
+
+    with OutputRun(out, "fit", inputs={"track": t, "round": r}) as run:   # checks, lock, staging
+        ...the work...                                # the sampler may write DIR/chain.partial.h5
+        result.write_files(run.staging)               # every output goes to the staging folder
+        run.adopt("chain.partial.h5", "chain.h5")     # a file already in DIR that becomes an output
+    # on success: superseded files moved aside, the new ones moved in, manifest.json last
+
+Decisions written down (and why):
+
+* **Checks before any work.** Entering the run creates ``DIR`` (and parents), takes the lock and
+  creates the staging folder, so a folder that cannot be written is refused (exit 2, one line)
+  before a fit spends minutes, not after it.
+* **A lock that a killed run does not leave behind.** The folder itself is locked with
+  ``fcntl.flock`` for the whole run; the kernel releases the lock when the process ends however
+  it ends, so ``--resume`` after a kill is never blocked, and no lock file is left (a refused or
+  failed run changes nothing in ``DIR``). A second run on the same folder gets
+  :class:`~bayesdrag.errors.InputError` "DIR is in use by another bayesdrag run (pid N)" (exit 2;
+  the pid is read from the holder's staging folder name). On a file system that cannot lock a
+  folder the lock is taken on a hidden ``DIR/.bayesdrag.lock`` instead (kept, never in a manifest).
+* **Staging, then a journalled swap.** Outputs are written into ``DIR/.staging-<run>/`` (the same
+  file system, so moving them in is a rename). Committing first writes a journal ``.commit.json`` into the
+  staging folder (the commit point, itself written by rename), then executes its renames: the
+  earlier files out to ``DIR/superseded/<earlier run>/``, the new ones in, ``manifest.json``
+  last. Moving an earlier file out is done only when it exists and its target does not, moving a
+  new file in only while it is still in the staging folder, so replaying the plan is harmless;
+  a run killed during the swap is completed by the next run on the folder
+  (under the lock, before it does anything else), and a run killed before its commit point
+  leaves only its staging folder, which the next run removes. A failed run never touches the
+  files already in ``DIR``.
+* **What is superseded.** Each manifest lists the runs whose files are current: the run that
+  wrote it, and earlier runs of *other* commands on the *same inputs* (a ``diagnose`` beside a
+  ``fit`` of the same track and round is consistent with it; ``batch`` runs both into one
+  folder). A new run supersedes an earlier run when it is the same command, when its inputs
+  differ, or when the two share a file name; a superseded run's files go to
+  ``superseded/<its run id>/`` together. In a folder without a manifest (written by an earlier
+  version) every file with a name bayesdrag writes (:data:`KNOWN_OUTPUTS`) is superseded. Files
+  bayesdrag never writes (the user's own), the unfinished chain ``chain.partial.h5``, folders
+  and the run's input files are never moved.
+* **Modes follow the umask.** Files are created as ``0666 & ~umask`` like any other program's
+  (temporary files are not made with ``mkstemp``, whose 0600 hid outputs from Dask workers
+  running under another user).
+* **A full disk is one line, exit 1, nothing lost.** An ``ENOSPC``/``EDQUOT`` while writing (or a
+  library error that wraps one) becomes :class:`~bayesdrag.errors.OutputError`; the staging
+  folder is removed and the earlier outputs are untouched. :func:`ensure_space` lets a writer
+  (the chain file) check before it starts a block it could not finish.
+* **Nothing read here is evaluated.** Manifests and plans are JSON, read with a size bound, and
+  every name in them is checked to be a plain file name inside ``DIR`` before it is used.
+"""
 from __future__ import annotations
 
+import contextlib
+import errno
+import fcntl
+import hashlib
 import json
 import os
-import tempfile
+import re
+import secrets
+import shutil
+import stat
+import time
+from fnmatch import fnmatch
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, OutputError
+
+__all__ = ["OutputRun", "atomic_write", "write_json", "write_bytes", "write_figure", "ensure_output_dir",
+           "read_json", "sha256_file", "describe_inputs", "ensure_space", "is_disk_full", "DiskFullError", "MANIFEST",
+           "SUPERSEDED", "LOCK_NAME", "KNOWN_OUTPUTS", "MANIFEST_FORMAT"]
+
+#: the manifest of the run whose outputs are in ``DIR``
+MANIFEST = "manifest.json"
+MANIFEST_FORMAT = "bayesdrag-manifest/1"
+#: earlier runs' files, one folder per run
+SUPERSEDED = "superseded"
+#: the lock file (hidden; held with flock)
+LOCK_NAME = ".bayesdrag.lock"
+STAGING_PREFIX = ".staging-"
+#: the commit journal inside a staging folder (hidden: `bayesdrag plan` writes a `plan.json` output)
+PLAN = ".commit.json"
+PLAN_FORMAT = "bayesdrag-commit/1"
+#: what bayesdrag writes into an output folder (glob patterns): superseded in a folder that has
+#: no manifest (written by a version before manifests)
+KNOWN_OUTPUTS = ("manifest.json", "result.json", "posterior.nc", "chain.h5", "report.html", "summary.json",
+                 "pooling.json", "done.*.json", "diagnosis.json", "diagnosis.html", "diagnosis_*.png",
+                 "campaign.json", "campaign.html", "campaign_*.png", "cd.png", "cd_*.png", "corner.png",
+                 "traces.png", "residuals.png", "residuals_*.png", "windows.png", "track_vs_pointmass.png",
+                 "differences.png", "reference_cd.png", "plan.json", "plan.html", "plan.png",
+                 "plan_*.png")
+#: the unfinished chain: resume state, never an output of a finished run, never moved by a commit
+PARTIAL_CHAIN = "chain.partial.h5"
+#: largest manifest or plan read back [bytes]
+MAX_JSON_BYTES = 8 << 20
+#: free space below which a run does not start [bytes]
+MIN_FREE_BYTES = 1 << 20
+_NAME_RE = re.compile(r"^\.?[A-Za-z0-9][A-Za-z0-9._-]{0,200}$")
+_RUN_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,100}$")
+_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+# ============================================================================ small writers
+def _tmp_name(path):
+    """A temporary name beside ``path`` that says whose it is (pid), so a later run can remove
+    the leftovers of a killed one."""
+    return path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
+
+
+def _remove_stale_parts(path):
+    """Remove ``.NAME.<pid>.<hex>.part`` files beside ``path`` whose process is gone."""
+    pat = re.compile(rf"^\.{re.escape(path.name)}\.(\d+)\.[0-9a-f]+\.part$")
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return
+    for e in entries:
+        m = pat.match(e.name)
+        if m and e.is_file(follow_symlinks=False) and not _pid_alive(int(m.group(1))):
+            with contextlib.suppress(OSError):
+                os.unlink(e.path)
+
+
+def _pid_alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def atomic_write(path, write_fn):
-    """Call ``write_fn(tmp_path)`` then rename the finished file to ``path``."""
+    """Call ``write_fn(tmp_path)`` then rename the finished file to ``path``.
+
+    The temporary file is created ``0666 & ~umask`` (not 0600) beside ``path``; it is removed when
+    ``write_fn`` fails, and leftovers of a killed process are removed by the next write to the
+    same path. A full disk raises :class:`~bayesdrag.errors.OutputError`.
+    """
     path = Path(path)
     if path.exists() and path.is_dir():
         raise InputError(f"{path}: output path is a directory; give a file name such as {path / 'track.csv'}")
     if not path.parent.exists():
         raise InputError(f"{path}: output folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    os.close(fd)
+    if os.path.lexists(path) and not path.is_symlink() and not stat.S_ISREG(os.lstat(path).st_mode):
+        raise InputError(f"{path}: output path exists and is not a regular file (a device or pipe); "
+                         f"give the name of a file to write")
+    _remove_stale_parts(path)
+    tmp = _tmp_name(path)
     try:
-        write_fn(tmp)
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
+    except PermissionError as exc:
+        raise InputError(f"{path.parent}: the output folder is not writable ({exc.strerror})") from None
+    try:
+        write_fn(str(tmp))
         os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, Exception) and is_disk_full(exc, path.parent):
+            raise DiskFullError(f"{path.parent}: the disk is full (No space left on device) while writing "
+                              f"{path.name}; nothing was written: free some space and run again") from None
+        raise
 
 
 def write_json(path, obj):
+    """Write ``obj`` as indented JSON (no NaN or infinity) atomically."""
     atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(obj, indent=2, allow_nan=False)))
-
-
 
 
 def write_bytes(path, data):
@@ -46,9 +182,504 @@ def write_figure(path, fig, dpi=110):
 
 
 def ensure_output_dir(out):
-    """Create the output folder (and parents); refuse a path that is an existing file."""
+    """Create the output folder (and parents); refuse a path that is an existing file or a
+    folder that cannot be created."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output path exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{out}: cannot create the output folder ({exc.strerror or exc})") from None
     return out
+
+
+# ============================================================================ reading back
+def read_json(path, what="JSON file", max_bytes=MAX_JSON_BYTES):
+    """A JSON document read with a size bound (a regular file only, never evaluated).
+
+    Raises
+    ------
+    InputError
+        Not a regular file, larger than ``max_bytes``, not UTF-8 JSON, or nested too deeply.
+    """
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory itself
+        os.close(fd)
+        raise InputError(f"{path}: the {what} is not a regular file")
+    with os.fdopen(fd, "rb") as fh:
+        raw = fh.read(max_bytes + 1)
+    if len(raw) > max_bytes:
+        raise InputError(f"{path}: the {what} is larger than {max_bytes} bytes")
+    try:
+        return json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        detail = "nested too deeply" if isinstance(exc, RecursionError) else type(exc).__name__
+        raise InputError(f"{path}: not a valid {what} ({detail})") from None
+
+
+def sha256_file(path):
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def describe_inputs(inputs):
+    """``{role: {"path", "sha256", "bytes"}}`` of the input files ``{role: path}`` (None skipped)."""
+    out = {}
+    for role, p in (inputs or {}).items():
+        if p is None:
+            continue
+        p = Path(p)
+        out[str(role)] = {"path": str(p.resolve()), "sha256": sha256_file(p), "bytes": p.stat().st_size}
+    return out
+
+
+# ============================================================================ disk full
+class DiskFullError(OutputError):
+    """No space left on the output folder's disk (or its quota): one line, exit status 1."""
+
+
+def is_disk_full(exc, folder=None):
+    """True when ``exc`` is (or wraps) "no space left on device" or "quota exceeded": an
+    ``OSError`` with that errno, a library error quoting it (HDF5, netCDF), or any error while
+    ``folder``'s file system has less than :data:`MIN_FREE_BYTES` left."""
+    seen = set()
+    e = exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, OSError) and e.errno in _DISK_FULL:
+            return True
+        text = str(e)
+        if "No space left on device" in text or "errno = 28" in text or "Disk quota exceeded" in text:
+            return True
+        e = e.__cause__ or e.__context__
+    if folder is not None:
+        free = free_bytes(folder)
+        return free is not None and free < MIN_FREE_BYTES
+    return False
+
+
+def free_bytes(folder):
+    """Bytes available to this user on ``folder``'s file system (None when unknown)."""
+    try:
+        s = os.statvfs(folder)
+    except OSError:
+        return None
+    return s.f_bavail * s.f_frsize
+
+
+def ensure_space(folder, nbytes, what):
+    """Raise :class:`~bayesdrag.errors.OutputError` when ``folder``'s file system has less than
+    ``nbytes`` plus :data:`MIN_FREE_BYTES` free, before a writer starts what it could not finish."""
+    free = free_bytes(folder)
+    if free is not None and free < nbytes + MIN_FREE_BYTES:
+        raise DiskFullError(f"{folder}: the disk is full ({free} bytes free, {int(nbytes)} needed) while "
+                            f"writing {what}")
+
+
+# ============================================================================ the run
+def _new_run_id():
+    return f"{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{os.getpid()}-{secrets.token_hex(2)}"
+
+
+def _safe_rel(rel):
+    """A relative path from a plan or manifest, checked to be plain names (no '..', no '/'
+    at the start): a tuple of its parts."""
+    if not isinstance(rel, str) or not rel or rel.startswith("/"):
+        raise ValueError(f"not a relative path: {rel!r}")
+    parts = tuple(rel.split("/"))
+    if not all(_NAME_RE.match(p) and p not in (".", "..") for p in parts):
+        raise ValueError(f"not a plain relative path: {rel!r}")
+    return parts
+
+
+class OutputRun:
+    """One run of a command writing ``DIR``: checks, lock, staging, commit and manifest.
+
+    Parameters
+    ----------
+    directory : path
+        ``DIR``; created with its parents when missing.
+    command : str
+        The command (``fit``, ``diagnose``, ``demo``, ``campaign``): a later run of the same
+        command supersedes this one's files.
+    inputs : dict role -> path, optional
+        The input files; their SHA-256 goes into the manifest and :attr:`inputs_digest`.
+    options : dict, optional
+        Plain JSON values recorded in the manifest.
+    echo : callable, optional
+        Receives one-line notes (an interrupted commit completed, leftovers removed).
+
+    Attributes
+    ----------
+    folder : Path
+        ``DIR``.
+    staging : Path
+        Where the run writes its outputs (inside ``DIR``); valid inside the ``with`` block.
+    run_id : str
+    manifest : dict or None
+        The manifest written, after a successful commit.
+    """
+
+    def __init__(self, directory, command, *, inputs=None, options=None, echo=None):
+        self.folder = Path(directory)
+        self.command = str(command)
+        self.inputs = describe_inputs(inputs)
+        self.options = options
+        self.echo = echo
+        self.run_id = _new_run_id()
+        self.staging = None
+        self.manifest = None
+        self._lock_fd = None
+        self._adopted = {}
+
+    # -------------------------------------------------------------------- public helpers
+    @property
+    def inputs_digest(self):
+        """Hex digest of the inputs' bytes (their SHA-256 by role; paths left out, so a moved
+        folder keeps its digest): what an unfinished chain must have been made from."""
+        doc = sorted((k, v["sha256"]) for k, v in self.inputs.items())
+        return hashlib.sha256(json.dumps(doc).encode()).hexdigest()[:16]
+
+    def adopt(self, name, as_name):
+        """At commit, the file ``DIR/name`` (already written there, e.g. the finished chain)
+        becomes the output ``DIR/as_name``."""
+        _safe_rel(name), _safe_rel(as_name)
+        self._adopted[str(as_name)] = str(name)
+
+    # -------------------------------------------------------------------- enter / exit
+    def __enter__(self):
+        out = self.folder
+        if out.exists() and not out.is_dir():
+            raise InputError(f"{out}: output path exists and is not a folder")
+        self._created = not out.exists()
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{out}: cannot create the output folder ({exc.strerror or exc}); "
+                             f"choose another -o") from None
+        self._lock()
+        try:
+            self._recover()
+            free = free_bytes(out)
+            if free is not None and free < MIN_FREE_BYTES:
+                raise DiskFullError(f"{out}: the disk is full ({free} bytes free); free some space and run again")
+            staging = out / f"{STAGING_PREFIX}{self.run_id}"
+            try:
+                staging.mkdir()
+            except OSError as exc:
+                raise InputError(f"{out}: the output folder is not writable ({exc.strerror or exc}); "
+                                 f"choose another -o") from None
+            self.staging = staging
+        except BaseException:
+            self._unlock()
+            raise
+        return self
+
+    def __exit__(self, et, ev, tb):
+        try:
+            if et is None:
+                try:
+                    self._commit()
+                except Exception as exc:
+                    self._discard()
+                    self._raise_if_full(exc)
+                    raise
+            else:
+                self._discard()
+                partial = self.folder / PARTIAL_CHAIN
+                if issubclass(et, KeyboardInterrupt) and partial.exists():
+                    self._note(f"the unfinished chain is in {partial}: continue it with --resume")
+                if isinstance(ev, Exception):
+                    self._raise_if_full(ev)
+        finally:
+            self._unlock()
+            if et is not None and getattr(self, "_created", False):
+                # a refused or failed run leaves no folder it made (an empty one only: a kept
+                # unfinished chain keeps it)
+                with contextlib.suppress(OSError):
+                    self.folder.rmdir()
+        return False
+
+    def _raise_if_full(self, exc):
+        """Re-raise a full disk as one :class:`DiskFullError` saying what was kept."""
+        if isinstance(exc, DiskFullError) or (not isinstance(exc, (InputError, OutputError))
+                                              and is_disk_full(exc, self.folder)):
+            raise DiskFullError(self._full_message()) from None
+
+    def _full_message(self):
+        partial = self.folder / PARTIAL_CHAIN
+        keep = (f"; the unfinished chain stays in {partial}: free some space and continue it with --resume"
+                if partial.exists() else ": free some space and run again")
+        return (f"{self.folder}: the disk is full (No space left on device); nothing of this run was kept and "
+                f"the earlier outputs are untouched{keep}")
+
+    # -------------------------------------------------------------------- lock
+    def _lock(self):
+        """``flock`` on the folder itself (no lock file: a refused or failed run leaves no trace);
+        where the file system cannot lock a folder (some network file systems), on
+        ``DIR/.bayesdrag.lock``."""
+        try:
+            fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+        except OSError as exc:
+            raise InputError(f"{self.folder}: cannot open the output folder ({exc.strerror or exc})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
+                self._busy(self._holder_from_staging())
+            fd = self._lock_file()
+        self._lock_fd = fd
+
+    def _busy(self, pid):
+        raise InputError(f"{self.folder} is in use by another bayesdrag run (pid {pid or 'unknown'}); wait for "
+                         f"it to finish or write to another folder") from None
+
+    def _holder_from_staging(self):
+        """The pid in the newest staging folder's run id (the run holding the lock)."""
+        pids = []
+        with contextlib.suppress(OSError):
+            for e in os.scandir(self.folder):
+                m = re.match(rf"^{re.escape(STAGING_PREFIX)}(\d{{8}}T\d{{6}}Z)-(\d+)-", e.name)
+                if m:
+                    pids.append((m.group(1), m.group(2)))
+        return max(pids)[1] if pids else None
+
+    def _lock_file(self):
+        path = self.folder / LOCK_NAME
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise InputError(f"{path}: the lock file is a symbolic link; remove it") from None
+            raise InputError(f"{self.folder}: the output folder is not writable ({exc.strerror or exc}); "
+                             f"choose another -o") from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise InputError(f"{path}: the lock file is not a regular file; remove it")
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            holder = os.pread(fd, 64, 0).decode("ascii", "replace").split()
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
+                self._busy(holder[0] if holder and holder[0].isdigit() else None)
+            raise InputError(f"{path}: cannot lock the output folder ({exc.strerror or exc})") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()} {self.command} {self.run_id}\n".encode(), 0)
+        return fd
+
+    def _unlock(self):
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)   # releases the flock
+            self._lock_fd = None
+
+    # -------------------------------------------------------------------- recovery
+    def _recover(self):
+        """Complete the commit of a run killed during its swap; remove stagings of runs killed
+        before their commit point."""
+        for entry in sorted(os.scandir(self.folder), key=lambda e: e.name):
+            if not entry.name.startswith(STAGING_PREFIX) or not entry.is_dir(follow_symlinks=False):
+                continue
+            plan = Path(entry.path) / PLAN
+            if plan.is_file():
+                try:
+                    doc = read_json(plan, "commit plan")
+                    moves = self._plan_moves(doc)
+                except (InputError, ValueError, TypeError, KeyError) as exc:
+                    raise InputError(f"{plan}: an interrupted commit whose plan cannot be used ({exc}); "
+                                     f"move {entry.name} out of {self.folder}") from None
+                self._execute(moves)
+                self._note(f"completed the interrupted commit of run {doc.get('run')} in {self.folder}")
+            shutil.rmtree(entry.path, ignore_errors=True)
+
+    @staticmethod
+    def _plan_moves(doc):
+        if not isinstance(doc, dict) or doc.get("format") != PLAN_FORMAT or not isinstance(doc.get("moves"), list):
+            raise ValueError("not a commit plan of this version")
+        moves = []
+        for m in doc["moves"]:
+            if not (isinstance(m, list) and len(m) == 3 and m[2] in ("in", "out")):
+                raise ValueError("malformed move")
+            moves.append((_safe_rel(m[0]), _safe_rel(m[1]), m[2]))
+        return moves
+
+    def _execute(self, moves):
+        """Do the renames of a plan; replaying a plan after a kill completes it. An ``out`` move
+        (an earlier file to ``superseded/``) is done when its source exists and its target does
+        not (the source's name is taken by the new file afterwards); an ``in`` move (a new file
+        into ``DIR``) whenever its source, which belongs to this run alone, still exists."""
+        for src, dst, kind in moves:
+            s, d = self.folder.joinpath(*src), self.folder.joinpath(*dst)
+            if not os.path.lexists(s):
+                continue
+            if kind == "in":
+                os.replace(s, d)
+            elif not os.path.lexists(d):
+                d.parent.mkdir(parents=True, exist_ok=True)
+                os.rename(s, d)
+
+    def _note(self, msg):
+        if self.echo is not None:
+            self.echo(f"bayesdrag: note: {msg}")
+
+    # -------------------------------------------------------------------- commit
+    def _discard(self):
+        if self.staging is not None:
+            shutil.rmtree(self.staging, ignore_errors=True)
+
+    def _staged_files(self):
+        names = []
+        for e in sorted(os.scandir(self.staging), key=lambda e: e.name):
+            if e.name.endswith(".part") or e.name == PLAN:
+                continue
+            if not e.is_file(follow_symlinks=False) or not _NAME_RE.match(e.name) or e.name.startswith("."):
+                raise OutputError(f"{self.staging}: unexpected entry {e.name!r} in the staging folder")
+            names.append(e.name)
+        return names
+
+    def _commit(self):
+        out, staging = self.folder, self.staging
+        staged = self._staged_files()
+        new = {n: staging / n for n in staged}
+        for as_name, name in self._adopted.items():
+            if (out / name).is_file():
+                new[as_name] = out / name
+        files = [{"name": n, "bytes": p.stat().st_size, "sha256": sha256_file(p)} for n, p in sorted(new.items())]
+        record = {"run": self.run_id, "command": self.command, "created": _utc_now(), "version": _version(),
+                  "inputs": self.inputs, "files": files}
+        earlier, old_manifest_run = self._earlier_runs()
+        names_new = set(new) | {MANIFEST}
+        kept, superseded = [], []
+        for r in earlier:
+            same = r.get("command") == self.command or not _same_inputs(r.get("inputs"), self.inputs)
+            overlap = bool(names_new & set(r["names"]))
+            (superseded if same or overlap else kept).append(r)
+        kept_names = {n for r in kept for n in r["names"]}
+        inputs = {Path(v["path"]) for v in self.inputs.values()}
+        moves, sup_doc = [], []
+        taken = set()
+        for r in superseded:
+            rid = self._superseded_id(r["run"], taken)
+            moved = [n for n in r["names"] if n not in kept_names and os.path.lexists(out / n)
+                     and not _is_input(out / n, inputs)]
+            moves += [(n, f"{SUPERSEDED}/{rid}/{n}") for n in moved]
+            if r["run"] == old_manifest_run and os.path.lexists(out / MANIFEST):
+                moves.append((MANIFEST, f"{SUPERSEDED}/{rid}/{MANIFEST}"))
+                moved.append(MANIFEST)
+            if moved:
+                sup_doc.append({"run": r["run"], "command": r.get("command"), "folder": f"{SUPERSEDED}/{rid}",
+                                "files": sorted(set(moved))})
+        # a file this run writes that no record claims (a user's file of the same name) is moved
+        # too; an earlier manifest whose runs all stay current is replaced (its records are
+        # carried into the new one's also_current)
+        stray = [n for n in new if os.path.lexists(out / n) and n not in {m[0] for m in moves}
+                 and n not in self._adopted.values()]
+        if stray:
+            rid = self._superseded_id(f"unlisted-{self.run_id}", taken)
+            moves += [(n, f"{SUPERSEDED}/{rid}/{n}") for n in stray]
+            sup_doc.append({"run": None, "command": None, "folder": f"{SUPERSEDED}/{rid}", "files": sorted(stray)})
+        moves = [(a, b, "out") for a, b in moves]
+        stage_rel = staging.name
+        moves += [(f"{stage_rel}/{n}", n, "in") for n in staged]
+        moves += [(name, as_name, "in") for as_name, name in self._adopted.items() if (out / name).is_file()]
+        doc = dict({"format": MANIFEST_FORMAT}, **record, options=self.options, superseded=sup_doc,
+                   also_current=[_public_record(r) for r in kept])
+        manifest_tmp = staging / MANIFEST
+        manifest_tmp.write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
+        moves.append((f"{stage_rel}/{MANIFEST}", MANIFEST, "in"))
+        plan_tmp = staging / f"{PLAN}.part"
+        plan_tmp.write_text(json.dumps({"format": PLAN_FORMAT, "run": self.run_id, "moves": [list(m) for m in moves]}),
+                            encoding="utf-8")
+        _fsync(plan_tmp)
+        os.replace(plan_tmp, staging / PLAN)          # the commit point
+        self._execute([(_safe_rel(a), _safe_rel(b), k) for a, b, k in moves])
+        shutil.rmtree(staging, ignore_errors=True)
+        self.staging = None
+        self.manifest = doc
+
+    def _superseded_id(self, run, taken):
+        base = run if isinstance(run, str) and _RUN_RE.match(run) else f"earlier-{self.run_id}"
+        rid, k = base, 2
+        while rid in taken or os.path.lexists(self.folder / SUPERSEDED / rid):
+            rid, k = f"{base}-{k}", k + 1
+        taken.add(rid)
+        return rid
+
+    def _earlier_runs(self):
+        """The runs whose files are current in ``DIR`` (from its manifest; a folder without one
+        is one earlier run holding every known output name), and the manifest's own run id."""
+        out = self.folder
+        path = out / MANIFEST
+        doc = None
+        if path.is_file() and not path.is_symlink():
+            try:
+                doc = read_json(path, "manifest")
+            except InputError:
+                doc = None
+        runs = []
+        if isinstance(doc, dict) and doc.get("format") == MANIFEST_FORMAT:
+            for r in [doc] + list(doc.get("also_current") or []):
+                rec = _checked_record(r)
+                if rec is not None:
+                    runs.append(rec)
+            if runs:
+                return runs, runs[0]["run"]
+        names = sorted(e.name for e in os.scandir(out) if e.is_file(follow_symlinks=False)
+                       and e.name != PARTIAL_CHAIN and any(fnmatch(e.name, p) for p in KNOWN_OUTPUTS))
+        if names:
+            runs.append({"run": f"earlier-{self.run_id}", "command": None, "inputs": None, "names": names,
+                         "files": [{"name": n} for n in names]})
+        return runs, None
+
+
+def _checked_record(r):
+    """A run record from a manifest with plain file names only (None if malformed)."""
+    if not isinstance(r, dict) or not isinstance(r.get("run"), str) or not isinstance(r.get("files"), list):
+        return None
+    names = []
+    for f in r["files"]:
+        n = f.get("name") if isinstance(f, dict) else None
+        if not isinstance(n, str) or not _NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN:
+            return None
+        names.append(n)
+    return dict(r, names=names)
+
+
+def _public_record(r):
+    return {k: r.get(k) for k in ("run", "command", "created", "version", "inputs", "files")}
+
+
+def _same_inputs(a, b):
+    """True when two manifests' inputs are the same files by content (roles and SHA-256)."""
+    if not isinstance(a, dict) or not isinstance(b, dict) or set(a) != set(b):
+        return False
+    return all(isinstance(a[k], dict) and a[k].get("sha256") == b[k].get("sha256") for k in a)
+
+
+def _is_input(path, inputs):
+    return any(os.path.lexists(path) and p.exists() and os.path.samefile(path, p) for p in inputs)
+
+
+def _fsync(path):
+    with open(path, "rb") as f:
+        os.fsync(f.fileno())
+
+
+def _utc_now():
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+def _version():
+    import sys
+
+    return str(getattr(sys.modules.get("bayesdrag"), "__version__", "unknown"))

@@ -7,6 +7,7 @@ key, what was found and what is allowed.
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import tomllib
 from pathlib import Path
@@ -22,7 +23,7 @@ from .csv import read_text
 from .drag_tables import read_drag_table
 from .met import read_met_profile, write_met_profile
 
-__all__ = ["read_round", "write_round"]
+__all__ = ["read_round", "write_round", "round_files"]
 
 
 _SCHEMA = {
@@ -37,6 +38,10 @@ _SCHEMA = {
               "time_offset_sd": "s"},
 }
 ATMOSPHERE_MODELS = ("icao", "profile")
+#: smallest radar noise sd a round file may state [m, m/s]
+MIN_SIGMA = 1e-4
+#: plausible range of ``pressure_ratio`` and ``density_ratio`` (the Warner site's 0.78 is inside)
+PLAUSIBLE_AIR_RATIO = (0.5, 2.0)
 #: how far [Mach] the launch Mach may exceed the reference table's last row before the round is
 #: rejected (unless ``reference_extrapolate = true``): beyond its end the table is held constant,
 #: and a supersonic Cd changes ~2-4 % per 0.1 Mach, so a 0.05 overshoot costs at most ~2 %
@@ -47,6 +52,42 @@ def _unknown(path, what, key, allowed):
     near = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
     hint = f" (did you mean {near[0]!r}?)" if near else ""
     return InputError(f"{path}: unknown {what} {key!r}{hint}; allowed: {', '.join(allowed)}")
+
+
+def _check_sigma(path, radar):
+    for c, v in radar.sigma.items():
+        if v < MIN_SIGMA:
+            raise InputError(f"{path}: [radar] sigma.{c} = {v:g} {'m/s' if c == 'v' else 'm'} is below "
+                             f"{MIN_SIGMA:g}: no radar measures that precisely (a unit mistake?); give the "
+                             f"noise sd of one sample, or leave sigma out to estimate it from the track")
+
+
+def _check_air_ratios(vals):
+    lo, hi = PLAUSIBLE_AIR_RATIO
+    for k in ("pressure_ratio", "density_ratio"):
+        # a value that is not a finite positive factor is refused by Atmosphere, saying so
+        if isinstance(vals[k], (int, float)) and math.isfinite(vals[k]) and vals[k] > 0 and not lo <= vals[k] <= hi:
+            raise ValueError(f"{k} = {vals[k]:g} is outside {lo:g} .. {hi:g}: real air differs from the "
+                             f"model's by tens of percent at most (a factor, not a percentage?)")
+
+
+def _check_reference_reach(path, pt, ref, launch, atmosphere):
+    """The reference table must reach the launch Mach unless ``reference_extrapolate = true``."""
+    extrapolate = pt.get("reference_extrapolate", False)
+    if not isinstance(extrapolate, bool):
+        raise InputError(f"{path}: [projectile] reference_extrapolate must be true or false, got "
+                         f"{type_name(extrapolate)}")
+    if ref is None or launch.velocity is None or extrapolate:
+        return
+    a_gun = float(atmosphere.at_height(0.0).speed_of_sound)
+    m_launch = launch.velocity / a_gun
+    if m_launch > ref.mach[-1] + REFERENCE_MACH_SLACK:
+        raise InputError(
+            f"{path}: [projectile] reference_drag = {pt['reference_drag']!r} covers Mach "
+            f"{ref.mach[0]:g}-{ref.mach[-1]:g} but the launch (velocity = {launch.velocity:g} m/s, "
+            f"speed of sound {a_gun:.1f} m/s) is Mach {m_launch:.2f}; the table must reach the "
+            f"launch Mach (to within {REFERENCE_MACH_SLACK:g}): extend it, or set "
+            f"reference_extrapolate = true to hold Cd at its last value beyond the table")
 
 
 def read_round(path):
@@ -96,6 +137,9 @@ def read_round(path):
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a round file: arrays or tables nested too deeply for TOML to be read "
+                         f"(a round file holds sections of plain keys)") from None
 
     for sec, tab in doc.items():
         if sec not in _SCHEMA:
@@ -164,6 +208,7 @@ def read_round(path):
     def make_atmosphere():
         vals = {k: number(k, at.get(k, d), _SCHEMA["atmosphere"][k])
                 for k, d in (("temperature_offset", 0.0), ("pressure_ratio", 1.0), ("density_ratio", 1.0))}
+        _check_air_ratios(vals)
         if model == "profile":
             rel = at["profile"]
             if not isinstance(rel, str) or not rel.strip():
@@ -177,26 +222,40 @@ def read_round(path):
         return Atmosphere(**vals, gun_altitude=launch.altitude)
 
     atmosphere = build("atmosphere", make_atmosphere)
-    extrapolate = pt.get("reference_extrapolate", False)
-    if not isinstance(extrapolate, bool):
-        raise InputError(f"{path}: [projectile] reference_extrapolate must be true or false, got "
-                         f"{type_name(extrapolate)}")
-    if ref is not None and launch.velocity is not None and not extrapolate:
-        a_gun = float(atmosphere.at_height(0.0).speed_of_sound)
-        m_launch = launch.velocity / a_gun
-        if m_launch > ref.mach[-1] + REFERENCE_MACH_SLACK:
-            raise InputError(
-                f"{path}: [projectile] reference_drag = {pt['reference_drag']!r} covers Mach "
-                f"{ref.mach[0]:g}-{ref.mach[-1]:g} but the launch (velocity = {launch.velocity:g} m/s, "
-                f"speed of sound {a_gun:.1f} m/s) is Mach {m_launch:.2f}; the table must reach the "
-                f"launch Mach (to within {REFERENCE_MACH_SLACK:g}): extend it, or set "
-                f"reference_extrapolate = true to hold Cd at its last value beyond the table")
+    _check_reference_reach(path, pt, ref, launch, atmosphere)
     radar = build("radar", lambda: Radar(tables["radar"].get("sigma", {})))
+    _check_sigma(path, radar)
     sds = {stem: tables[sec].get(f"{stem}_sd") for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items()}
     for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items():     # each error names its own section
         build(sec, lambda: Systematics(**{stem: sds[stem]}))
     systematics = Systematics(**sds)
     return build("projectile", lambda: Round(projectile, launch, atmosphere, radar, str(path), systematics))
+
+
+def round_files(path, rnd):
+    """The files a round file brings into a run: ``{"round": path, "reference_drag": ...,
+    "met_profile": ...}`` (the ones it references only when they are files), for manifests and
+    fingerprints over the inputs' bytes.
+
+    Parameters
+    ----------
+    path : path
+        The round TOML.
+    rnd : Round
+        As :func:`read_round` read it.
+
+    Returns
+    -------
+    dict role -> Path
+    """
+    files = {"round": Path(path)}
+    ref = rnd.projectile.reference_drag_path
+    if ref and Path(ref).is_file():
+        files["reference_drag"] = Path(ref)
+    prof = getattr(rnd.atmosphere, "source", "")
+    if prof and Path(prof).is_file():
+        files["met_profile"] = Path(prof)
+    return files
 
 
 def write_round(path, rnd, comment=None):

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..track import CHANNELS, RadarTrack
+from ..track import CHANNELS, UNITS, RadarTrack
 from .csv import read_table
 
 __all__ = ["read_track", "write_track"]
@@ -100,6 +100,32 @@ def _check_units(path, t, channels):
                      f"{r:.4g} times v (median over the track); {why}")
 
 
+#: plausible values of each column of a track [SI]: beyond them a value is a unit or typing
+#: mistake (the longest ranges are a few hundred km, the fastest guns a few km/s)
+PLAUSIBLE = {"t": (-1e4, 1e5), "x": (-2e6, 2e6), "y": (-2e6, 2e6), "z": (-2e5, 2e5), "v": (-1e4, 1e4)}
+#: a gap is refused as a stray sample when it is longer than this many median sample intervals
+#: and longer than the rest of the track lasts
+STRAY_GAP_INTERVALS = 50
+#: a track whose x falls by more than this [m] flies toward -x (noted, DESIGN.md frames)
+MIN_DOWNRANGE = 10.0
+
+
+def _check_gap(path, t, line_no):
+    """Refuse a sample far after (or before) the others: the fit would integrate the flight
+    through the whole gap (a sample 1000 s after impact kept it busy for minutes and ended in a
+    bare "not converged"). A dropout in the middle of a flight is shorter than the rest of it."""
+    if t.size < 3:
+        return
+    dt = np.diff(t)
+    i = int(np.argmax(dt))
+    med = float(np.median(dt))
+    rest = float(t[-1] - t[0] - dt[i])
+    if dt[i] > STRAY_GAP_INTERVALS * med and dt[i] > rest:
+        raise InputError(f"{path}: line {line_no[i + 1]}: t = {t[i + 1]:g} s comes {dt[i]:.4g} s after the previous "
+                         f"sample, longer than the rest of the track lasts ({rest:.4g} s, samples {med:.3g} s apart): "
+                         f"a stray sample (after impact?); drop it or split the track")
+
+
 def _track_header_check(path, line, names):
     if "t" not in names:
         lower = [n for n in names if n.lower() == "t"]
@@ -149,16 +175,30 @@ def read_track(path):
                else f"goes back from {t[i - 1]:g} s on line {line_no[i - 1]}")
         raise InputError(f"{path}: line {line_no[i]}: t = {t[i]:g} s {how}; time must increase "
                          f"strictly (sort the rows, drop duplicates)")
+    _check_gap(path, t, line_no)
     channels = {c: cols[c] for c in CHANNELS if c in cols}
     if "v" in channels and np.any(channels["v"] < 0):
         i = int(np.argmax(channels["v"] < 0))
         raise InputError(f"{path}: line {line_no[i]}: v = {channels['v'][i]:g} m/s is negative; v is the "
                          f"ground speed |dr/dt| >= 0 (a signed range rate belongs in an extra column)")
-    _check_units(path, t, channels)
+    _check_units(path, t, channels)      # names the unit mistake; values are within 1e15 (read_table)
+    for c, a in [("t", t)] + list(channels.items()):
+        lo, hi = PLAUSIBLE[c]
+        bad = np.flatnonzero((a < lo) | (a > hi))
+        if bad.size:
+            i = bad[0]
+            raise InputError(f"{path}: line {line_no[i]}: {c} = {a[i]:.6g} {UNITS[c]} is not plausible for a "
+                             f"projectile's track (allowed {lo:g} .. {hi:g} {UNITS[c]}); check the units")
     extra = {n: cols[n] for n in names if n != "t" and n not in CHANNELS}
     notes = ()
     if extra:
         notes = (f"{path}: extra column(s) {', '.join(extra)} kept but ignored by the fit",)
+    if "x" in channels and channels["x"][-1] - channels["x"][0] < -MIN_DOWNRANGE:
+        x = channels["x"]
+        notes += (f"{path}: x goes from {x[0]:.6g} m to {x[-1]:.6g} m: the track flies toward -x, while x is "
+                  f"the range downrange along the firing azimuth; the fit follows it (launch direction "
+                  f"reversed), but Coriolis and winds use the round's azimuth: negate x if the radar's "
+                  f"x axis points back at the gun",)
     return RadarTrack(t, channels, extra, str(path), notes)
 
 

@@ -24,6 +24,7 @@ def plot_corner(samples, truths=None, fig=None):
     matplotlib.figure.Figure
     """
     import corner
+    from matplotlib.ticker import MaxNLocator, NullFormatter, ScalarFormatter
 
     names = list(samples)
     X = np.column_stack([np.asarray(samples[n], float) for n in names])
@@ -34,9 +35,36 @@ def plot_corner(samples, truths=None, fig=None):
         dim = 1.0 + 2.0 * K + 2.0 * (K - 1) * 0.05 + 0.4
         fig = new_figure((dim, dim), layout=None)
         fig.subplots(K, K)
-    return corner.corner(X, labels=names, truths=tv, fig=fig, quantiles=(0.05, 0.5, 0.95),
-                         show_titles=True, title_fmt=".4g", title_kwargs={"fontsize": 8},
-                         label_kwargs={"fontsize": 8})
+    fig = corner.corner(X, labels=[_label(n) for n in names], truths=tv, fig=fig, quantiles=(0.05, 0.5, 0.95),
+                        show_titles=False, label_kwargs={"fontsize": CORNER_LABEL_PT}, max_n_ticks=3,
+                        labelpad=0.15)
+    K = len(names)
+    axes = np.array(fig.axes).reshape(K, K)
+    for i in range(K):   # no "+2.126e2" offsets, no tick labels touching the next panel
+        for j in range(i + 1):
+            ax = axes[i, j]
+            ax.tick_params(labelsize=CORNER_TICK_PT)
+            axis_list = [(ax.xaxis, i == K - 1)] + ([(ax.yaxis, j == 0)] if j < i else [])
+            for axis, labelled in axis_list:
+                axis.set_major_locator(MaxNLocator(3, prune="both"))
+                axis.set_major_formatter(ScalarFormatter(useOffset=False) if labelled else NullFormatter())
+    for i in range(K):   # a short title per quantity: median and sd (the label says which)
+        med, sd = np.median(X[:, i]), np.std(X[:, i])
+        axes[i, i].set_title(f"{med:.5g} ± {sd:.2g}", fontsize=CORNER_TITLE_PT)
+    fig.subplots_adjust(left=0.1, bottom=0.1, right=0.98, top=0.96, wspace=0.06, hspace=0.06)
+    return fig
+
+
+#: font sizes of the corner plot [pt]: a K = 8 plot is ~18 in wide and shown ~9 in wide in the
+#: report, so its text is drawn at twice the size it should be read at (8 pt was unreadable)
+CORNER_LABEL_PT, CORNER_TITLE_PT, CORNER_TICK_PT = 18, 14, 12
+#: units of the initial-state parameters, shown in the corner plot's labels
+_UNITS = {"X0": "m", "Y0": "m", "Z0": "m", "Ux0": "m/s", "Uy0": "m/s", "Uz0": "m/s"}
+
+
+def _label(name):
+    """A corner-plot axis label: the quantity and its unit."""
+    return f"{name} [{_UNITS[name]}]" if name in _UNITS else name
 
 
 def plot_traces(chains, fig=None, max_walkers=32):

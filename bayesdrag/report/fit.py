@@ -106,6 +106,46 @@ def _common(result, sources, title_kind):
             "quality": result.summary["ml"].get("quality")}
 
 
+#: a sampled noise sd this many times the round's (or the track's) is explained in the report
+NOISE_EXPLAIN_RATIO = 2.0
+
+
+def noise_explanation(sampled, used, source=None):
+    """Rows explaining a sampled noise sd far above the one the ML fit used (the round's
+    ``[radar] sigma`` or the track's own high-frequency noise): the sampler's noise sd takes up
+    whatever the model cannot follow, so it then measures model error, not the radar.
+
+    Parameters
+    ----------
+    sampled : dict channel -> {"median": float, ...}
+        ``result.json``'s ``mcmc.sigma``.
+    used : dict channel -> float
+        The noise sd of the ML fit.
+    source : dict channel -> str, optional
+        Where each came from (``"round"`` or ``"estimated"``).
+
+    Returns
+    -------
+    list of (str, str)
+    """
+    rows = []
+    for c, v in sampled.items():
+        s0 = used.get(c)
+        if not s0 or v["median"] < NOISE_EXPLAIN_RATIO * s0:
+            continue
+        whose = "the round states" if (source or {}).get(c, "round") == "round" else "the track's scatter shows"
+        rows.append((f"why the noise sd of {c} is large",
+                     f"{v['median']:.3g} against the {s0:.3g} {whose}: the sampled noise sd takes up everything the "
+                     f"model does not follow, so here it measures model error (see the residuals' autocorrelation "
+                     f"and the warnings), not the radar; the Cd bands are widened accordingly"))
+    return rows
+
+
+def _noise_sources(summary):
+    q = (summary.get("ml") or {}).get("quality") or {}
+    return {c: f.get("noise_source") for c, f in (q.get("channels") or {}).items()}
+
+
 def _context_scheme1(result, sources):
     s = result.summary
     f1, bayes = result.scheme1, result.posterior
@@ -147,6 +187,7 @@ def _context_scheme1(result, sources):
                           f"{bayes.summary['ess_bulk'].min():.0f} / {bayes.summary['ess_tail'].min():.0f}"),
                          ("noise sd (posterior median)",
                           ", ".join(f"{c} {v['median']:.3g}" for c, v in m["sigma"].items())),
+                         *noise_explanation(m["sigma"], res.sigma, _noise_sources(s)),
                          ("sampling time", f"{m['seconds']:.1f} s")]}
         cols = ["mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk", "ess_tail", "mcse_mean"]
         post_ctx = {"columns": cols,

@@ -1,4 +1,4 @@
-"""Fit the converted Warner Doppler tracks and compare with the published Cd (issue 7).
+"""Fit the converted Warner Doppler tracks and compare with the published Cd.
 
 Steps, for each bullet (files from ``convert.py``):
 

@@ -1,4 +1,4 @@
-"""Convert the Warner Tool Company Doppler-radar reports (``shared/data/warner/``) into bayesdrag
+"""Convert the Warner Tool Company Doppler-radar reports (CSV files ``<stem>_doppler.csv``, ``<stem>_cd.csv``) into bayesdrag
 files in SI units.
 
 Source: Warner Tool Company Doppler-radar reports, 2019-01-03: .338 Flatline (285 gr, 0.338 in)
@@ -23,8 +23,8 @@ For each bullet this writes ``examples/warner/<bullet>/``:
     muzzle Mach is ~2.75 (Cd held at its Mach 2.5 value there); radar sigma from the rounding
     of the published numbers (x 0.3 m from 1 ms in t, v 0.05 m/s from 0.1 ft/s plus margin).
 
-Run: ``python examples/warner/convert.py [DATA_DIR]`` (default ``../shared/data/warner``
-relative to the repository).
+Run: ``python examples/warner/convert.py [DATA_DIR]`` (the folder holding the report CSVs; default ``../shared/data/warner``,
+where this repository's developers keep them).
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ BULLETS = {
 }
 SIGMA = {"x": 0.3, "v": 0.05}
 SOURCE = ("Warner Tool Company Doppler-radar report, published 2019-01-03 "
-          "(shared/data/warner/{stem}_{kind}.csv)")
+          "({stem}_{kind}.csv)")
 
 
 def read_rows(path):

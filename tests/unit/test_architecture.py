@@ -13,7 +13,7 @@ MAX_FUNCTION_LINES = 150
 
 #: the layers, lowest first: a module may import only from its own layer or lower ones
 LAYERS = [
-    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads"],
+    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads", "bayesdrag._signals"],
     ["bayesdrag.atmosphere", "bayesdrag.drag"],
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],
@@ -149,7 +149,7 @@ def test_no_import_cycles():
 
 
 @pytest.mark.parametrize("name", ["read_track", "read_round", "fit", "simulate", "FitResult", "diagnose",
-                                  "DiagnosisResult"])
+                                  "DiagnosisResult", "plan", "PlanResult", "PlanOptions"])
 def test_public_api_names(name):
     import bayesdrag
 

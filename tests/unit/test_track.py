@@ -411,7 +411,7 @@ def test_read_csv_columns_allowed(tmp_path):
 
 def test_read_drag_table_uses_reader(tmp_path):
     p = write_csv(tmp_path, "mach,cd\n0.5,0.15\n1.0,abc\n", "cd.csv")
-    with pytest.raises(InputError, match=r"cd\.csv: line 3, column 'cd': 'abc' is not a number"):
+    with pytest.raises(InputError, match=r"cd\.csv: line 3, column 'cd': not a number"):
         read_drag_table(p)
 
 

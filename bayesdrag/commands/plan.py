@@ -1,0 +1,143 @@
+"""Planning a firing as a command: :func:`plan` (Python API, ``bayesdrag.plan``) and
+``bayesdrag plan ROUND -o DIR`` (:func:`run_plan`). The statistics are in
+:mod:`bayesdrag.estimate.plan` and :mod:`bayesdrag.estimate.plan_summary`."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import InputError
+from ..estimate.plan_summary import make_plan
+from ..report.plan import write_plan
+from .options import PLAN_MAX_CASES, PlanOptions
+
+__all__ = ["plan", "run_plan", "PlanResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """What a plan predicts (:func:`bayesdrag.plan`).
+
+    Attributes
+    ----------
+    plan : Plan
+        The cases (:class:`~bayesdrag.estimate.plan.CasePlan`: Mach, assumed Cd, statistical
+        and systematic shares) and the target's answer.
+    round : Round
+    options : PlanOptions
+    seconds : float
+        Wall time [s].
+    """
+
+    plan: object
+    round: object
+    options: object
+    seconds: float = 0.0
+
+    @property
+    def success(self):
+        """True: a plan that could not be made raises instead."""
+        return True
+
+    @property
+    def message(self):
+        return f"{len(self.plan.cases)} case(s) planned"
+
+    @property
+    def cases(self):
+        """The :class:`~bayesdrag.estimate.plan.CasePlan` of every case (elevation x velocity)."""
+        return self.plan.cases
+
+    @property
+    def paragraph(self):
+        """The plan in one paragraph; with a target, the recommendation."""
+        return self.plan.paragraph
+
+    def to_dict(self):
+        """The content of ``plan.json``: plain JSON types, a fresh copy."""
+        return json.loads(json.dumps(self.plan.to_dict(), allow_nan=False))
+
+    def write(self, directory, *, sources=None):
+        """Write ``plan.json``, ``plan.html`` and the figures into ``directory`` (created if
+        needed). Returns the list of files written."""
+        sources = sources or {}
+        return write_plan(Path(directory), self.plan, round_name=str(sources.get("round", self.round.path)),
+                          seconds=self.seconds)
+
+
+def plan(rnd, options=None, *, assumed_drag=None, **kwargs):
+    """Predict, before firing, the Cd sd by Mach each planned case will give.
+
+    Parameters
+    ----------
+    rnd : Round
+        Needs ``[radar] sigma``; its declared systematic sds are marginalised.
+    options : PlanOptions, optional
+        Keyword arguments override single fields: ``elevations=(15, 45)`` [deg],
+        ``velocities=(684, 818)`` [m/s] (defaults: the round's launch), ``dt`` [s],
+        ``rounds``, ``scatter``, ``target``, ``lock_on``, ``loss`` [s], ``seed``.
+    assumed_drag : ReferenceTable, optional
+        The drag the shell is expected to have (default: the round's reference drag, else a
+        generic 155 mm curve).
+
+    Returns
+    -------
+    PlanResult
+        ``to_dict()`` is ``plan.json``; ``write(DIR)`` writes the folder the command writes.
+
+    Raises
+    ------
+    InputError
+        No elevation or velocity (neither given nor in the round), no ``[radar] sigma``, a case
+        that does not fly or is tracked too briefly.
+    """
+    t0 = time.perf_counter()
+    opts = options if options is not None else PlanOptions()
+    if kwargs:
+        opts = PlanOptions(**{**opts.to_dict(), **kwargs})
+    L = rnd.launch
+    elevations = opts.elevations or ((L.elevation_deg,) if L.elevation_deg is not None else None)
+    velocities = opts.velocities or ((L.velocity,) if L.velocity is not None else None)
+    where = rnd.path or "round"
+    if elevations is None:
+        raise InputError(f"{where}: plan needs elevations: give --elevations (e.g. 15,45) or [launch] elevation")
+    if velocities is None:
+        raise InputError(f"{where}: plan needs launch velocities: give --velocities (e.g. 684,818) or "
+                         f"[launch] velocity")
+    if len(elevations) * len(velocities) > PLAN_MAX_CASES:
+        raise InputError(f"{len(elevations)} elevations x {len(velocities)} velocities are "
+                         f"{len(elevations) * len(velocities)} cases; plan at most {PLAN_MAX_CASES} at once")
+    p = make_plan(rnd, elevations, velocities, dt=opts.dt, rounds=opts.rounds, scatter=opts.scatter,
+                  target=opts.target, lock_on=opts.lock_on, loss=opts.loss, assumed_drag=assumed_drag, seed=opts.seed)
+    return PlanResult(p, rnd, opts, time.perf_counter() - t0)
+
+
+def run_plan(round_path, out, options=None, *, assumed_drag_path=None, echo=print):
+    """``bayesdrag plan ROUND -o DIR``: read the round (and an assumed drag table), plan, write
+    ``DIR/plan.json``, ``plan.html`` and the figures. Returns the :class:`PlanResult`."""
+    from ..io.drag_tables import read_drag_table
+    from ..io.outputs import OutputRun
+    from ..io.rounds import read_round, round_files
+
+    rnd = read_round(round_path)
+    drag = read_drag_table(assumed_drag_path) if assumed_drag_path is not None else None
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: output path exists and is not a folder")
+    inputs = dict(round_files(round_path, rnd))
+    if assumed_drag_path is not None:
+        inputs["assumed_drag"] = assumed_drag_path
+    opts = options.to_dict() if hasattr(options, "to_dict") else options
+    # one consistent set like every command's: checked and locked before the work, staged,
+    # swapped in with a manifest, an earlier plan's files superseded
+    with OutputRun(out, "plan", inputs=inputs, options=opts,
+                   echo=lambda m: print(m, file=sys.stderr, flush=True)) as run:
+        result = plan(rnd, options, assumed_drag=drag)
+        result.write(run.staging, sources={"round": round_path})
+    echo(f"plan: {len(result.cases)} case(s) in {result.seconds:.1f} s; wrote {out / 'plan.json'}, plan.html, "
+         f"manifest.json")
+    echo(result.paragraph)
+    return result
