@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import FitError, InputError
 from ..estimate.quality import assess, check_against_flexible, intervals
-from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1
+from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1, model_error_floor
 from ..estimate.scheme2 import fit_scheme2, windows_table
 from ..results import PARTIAL, FitResult
 from ..track import thin_for_fit
@@ -90,6 +90,8 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
     grid = cd_grid(lo, hi)
     rows = cd_table(res, dm, grid, rnd.reference_drag)
+    budget = _budget(f1, grid, rows)
+    floored = model_error_floor(f1, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if dm.name != "spline":
         # a rigid model's band holds no shape error: check its curve against the flexible fit
@@ -100,14 +102,16 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             assess(ff, rows_f, track, rnd.radar.sigma)
             check_against_flexible(rows, rows_f, quality, dm.name)
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
-    summary["uncertainty_budget"] = _budget(f1, grid, rows)
+    summary["uncertainty_budget"] = budget
+    if floored:
+        budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
     if not f1.sources and log is not None:
         log(f"Cd is conditional on the nominal {', '.join(summary['uncertainty_budget']['conditional_on'])} "
             "(declare their _sd in the round file to include them)")
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
     bayes = post = None
     if opts.mcmc:
-        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress)
+        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored)
         summary["cd"] = rows
         summary["posterior"] = _posterior_json(bayes)
         summary["mcmc"] = _mcmc_json(bayes, post)
@@ -166,7 +170,7 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
     }
 
 
-def _sample(f1, rows, grid, opts, chain_path, resume, log, progress):
+def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=False):
     from ..estimate.posterior import LogPosterior
     from ..estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior
 
@@ -178,7 +182,24 @@ def _sample(f1, rows, grid, opts, chain_path, resume, log, progress):
                              backend_path=chain_path, resume=bool(resume and chain_path and Path(chain_path).exists()),
                              progress=progress, log=log)
     cd = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
+    if floored:
+        cd = widen_to_floor(cd, rows)
     return bayes, post, cd_posterior_rows(rows, cd)
+
+
+def widen_to_floor(cd, rows):
+    """Posterior Cd draws (chains, draws, M) widened about their mean, Mach by Mach, to the
+    rows' model-error floor (:func:`~bayesdrag.estimate.scheme1.model_error_floor`) where
+    their sd is below it; rows gain ``model_error_widening`` (the factor, 1 where none)."""
+    flat = cd.reshape(-1, cd.shape[-1])
+    mean = flat.mean(axis=0)
+    sd = flat.std(axis=0, ddof=1)
+    floor = np.array([r.get("model_error_floor", 0.0) for r in rows], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(sd > 0, np.maximum(1.0, floor / sd), 1.0)
+    for r, v in zip(rows, k):
+        r["model_error_widening"] = float(v)
+    return mean + (cd - mean) * k
 
 
 def _posterior_json(b):

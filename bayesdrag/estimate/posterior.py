@@ -28,12 +28,13 @@ Likelihood
     ``rho_c`` and ``q_c`` are held at their ML values by default (an empirical-Bayes plug-in).
     With ``sample_ar=True`` ``log_1m_rho_c = log(1 - rho_c)`` and ``log_q_c`` are sampled with
     uniform priors on :data:`colored.LOG_1M_RHO_RANGE` and :data:`colored.LOG_Q_RANGE`. Why not
-    by default (measured on the shipped 6-DOF demo, 16 walkers): the joint posterior of the
-    drift's correlation time, its variance and the initial state is far from the Gaussian the
-    independence proposal is built on; acceptance fell from ~0.4 to 0.05-0.08 and tau grew
-    past 90 steps without settling in 1000 steps (the plug-in converges as before). The band
-    covered the table at 87 % (sampled, not converged) against 8x % plug-in: the correlation
-    time's uncertainty moves the band little.
+    by default (measured on the shipped 6-DOF demo, 16 walkers): the drift's correlation time
+    and variance scale the information of every drag coefficient, a funnel that the
+    independence proposal cannot follow: acceptance fell from ~0.45 to 0.05-0.08 and tau grew
+    past 100 steps without settling in 1500 steps, also with the Laplace covariance's
+    mixed derivatives included. The plug-in converges as before (tau ~4); what the correlation
+    time's uncertainty would add is covered by the model-error floor of ``auto``
+    (:func:`bayesdrag.estimate.scheme1.model_error_floor`).
 
     ``student-t``: ``(z - y) / sigma_c ~ t_nu`` per sample, robust to outliers. ``log sigma_c``
     are sampled explicitly (uniform prior on ``[log(s_c/100), log(100 s_c)]``, ``s_c`` the ML

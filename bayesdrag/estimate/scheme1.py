@@ -111,6 +111,10 @@ class Scheme1Fit:
         The round's declared systematic sources fitted as nuisance parameters
         (:func:`bayesdrag.estimate.systematics.source_extras`: stem, parameter, nominal, sd), in
         this order after the initial state; empty when none is declared.
+    white_ml : MLResult or None
+        With ``auto`` noise that chose ``ar1`` somewhere: the white-noise fit it started from,
+        whose colored-residual (Morelli-Klein) bound is the band's model-error floor
+        (:func:`model_error_floor`).
     """
 
     ml: MLResult
@@ -122,6 +126,7 @@ class Scheme1Fit:
     base: tuple | None = None
     noise: dict = field(default_factory=dict)
     sources: tuple = ()
+    white_ml: MLResult | None = None
 
     @property
     def drag_model(self):
@@ -343,16 +348,20 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     else:
         prob.priors = tuple(used)
         res = prob.fit(fallback=True) if used else res_b
+    white_ml = None
     if likelihood == "student-t":
         res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
         noise = {"requested": noise_model, "model": dict(prob.noise_model),
                  "note": "a Student-t fit keeps white noise"} if noise_model != "white" else {}
     else:
+        white = res
         res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
+        if noise_model == "auto" and "ar1" in noise.get("model", {}).values():
+            white_ml = white
     prob, res, sources = fit_with_sources(prob, res, rnd)
     if pen is not None:
         res = drop_coefficient_correlations(res, P)
-    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources)
+    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml)
 
 
 def choose_noise_model(prob, res, requested):
@@ -501,6 +510,43 @@ def cd_grid(mach_min, mach_max):
     :data:`CD_GRID_MIN_ROWS` rows, no step above :data:`CD_GRID_STEP`, rounded to 1e-4."""
     n = max(CD_GRID_MIN_ROWS, int(math.ceil((mach_max - mach_min) / CD_GRID_STEP - 1e-9)) + 1)
     return np.round(np.linspace(mach_min, mach_max, n), 4)
+
+
+def model_error_floor(fit1, rows):
+    """Raise the rows' colored sd to the model-error floor of an ``auto`` fit that chose ``ar1``.
+
+    The generalised least squares with AR(1) model-error noise gives the better estimate
+    (on the shipped 6-DOF demo the largest Cd error fell from 1.1 % to 0.43 %), but its bound
+    assumes the model error *is* a stationary AR(1) process. The white-noise fit's
+    colored-residual bound (Morelli & Klein) assumes no form at all. Where the two disagree the
+    band takes the larger, with the declared sources' share added in squares: a form of model
+    error the data cannot check is not claimed away. (Measured on the demo: GLS bound alone
+    covers the table at 75 % of the grid, the floor brings the band to the colored bound's
+    ~97 %.) ``ar1`` chosen by the user trusts the AR(1) form: no floor.
+
+    Parameters
+    ----------
+    fit1 : Scheme1Fit
+    rows : list of dict
+        ``cd`` rows (``crb_sd``, ``crb_sd_colored``, optional ``crb_sd_statistical``); updated
+        in place: ``crb_sd_colored`` raised to the floor, ``model_error_floor`` added.
+
+    Returns
+    -------
+    bool
+        Whether a floor was applied.
+    """
+    if fit1.white_ml is None:
+        return False
+    mach = np.array([r["mach"] for r in rows], float)
+    # the white fit's drag model is the same object (the refit keeps the problem's model)
+    mk = cd_table(fit1.white_ml, fit1.drag_model, mach)
+    for r, w in zip(rows, mk):
+        src = max(r["crb_sd"] ** 2 - r.get("crb_sd_statistical", r["crb_sd"]) ** 2, 0.0)
+        floor = math.sqrt(w["crb_sd_colored"] ** 2 + src)
+        r["model_error_floor"] = float(floor)
+        r["crb_sd_colored"] = float(max(r["crb_sd_colored"], floor))
+    return True
 
 
 def cd_table(result, drag_model, mach, reference=None):
