@@ -138,11 +138,20 @@ def plot_cd_posterior_relative(rows, ax=None, truth=None, crb_band=0.90):
     k = norm.ppf(0.5 + crb_band / 2)
     ax.plot(m, pct(g["ml"] - k * g["crb_sd"]), color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
     ax.plot(m, pct(g["ml"] + k * g["crb_sd"]), color="C3", ls=":", lw=1.1)
+    edges = [pct(g["q05"]), pct(g["q95"]), pct(g["ml"] - k * g["crb_sd"]), pct(g["ml"] + k * g["crb_sd"])]
+    if all(r.get("crb_sd_colored") is not None for r in rows):
+        cc = np.array([r["crb_sd_colored"] for r in rows], float)
+        if np.any(cc > 1.05 * g["crb_sd"]):
+            ax.plot(m, pct(g["ml"] - k * cc), color="C1", ls="-.", lw=1.1,
+                    label=f"{crb_band:.0%} colored CRB band (ML, model error)")
+            ax.plot(m, pct(g["ml"] + k * cc), color="C1", ls="-.", lw=1.1)
+            edges += [pct(g["ml"] - k * cc), pct(g["ml"] + k * cc)]
     ax.axhline(0, color="k", ls="--", lw=1, label="reference (firing table)")
     if truth is not None:
         tv = truth(m) if callable(truth) else np.asarray(truth)
         ax.plot(m, pct(tv), color="C2", lw=1.2, label="truth")
-    lo, hi = np.nanpercentile(np.concatenate([pct(g["q05"]), pct(g["q95"])]), [2, 98])
+    # limits that show every band (the narrowest would vanish under a wider one otherwise)
+    lo, hi = np.nanpercentile(np.concatenate(edges), [1, 99])
     pad = 0.3 * (hi - lo) + 0.05
     ax.set_ylim(lo - pad, hi + pad)
     ax.set(xlabel="Mach", ylabel="Cd / reference − 1 [%]", title="drag coefficient relative to the reference")
@@ -209,4 +218,39 @@ def plot_windows(windows, ax=None, reference=None):
     ax.set(xlabel="Mach", ylabel="Cd", title="Scheme 2: constant Cd per window")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
+    return ax
+
+
+def plot_uncertainty_budget(budget, ax=None, cd=None):
+    """The Cd uncertainty budget against Mach: total sd and each source's share (GUM).
+
+    Parameters
+    ----------
+    budget : dict
+        result.json ``uncertainty_budget`` (``mach``, ``total_sd``, ``by_source``, optional
+        ``model_error_floor``).
+    ax : matplotlib Axes, optional
+    cd : (M,) array_like, optional
+        Cd at the budget's Mach values: the sds are then drawn in percent of Cd.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = new_axes(ax, (7.5, 4.0))
+    m = np.asarray(budget["mach"], float)
+    scale = 100.0 / np.asarray(cd, float) if cd is not None else 1.0
+    unit = " [% of Cd]" if cd is not None else ""
+    ax.plot(m, np.asarray(budget["total_sd"]) * scale, color="k", lw=1.8, label="total (ML, joint)")
+    for i, (k, v) in enumerate(budget["by_source"].items()):
+        if k == "cross":
+            continue
+        ax.plot(m, np.asarray(v, float) * scale, lw=1.2, color=f"C{i}", label=k)
+    if budget.get("model_error_floor"):
+        ax.plot(m, np.asarray(budget["model_error_floor"], float) * scale, color="C3", ls="-.", lw=1.2,
+                label="model-error floor (band)")
+    ax.set_yscale("log")
+    ax.set(xlabel="Mach", ylabel="sd of Cd" + unit, title="uncertainty budget of Cd")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize="small", ncol=2)
     return ax

@@ -1,13 +1,16 @@
 """Figures and ``report.html`` of a fit (:class:`~bayesdrag.results.FitResult`), both schemes."""
 from __future__ import annotations
 
+import math
+
 import datetime
 from pathlib import Path
 
 import numpy as np
 
 from ..io.outputs import write_bytes
-from ..plots.cd import plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative, plot_windows
+from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
+                        plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
 from ..plots.residuals import plot_residuals, plot_residuals_acf
 from .render import figure_png, png_base64, render_report, versions
@@ -41,6 +44,13 @@ def fit_figures(result):
     if all(r.get("reference") for r in rows):
         figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
                      "reference curve, where their widths are visible.", plot_cd_posterior_relative(rows).figure, None))
+    budget = result.summary.get("uncertainty_budget")
+    if budget and (len(budget["by_source"]) > 2 or budget.get("model_error_floor")):
+        figs.append(("cd_budget.png", "Uncertainty budget", "The Cd sd by source (GUM, linearised at the ML "
+                     "estimate): statistical = what the track leaves with every declared source held; each "
+                     "source's share; the total of the joint fit; dash-dot the model-error floor the band uses "
+                     "where the residuals show model error.",
+                     plot_uncertainty_budget(budget, cd=[r["ml"] for r in rows]).figure, None))
     figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the bound; "
                  "above 1 where the noise is estimated larger than the round's or the data are weak.",
                  plot_cd_relative(rows).figure, None))
@@ -195,10 +205,45 @@ def _context_scheme1(result, sources):
     headline = (f"Scheme 1, {f1.drag_model.name} drag. ML: {res.message}. "
                 + (f"Posterior: {bayes.message}." if bayes is not None else "No sampling (maximum likelihood only)."))
     ctx = _common(result, sources, "")
+    cd_rows = [dict(r, crb_sd_systematic=math.sqrt(max(r["crb_sd"] ** 2 - r["crb_sd_statistical"] ** 2, 0.0)))
+               if r.get("crb_sd_statistical") is not None else r for r in s["cd"][::2]]
     ctx.update(headline=headline, inputs=inputs, convergence=conv, posterior=post_ctx, windows=None,
                ml={"message": res.message, "iterations": res.iterations, "cost": res.cost, "rows": mlrows},
-               cd_rows=s["cd"][::2])
+               cd_rows=cd_rows, budget=budget_context(s))
     return ctx
+
+
+def budget_context(summary, n=6):
+    """The report's budget section: one line on what the Cd is conditional on or includes, and
+    the sd by source in percent of Cd at ``n`` Mach values of the determined range."""
+    b = summary.get("uncertainty_budget")
+    if not b:
+        return None
+    cond = b.get("conditional_on") or []
+    srcs = [k for k in b["by_source"] if k not in ("statistical", "cross")]
+    note = ("Includes the declared sources " + ", ".join(srcs) + " (fitted with their priors); "
+            if srcs else "No systematic source is declared: ")
+    note += ("the Cd is conditional on the nominal " + ", ".join(cond) + "." if cond else "every source is included.")
+    if b.get("model_error_floor"):
+        note += (" The residuals show model error: the band uses the model-error floor (the colored bound of the "
+                 "white-noise fit with the sources), wider than the AR(1) fit's own bound.")
+    rows = []
+    if srcs or b.get("model_error_floor"):
+        mach = np.asarray(b["mach"], float)
+        det = summary["ml"].get("mach_range_determined") or [mach.min(), mach.max()]
+        cd = {round(r["mach"], 4): r["ml"] for r in summary["cd"]}
+        keys = ["statistical"] + srcs + ["cross"] + (["model_error_floor"] if b.get("model_error_floor") else [])
+        for x in np.linspace(det[0], det[1], n):
+            i = int(np.argmin(np.abs(mach - x)))
+            c = cd.get(round(float(mach[i]), 4)) or 1.0
+            parts = []
+            for k in keys:
+                v = b["model_error_floor"][i] if k == "model_error_floor" else b["by_source"][k][i]
+                # cross is signed variance: shown as a signed sd
+                parts.append(100 * (math.copysign(math.sqrt(abs(v)), v) if k == "cross" else v) / c)
+            rows.append({"mach": float(mach[i]), "total": 100 * b["total_sd"][i] / c, "parts": parts})
+        return {"note": note, "columns": [k if k != "cross" else "cross (signed)" for k in keys], "rows": rows}
+    return {"note": note, "columns": [], "rows": []}
 
 
 def _context_scheme2(result, sources):
