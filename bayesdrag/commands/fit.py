@@ -105,9 +105,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     summary["uncertainty_budget"] = budget
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
-    if not f1.sources and log is not None:
-        log(f"Cd is conditional on the nominal {', '.join(summary['uncertainty_budget']['conditional_on'])} "
-            "(declare their _sd in the round file to include them)")
+    # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
     bayes = post = None
     if opts.mcmc:
