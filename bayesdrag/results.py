@@ -128,6 +128,10 @@ class FitResult:
 
             f1 = self.scheme1
             cd = cd_draws(self.posterior, f1.drag_model, self.grid, f1.problem.P)
+            if any("model_error_floor" in r for r in self.summary.get("cd", [])):
+                from .estimate.sampler import widen_to_floor  # the same widening as result.json
+
+                cd = widen_to_floor(cd, [dict(r) for r in self.summary["cd"]])
             return to_inference_data(self.posterior, self.log_posterior, self.grid, cd,
                                      self.round.reference_drag, seed=self.options.seed)
         if self.window_draws:

@@ -170,7 +170,7 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
 
 def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=False):
     from ..estimate.posterior import LogPosterior
-    from ..estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior
+    from ..estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior, widen_to_floor
 
     post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu)
     walkers = opts.walkers
@@ -184,20 +184,6 @@ def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=Fal
         cd = widen_to_floor(cd, rows)
     return bayes, post, cd_posterior_rows(rows, cd)
 
-
-def widen_to_floor(cd, rows):
-    """Posterior Cd draws (chains, draws, M) widened about their mean, Mach by Mach, to the
-    rows' model-error floor (:func:`~bayesdrag.estimate.scheme1.model_error_floor`) where
-    their sd is below it; rows gain ``model_error_widening`` (the factor, 1 where none)."""
-    flat = cd.reshape(-1, cd.shape[-1])
-    mean = flat.mean(axis=0)
-    sd = flat.std(axis=0, ddof=1)
-    floor = np.array([r.get("model_error_floor", 0.0) for r in rows], float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.where(sd > 0, np.maximum(1.0, floor / sd), 1.0)
-    for r, v in zip(rows, k):
-        r["model_error_widening"] = float(v)
-    return mean + (cd - mean) * k
 
 
 def _posterior_json(b):

@@ -38,7 +38,9 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
     Returns
     -------
     arviz.InferenceData
-        Groups ``posterior`` (sampled parameters and ``log_sigma_<c>``), ``sample_stats``
+        Groups ``posterior`` (``cd`` over ``mach``: the Cd curve of every draw; the drag
+        coefficients as one vector ``drag_coefficients`` over ``coefficient``; the initial state,
+        effect, systematic and ``log_sigma_<c>`` parameters by name), ``sample_stats``
         (``lp``), ``observed_data`` (the track's channels against ``time`` [s]),
         ``constant_data`` (time, Mach grid, ML estimate and Cramér-Rao sd, fixed parameters,
         reference Cd), ``posterior_predictive`` (``cd`` on the Mach grid and the track channels
@@ -59,14 +61,21 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
         warnings.simplefilter("ignore")
         idata_pp = az.from_dict(posterior_predictive=ppc, coords={"mach": mach, "time": t},
                                 dims={"cd": ["mach"], **{c: ["time"] for c in post.channels}})
+        drag_k = [k for k, n in enumerate(result.names) if k < post.n_theta and post.idx[k] < post.P]
+        other = {n: result.draws[..., k] for k, n in enumerate(result.names) if k not in drag_k}
+        posterior = {"cd": np.asarray(cd, np.float64), **other}
+        if drag_k:
+            posterior["drag_coefficients"] = result.draws[..., drag_k]
         idata = az.from_dict(
-            posterior={n: result.draws[..., k] for k, n in enumerate(result.names)},
+            posterior=posterior,
             sample_stats={"lp": result.lp},
             observed_data={c: post.problem.z[:, j] for j, c in enumerate(post.channels)},
             constant_data=_constant_data(post, mach, reference),
             coords={"time": t, "mach": mach, "theta": list(post.names[:post.n_theta]),
+                    "coefficient": [result.names[k] for k in drag_k] or ["none"],
                     "fixed": [n for j, n in enumerate(post.problem.names) if not post.problem.free[j]] or ["none"]},
             dims={**{c: ["time"] for c in post.channels}, "t": ["time"], "mach_grid": ["mach"],
+                  "cd": ["mach"], "drag_coefficients": ["coefficient"],
                   "reference_cd": ["mach"], "ml_estimate": ["theta"], "crb_sd": ["theta"],
                   "fixed_values": ["fixed"]},
             attrs={"likelihood": result.likelihood, "moves": result.moves, "steps": result.steps,

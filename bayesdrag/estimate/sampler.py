@@ -601,3 +601,18 @@ def cd_posterior_rows(rows, cd):
                  sd_over_crb=float(sd[i] / r["crb_sd"]) if r.get("crb_sd") else None)
         out.append(r)
     return out
+
+
+def widen_to_floor(cd, rows):
+    """Posterior Cd draws (chains, draws, M) widened about their mean, Mach by Mach, to the
+    rows' model-error floor (:func:`~bayesdrag.estimate.scheme1.model_error_floor`) where
+    their sd is below it; rows gain ``model_error_widening`` (the factor, 1 where none)."""
+    flat = cd.reshape(-1, cd.shape[-1])
+    mean = flat.mean(axis=0)
+    sd = flat.std(axis=0, ddof=1)
+    floor = np.array([r.get("model_error_floor", 0.0) for r in rows], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(sd > 0, np.maximum(1.0, floor / sd), 1.0)
+    for r, v in zip(rows, k):
+        r["model_error_widening"] = float(v)
+    return mean + (cd - mean) * k
