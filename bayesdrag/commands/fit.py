@@ -241,6 +241,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
                 warnings.append(f"window {k}: {b.message}")
             if log:
                 log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
+    budget = _window_budget(rows, ok, draws, rnd, opts.seed)
     mach = np.array([w["mach"] for w in rows])
     lo, hi = float(min(w["mach_min"] for w in rows)), float(max(w["mach_max"] for w in rows))
     grid = np.round(np.linspace(lo, hi, 81), 4)
@@ -249,13 +250,51 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     summary = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
                "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
                       "windows": len(rows), "notes": list(r2.notes), "quality": quality},
-               "cd": cd_rows, "windows": rows}
+               "cd": cd_rows, "windows": rows, "uncertainty_budget": budget}
     if draws:
         summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
                            "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme2=r2,
                      window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
+
+
+def _window_budget(rows, ok, draws, rnd, seed):
+    """Scheme 2's budget: the declared level sources (density, mass, diameter: one factor on
+    every window's Cd) added to each window's bound and, by Monte Carlo (an independent factor
+    per draw), to its posterior draws; the windows stay conditional on the other sources.
+    Window rows gain ``crb_sd_statistical``; ``crb_sd`` becomes the total."""
+    from ..estimate.systematics import level_shares
+
+    rel, cond = level_shares(rnd)
+    s_rel = float(np.sqrt(sum(v * v for v in rel.values())))
+    by = {"statistical": [], **{k: [] for k in rel}, "cross": []}
+    total = []
+    rng = np.random.default_rng(None if seed is None else seed + 10_000)
+    for k, r in enumerate(rows):
+        stat = float(r["crb_sd"]) if r.get("crb_sd") is not None else float("nan")
+        cd = float(r["ml"]) if r.get("ml") is not None else float("nan")
+        r["crb_sd_statistical"] = stat
+        tot = float(np.sqrt(stat ** 2 + (s_rel * cd) ** 2))
+        r["crb_sd"] = tot
+        by["statistical"].append(stat)
+        for n, v in rel.items():
+            by[n].append(abs(cd) * v)
+        by["cross"].append(0.0)
+        total.append(tot)
+        if k in draws and s_rel > 0:
+            d = draws[k]
+            d = d * (1.0 + s_rel * rng.standard_normal(d.shape))
+            draws[k] = d
+            flat = d.reshape(-1)
+            q = np.quantile(flat, [0.05, 0.5, 0.95])
+            r.update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
+                     q95=float(q[2]), sd_over_crb=float(flat.std(ddof=1) / tot) if tot else None)
+    r6 = lambda a: [float(f"{v:.6g}") for v in a]  # noqa: E731
+    return {"mach": [round(float(r["mach"]), 4) for r in rows], "total_sd": r6(total),
+            "by_source": {k: r6(v) for k, v in by.items()}, "conditional_on": cond,
+            "note": "windows: the level sources (density, mass, diameter) are included; conditional on "
+                    + (", ".join(cond) if cond else "nothing")}
 
 
 def _stitched_rows(rows, ok, mach, grid, rnd, sampled):

@@ -261,3 +261,33 @@ def fit_with_sources(prob, res, rnd):
     if not res2.success:
         return prob, res, ()
     return p2, res2, extras
+
+
+#: sources that move Cd by one factor whatever the Mach number: Cd ~ 1/rho, ~ m, ~ 1/d^2
+LEVEL_SOURCES = ("density", "mass", "diameter")
+
+
+def level_shares(rnd):
+    """Relative Cd sd of each declared level source (Scheme 2's budget).
+
+    A constant Cd per window is estimated with the nominal air density, mass and diameter;
+    an error in any of them moves every window's Cd by the same factor (drag ~ rho Cd d^2 / m),
+    so its share is analytic: density ``sd``, mass ``sd / m``, diameter ``2 sd / d``.
+
+    Returns
+    -------
+    (dict stem -> float, list of str)
+        The relative shares, and the sources the windows stay conditional on (the others).
+    """
+    dec = rnd.systematics.declared()
+    rel = {}
+    for stem, sd in dec.items():
+        if stem == "density":
+            rel[stem] = float(sd)
+        elif stem == "mass":
+            rel[stem] = float(sd) / rnd.projectile.mass
+        elif stem == "diameter":
+            rel[stem] = 2.0 * float(sd) / rnd.projectile.diameter
+    from ..round import SYSTEMATIC_SOURCES
+
+    return rel, [k for k in SYSTEMATIC_SOURCES if k not in rel]

@@ -93,7 +93,10 @@ def test_posterior_nc_opens_with_arviz(fitted):
 
     idata = az.from_netcdf(str(fitted / "posterior.nc"))
     s = az.summary(idata, round_to="none")
-    assert "factor" in s.index and s["r_hat"].max() < 1.01
+    assert "drag_coefficients[factor]" in s.index and s["r_hat"].max() < 1.01
+    # the Cd curve over a mach dim, the coefficients as one vector (the file format)
+    assert idata.posterior["cd"].dims == ("chain", "draw", "mach")
+    assert idata.posterior["drag_coefficients"].dims == ("chain", "draw", "coefficient")
     assert {"posterior", "sample_stats", "observed_data", "constant_data",
             "posterior_predictive"} <= set(idata.groups())
 
