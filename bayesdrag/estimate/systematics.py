@@ -61,6 +61,9 @@ SOURCE_PARAMS = {"mass": "mass", "diameter": "diameter", "density": "density.rat
 T_NODE_SDS = 3.0
 #: ... and at least this far [K]
 T_NODE_MIN = 0.5
+#: finite-difference step of a source's sensitivities, in declared sd (a 0.05 K temperature step
+#: for a 0.5 K sd: well above the integrator's error, well inside the linear range)
+FD_STEP_SDS = 0.1
 #: how far (in declared sd) a source's bounds lie from its nominal value
 BOUND_SDS = 20.0
 
@@ -85,7 +88,7 @@ def source_extras(rnd):
         lo, hi = nom - BOUND_SDS * sd, nom + BOUND_SDS * sd
         if stem in ("mass", "diameter", "density"):
             lo = max(lo, 0.2 * nom)
-        out.append((stem, ExtraParam(SOURCE_PARAMS[stem], nom, lo, hi, max(sd * 0.01, 1e-9)), nom, sd))
+        out.append((stem, ExtraParam(SOURCE_PARAMS[stem], nom, lo, hi, max(sd * FD_STEP_SDS, 1e-9)), nom, sd))
     return tuple(out)
 
 
