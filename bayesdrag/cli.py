@@ -172,6 +172,9 @@ def _add_fit_options(p, batch=False):
     p.add_argument("--noise-model", choices=NOISE_MODELS, default=d.noise_model,
                    help="auto (default: per channel from the residuals), white (independent samples) or ar1 "
                         "(white noise plus an AR(1) model-error process: correlated residuals widen the bands)")
+    p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto",
+                   help="fit these effects of the diagnosis library with Cd as nuisance parameters (auto: the ones "
+                        "`bayesdrag diagnose` names); the report shows Cd with and without them")
     p.add_argument("--nu", type=_nu, default=d.nu,
                    help=f"Student-t degrees of freedom: a number (default {d.nu:g}) or 'sample'")
 
@@ -253,6 +256,8 @@ def _fit_options(args):
     for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu", "noise_model"):
         if hasattr(args, k):
             kw[k] = getattr(args, k)
+    if getattr(args, "with_effects", ""):
+        kw["with_effects"] = args.with_effects
     return FitOptions(**kw)
 
 

@@ -81,8 +81,10 @@ def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, pr
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start):
+    with_effects, with_note = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
-                     likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model)
+                     likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
+                     with_effects=with_effects)
     res = f1.ml
     if not res.success:
         raise FitError(f"{track.source or 'track'}: {res.message}")
@@ -90,6 +92,9 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
     grid = cd_grid(lo, hi)
     rows = cd_table(res, dm, grid, rnd.reference_drag)
+    if f1.ml_without_effects is not None:
+        for r, v in zip(rows, dm.cd(f1.ml_without_effects.drag_params, grid)):
+            r["ml_without_effects"] = float(v)
     budget = _budget(f1, grid, rows)
     floored = model_error_floor(f1, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
@@ -103,6 +108,9 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             check_against_flexible(rows, rows_f, quality, dm.name)
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
+    if with_note is not None:
+        with_note["fitted"] = list(f1.effects)
+        summary["ml"]["with_effects"] = with_note
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
@@ -123,6 +131,29 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                      seconds=time.perf_counter() - t_start)
 
 
+def _with_effects(track, rnd, opts, log):
+    """The effects ``--with`` asks for (``auto``: the diagnosis' verdict), checked: those that
+    share a declared source's quantity or are confounded with Cd are left out with a reason.
+    Returns ``(names, record)``; ``record`` (``requested``, ``skipped``) is None without
+    ``--with``."""
+    from ..estimate.systematics import plan_effects
+
+    req = opts.with_effects
+    if not req:
+        return (), None
+    if req == "auto":
+        from ..diagnosis import diagnose
+
+        d = diagnose(track, rnd)
+        names = list(d.summary["verdict"])
+        if log is not None:
+            log(f"--with auto: the diagnosis names {', '.join(names) if names else 'no material effect'}")
+    else:
+        names = list(req)
+    keep, skipped = plan_effects(names, rnd)
+    return keep, {"requested": req if req == "auto" else list(req), "candidates": names, "skipped": skipped}
+
+
 def _budget(f1, grid, rows):
     """result.json ``uncertainty_budget`` (linearised, GUM) of the Scheme 1 fit; each ``cd`` row
     gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
@@ -132,9 +163,16 @@ def _budget(f1, grid, rows):
 
     res = f1.ml
     P = f1.problem.P
-    n0 = res.theta.size - len(f1.sources)
-    idx = list(range(n0, res.theta.size))
-    b = uncertainty_budget(res.cov, f1.drag_model.jacobian(grid), slice(0, P), idx, [s[0] for s in f1.sources])
+    idx, keys = [], []
+    stems = {s[1].name: s[0] for s in f1.sources}
+    for j, n in enumerate(res.names):
+        if n in stems:
+            idx.append(j)
+            keys.append(stems[n])
+        elif "." in n and n.split(".")[0] in f1.effects:
+            idx.append(j)
+            keys.append(n.split(".")[0])
+    b = uncertainty_budget(res.cov, f1.drag_model.jacobian(grid), slice(0, P), idx, keys)
     for r, v in zip(rows, b["by_source"]["statistical"]):
         r["crb_sd_statistical"] = float(v)
     out = budget_rows(b, grid)

@@ -71,6 +71,11 @@ class FitOptions:
         process per channel, so residuals that model error has made correlated widen the
         bands; ``auto`` (default): ``ar1`` for the channels whose white-noise residuals show
         such a process (:func:`bayesdrag.estimate.scheme1.choose_noise_model`).
+    with_effects : tuple of str or "auto"
+        Effects of the diagnosis library fitted with Cd as nuisance parameters (``--with``);
+        ``auto``: the ones the diagnosis names. Effects that share a declared source's quantity
+        (density, temperature, radar_time) or are confounded with Cd (density without
+        ``density_sd``, drag_scale, drag_shape) are left out and the result says why.
     window, overlap : int
         Scheme 2: samples per window (default 50) and shared by consecutive windows (0).
     walkers : int or None
@@ -92,6 +97,7 @@ class FitOptions:
     likelihood: str = "gaussian"
     nu: float | str = DEFAULT_NU
     noise_model: str = "auto"
+    with_effects: tuple | str = ()
     window: int = 50
     overlap: int = 0
     walkers: int | None = None
@@ -113,6 +119,20 @@ class FitOptions:
             object.__setattr__(self, "channels", ch)
         if self.likelihood not in LIKELIHOODS:
             _bad("likelihood", self.likelihood, f"use one of {', '.join(LIKELIHOODS)}")
+        if self.with_effects not in ((), None, "auto"):
+            from ..effects import EFFECTS
+
+            w = self.with_effects
+            names = tuple(c.strip() for c in w.split(",") if c.strip()) if isinstance(w, str) else tuple(w)
+            if names == ("auto",):
+                names = "auto"
+            else:
+                bad = [n for n in names if n not in EFFECTS]
+                if bad or not names:
+                    _bad("with_effects", w, f"use auto or effects among {', '.join(EFFECTS)}")
+            object.__setattr__(self, "with_effects", names)
+        elif self.with_effects is None:
+            object.__setattr__(self, "with_effects", ())
         if self.noise_model not in NOISE_MODELS:
             _bad("noise_model", self.noise_model, f"use one of {', '.join(NOISE_MODELS)}")
         if self.nu != "sample":

@@ -115,6 +115,11 @@ class Scheme1Fit:
         With ``auto`` noise that chose ``ar1`` somewhere: the white-noise fit it started from,
         whose colored-residual (Morelli-Klein) bound is the band's model-error floor
         (:func:`model_error_floor`).
+    effects : tuple of str
+        Effects fitted as nuisance parameters (``--with``), their parameters after the
+        initial state and before the sources.
+    ml_without_effects : MLResult or None
+        The fit before the effects were added (the report shows Cd with and without them).
     """
 
     ml: MLResult
@@ -127,6 +132,8 @@ class Scheme1Fit:
     noise: dict = field(default_factory=dict)
     sources: tuple = ()
     white_ml: MLResult | None = None
+    effects: tuple = ()
+    ml_without_effects: MLResult | None = None
 
     @property
     def drag_model(self):
@@ -226,7 +233,7 @@ def _free_mask(P, n, chans, free_ic, drag_name, span):
 
 @single_blas
 def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
-                penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white"):
+                penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white", with_effects=()):
     """Scheme 1 ML fit of one track.
 
     Parameters
@@ -256,6 +263,9 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         ``ar1``: every channel has white noise plus an AR(1) model-error process
         (:mod:`bayesdrag.estimate.colored`); ``auto``: the channels whose white-noise residuals
         show one (:func:`choose_noise_model`). A Student-t fit stays white.
+    with_effects : sequence of str
+        Effects of :mod:`bayesdrag.effects` fitted with Cd as nuisance parameters (checked by
+        :func:`bayesdrag.estimate.systematics.plan_effects`).
 
     Returns
     -------
@@ -358,10 +368,12 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
         if noise_model == "auto" and "ar1" in noise.get("model", {}).values():
             white_ml = white
-    prob, res, sources = fit_with_sources(prob, res, rnd)
+    before = res
+    prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects)
     if pen is not None:
         res = drop_coefficient_correlations(res, P)
-    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml)
+    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
+                      before if fitted_effects else None)
 
 
 def choose_noise_model(prob, res, requested):

@@ -187,7 +187,8 @@ def uncertainty_budget(cov, B, drag_slice, source_idx, names):
     source_idx : sequence of int
         Indices of the source (and fitted effect) parameters.
     names : sequence of str
-        Their budget keys.
+        Their budget keys, one per index (parameters of one effect share its key and count as
+        one source; the correlation between them is inside its share, not in ``cross``).
 
     Returns
     -------
@@ -211,8 +212,13 @@ def uncertainty_budget(cov, B, drag_slice, source_idx, names):
     stat = np.einsum("ij,jk,ik->i", B, cond, B)
     out["by_source"]["statistical"] = np.sqrt(np.clip(stat, 0, None))
     acc = np.clip(stat, 0, None)
-    for k, n in enumerate(names):
-        share = np.abs(B @ A[:, k]) * math.sqrt(max(S_ss[k, k], 0.0))
+    groups = {}
+    for k, n in enumerate(names):   # a multi-parameter effect (wind: wx, wy) is one source
+        groups.setdefault(n, []).append(k)
+    for n, ks in groups.items():
+        # the source's share: g^T A_G Sigma_GG A_G^T g over its parameters G
+        AG = B @ A[:, ks]                                   # (M, |G|)
+        share = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", AG, S_ss[np.ix_(ks, ks)], AG), 0, None))
         out["by_source"][n] = share
         acc = acc + share ** 2
     out["by_source"]["cross"] = total - acc
@@ -226,12 +232,43 @@ def budget_rows(budget, mach):
             "by_source": {k: r(v) for k, v in budget["by_source"].items()}}
 
 
-def fit_with_sources(prob, res, rnd):
-    """Stage C of Scheme 1: the fit again with the declared sources as nuisance parameters.
+#: effects that carry a source's quantity (one quantity is one parameter)
+EFFECT_SOURCE = {"density": "density", "temperature": "temperature", "radar_time": "time_offset"}
+#: effects that cannot be fitted with Cd without a declared sd: a constant factor on the drag
+#: (``density``, ``drag_scale``) or its shape (``drag_shape``) is Cd itself
+CONFOUNDED_EFFECTS = ("density", "drag_scale", "drag_shape")
+
+
+def plan_effects(names, rnd):
+    """Which requested ``--with`` effects are fitted, and why the others are not.
+
+    Returns
+    -------
+    (tuple of str, dict name -> reason)
+    """
+    declared = rnd.systematics.declared()
+    keep, skipped = [], {}
+    for n in names:
+        if n in EFFECT_SOURCE and EFFECT_SOURCE[n] in declared:
+            skipped[n] = f"its quantity is the declared {EFFECT_SOURCE[n]}_sd (one quantity, one parameter)"
+        elif n in CONFOUNDED_EFFECTS:
+            skipped[n] = ("confounded with the Cd level the fit estimates" if n != "drag_shape" else
+                          "confounded with the Cd curve the fit estimates") + \
+                         (": declare density_sd in the round to include the air density" if n == "density" else "")
+        elif n == "coriolis" and rnd.launch.latitude_deg is None:
+            skipped[n] = "needs [launch] latitude"
+        elif n not in keep:
+            keep.append(n)
+    return tuple(keep), skipped
+
+
+def fit_with_sources(prob, res, rnd, effects=()):
+    """Stage C of Scheme 1: the fit again with the declared sources and the ``--with`` effects
+    as nuisance parameters.
 
     The drag model, the chosen smoothing, the launch priors, the sample weights and the noise
-    model stay as ``prob`` has them; the sources start at their nominal values (the previous
-    fit is their conditional optimum) with their priors added.
+    model stay as ``prob`` has them; the sources start at their nominal values with their
+    priors, the effects at "no effect" (no prior: bounded only).
 
     Parameters
     ----------
@@ -240,30 +277,55 @@ def fit_with_sources(prob, res, rnd):
     res : MLResult
         Its fit.
     rnd : Round
+    effects : sequence of str
+        Effects of :mod:`bayesdrag.effects` to fit (already checked by :func:`plan_effects`).
 
     Returns
     -------
-    (OutputErrorProblem, MLResult, tuple)
-        The problem with the sources, its fit and the sources (:func:`source_extras`); the
-        inputs unchanged when nothing is declared or the fit fails (the tuple is then empty).
+    (OutputErrorProblem, MLResult, tuple, tuple)
+        The problem with the nuisance parameters, its fit, the sources (:func:`source_extras`)
+        and the effects fitted; the inputs and empty tuples when there is nothing to add or the
+        fit fails.
     """
+    from ..effects import EffectContext, effect_fn, extra_params, get_effect, static_model
     from .problem import OutputErrorProblem
 
     extras = source_extras(rnd)
-    if not extras:
-        return prob, res, ()
-    n = res.theta.size
-    theta0 = np.concatenate([res.theta, [e[2] for e in extras]])
-    free = np.concatenate([res.free, np.ones(len(extras), bool)])
-    fn = source_fn(extras, rnd, prob.model, inner=prob.effect_fn if prob.E else None, n_inner=prob.E)
-    p2 = OutputErrorProblem(prob.model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
-                            priors=tuple(prob.priors) + source_priors(extras, n), channels=prob.channels,
-                            extras=tuple(prob.extras) + tuple(e[1] for e in extras), effect_fn=fn,
-                            t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model)
+    effs = tuple(get_effect(n) for n in effects)
+    if not extras and not effs:
+        return prob, res, (), ()
+    L = rnd.launch
+    ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg, azimuth_deg=L.azimuth_deg,
+                        v0=L.velocity)
+    model = static_model(prob.model, [e for e in effs if e.k == 0], ctx)
+    with_par = [e for e in effs if e.k > 0]
+    eff_extras = extra_params(with_par)
+    n0 = prob.P + 6 + prob.E
+    inner_fn = prob.effect_fn if prob.E else None
+    n_inner = prob.E
+    if with_par:
+        base = effect_fn(with_par, ctx, res.theta[prob.P:prob.P + 6])
+        if inner_fn is None:
+            inner_fn = base
+        else:   # effects after the problem's own extras
+            def inner_fn(E, a=prob.effect_fn, b=base, k=prob.E):
+                ia, ib = a(E[:, :k]), b(E[:, k:])
+                return type(ia)({**ia.overrides, **ib.overrides}, ib.atmospheres or ia.atmospheres,
+                                ib.time_shift if ib.time_shift is not None else ia.time_shift,
+                                {**ia.output_scale, **ib.output_scale}, ia.atmosphere_tables)
+        n_inner = prob.E + len(eff_extras)
+    theta0 = np.concatenate([res.theta, [e.start for e in eff_extras], [e[2] for e in extras]])
+    free = np.concatenate([res.free, np.ones(len(eff_extras) + len(extras), bool)])
+    fn = source_fn(extras, rnd, model, inner=inner_fn, n_inner=n_inner)
+    p2 = OutputErrorProblem(model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
+                            priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)),
+                            channels=prob.channels,
+                            extras=tuple(prob.extras) + tuple(eff_extras) + tuple(e[1] for e in extras),
+                            effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model)
     res2 = p2.fit(fallback=True)
     if not res2.success:
-        return prob, res, ()
-    return p2, res2, extras
+        return prob, res, (), ()
+    return p2, res2, extras, tuple(e.name for e in effs)
 
 
 #: sources that move Cd by one factor whatever the Mach number: Cd ~ 1/rho, ~ m, ~ 1/d^2
