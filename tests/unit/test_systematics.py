@@ -46,3 +46,29 @@ def test_temperature_tables_interpolate_the_shifted_atmosphere():
     interp = tabs[1] + 0.5 * x * (tabs[2] - tabs[0]) + 0.5 * x * x * (tabs[2] - 2 * tabs[1] + tabs[0])
     exact = atmosphere_table(replace(atm, temperature_offset=0.7))[2]
     assert np.max(np.abs(interp / exact - 1.0)) < TABLE_TOL
+
+
+def test_with_effects_leave_out_confounded_and_duplicate_quantities():
+    from bayesdrag.round import Launch, Projectile, Round, Systematics
+
+    plain = Round(Projectile(mass=42.6, diameter=0.155))
+    keep, skipped = S.plan_effects(["wind", "density", "drag_scale", "coriolis", "temperature"], plain)
+    assert keep == ("wind", "temperature")
+    assert set(skipped) == {"density", "drag_scale", "coriolis"}
+    assert "density_sd" in skipped["density"] and "latitude" in skipped["coriolis"]
+    declared = Round(Projectile(mass=42.6, diameter=0.155), Launch(latitude_deg=45.0),
+                     systematics=Systematics(temperature=0.5, time_offset=0.001))
+    keep, skipped = S.plan_effects(["temperature", "radar_time", "coriolis"], declared)
+    assert keep == ("coriolis",)
+    assert "temperature_sd" in skipped["temperature"] and "time_offset_sd" in skipped["radar_time"]
+
+
+def test_a_multi_parameter_effect_is_one_source():
+    rng = np.random.default_rng(4)
+    A = rng.standard_normal((10, 10))
+    cov = A @ A.T
+    B = rng.standard_normal((4, 5))
+    b = S.uncertainty_budget(cov, B, slice(0, 5), [7, 8, 9], ["wind", "wind", "density"])
+    assert set(b["by_source"]) == {"statistical", "wind", "density", "cross"}
+    acc = b["by_source"]["statistical"] ** 2 + b["by_source"]["wind"] ** 2 + b["by_source"]["density"] ** 2
+    assert acc + b["by_source"]["cross"] == pytest.approx(b["total_sd"] ** 2, rel=1e-10)
