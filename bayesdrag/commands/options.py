@@ -119,7 +119,9 @@ class FitOptions:
             object.__setattr__(self, "channels", ch)
         if self.likelihood not in LIKELIHOODS:
             _bad("likelihood", self.likelihood, f"use one of {', '.join(LIKELIHOODS)}")
-        if self.with_effects not in ((), None, "auto"):
+        if isinstance(self.with_effects, (list, tuple)) and len(self.with_effects) == 0:
+            object.__setattr__(self, "with_effects", ())
+        elif self.with_effects not in (None, "auto"):
             from ..effects import EFFECTS
 
             w = self.with_effects
@@ -165,6 +167,8 @@ class FitOptions:
         d = asdict(self)
         if d["channels"] is not None:
             d["channels"] = list(d["channels"])
+        if not isinstance(d["with_effects"], str):
+            d["with_effects"] = list(d["with_effects"])   # as JSON holds it: a fingerprint compares equal
         return d
 
     @classmethod
