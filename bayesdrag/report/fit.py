@@ -33,24 +33,26 @@ def fit_figures(result):
     res, prob, dm = f1.ml, f1.problem, f1.drag_model
     rows = result.summary["cd"]
     track = result.track
+    budget = result.summary.get("uncertainty_budget")
+    budget_fig = []
+    if budget and (len(budget["by_source"]) > 2 or budget.get("model_error_floor")):
+        budget_fig = [("cd_budget.png", "Uncertainty budget", "The Cd sd by source (GUM, linearised at the ML "
+                       "estimate): statistical = what the track leaves with every declared source held; each "
+                       "source's share; the total of the joint fit; dash-dot the model-error floor the band uses "
+                       "where the residuals show model error.",
+                       plot_uncertainty_budget(budget, cd=[r["ml"] for r in rows]).figure, None)]
     if bayes is None:
         return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the Cramér-Rao sd, or the colored-residual "
                  "sd where the residuals show model error) and the reference.", plot_cd_ml(rows, label=f"ML ({dm.name})").figure, None),
                 ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.",
-                 plot_residuals(track.t, res.residuals, res.sigma), None)]
+                 plot_residuals(track.t, res.residuals, res.sigma), None)] + budget_fig
     figs = [("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
              "Cramér-Rao band (dotted) and the reference firing table (dashed).",
              plot_cd_posterior(rows, label=f"posterior ({dm.name})").figure, None)]
     if all(r.get("reference") for r in rows):
         figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
                      "reference curve, where their widths are visible.", plot_cd_posterior_relative(rows).figure, None))
-    budget = result.summary.get("uncertainty_budget")
-    if budget and (len(budget["by_source"]) > 2 or budget.get("model_error_floor")):
-        figs.append(("cd_budget.png", "Uncertainty budget", "The Cd sd by source (GUM, linearised at the ML "
-                     "estimate): statistical = what the track leaves with every declared source held; each "
-                     "source's share; the total of the joint fit; dash-dot the model-error floor the band uses "
-                     "where the residuals show model error.",
-                     plot_uncertainty_budget(budget, cd=[r["ml"] for r in rows]).figure, None))
+    figs += budget_fig
     figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the bound; "
                  "above 1 where the noise is estimated larger than the round's or the data are weak.",
                  plot_cd_relative(rows).figure, None))
