@@ -135,6 +135,9 @@ class FitOptions:
             object.__setattr__(self, "with_effects", names)
         elif self.with_effects is None:
             object.__setattr__(self, "with_effects", ())
+        if self.with_effects and self.scheme == 2:
+            _bad("with_effects", self.with_effects, "--with fits effects with the Scheme 1 curve; use it without "
+                 "--scheme 2 (a window's constant Cd cannot carry them)")
         if self.noise_model not in NOISE_MODELS:
             _bad("noise_model", self.noise_model, f"use one of {', '.join(NOISE_MODELS)}")
         if self.nu != "sample":

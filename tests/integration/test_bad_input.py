@@ -209,6 +209,8 @@ OPTION_CASES = [
     ("fit-unknown-option", _fit(extra=["--fast"]), r"command line: unrecognized arguments: --fast"),
     ("fit-unknown-noise-model", _fit(extra=["--noise-model", "pink"]),
      r"command line: .*--noise-model.*invalid choice: 'pink'"),
+    ("fit-with-scheme-2", _fit(extra=["--scheme", "2", "--with", "wind"]),
+     r"with_effects = .*--with fits effects with the Scheme 1 curve"),
     ("fit-with-unknown-effect", _fit(extra=["--with", "wind,gremlins"]),
      r"with_effects = 'wind,gremlins' is not allowed; use auto or effects among wind"),
     ("fit-output-is-a-file", lambda d: ["fit", "track.csv", "round.toml", "-o", "out/result.json", "--no-mcmc"],
