@@ -222,17 +222,17 @@ def fit_noise(e, dt_ratio, start=None):
         q = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
         return -profile_loglik(e, rho, q, dt_ratio)
 
-    starts = [(math.log(0.01), 0.0), (math.log(1e-3), 2.0), (math.log(1e-4), 5.0)]
     if start is not None:
-        starts.insert(0, (math.log(max(1.0 - start[0], 1e-5)), math.log(max(start[1], 1e-6))))
+        # warm start (the relaxation's previous optimum, which moves little): that one only
+        starts = [(math.log(max(1.0 - start[0], 1e-5)), math.log(max(start[1], 1e-6)))]
+    else:
+        starts = [(math.log(0.01), 0.0), (math.log(1e-3), 2.0), (math.log(1e-4), 5.0)]
     best = None
     for x0 in starts:
         o = minimize(nll, x0, method="Nelder-Mead",
                      options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400})
         if best is None or o.fun < best.fun:
             best = o
-        if start is not None and best is o:
-            break   # warm start: the previous optimum moved little
     rho = 1.0 - math.exp(min(max(best.x[0], LOG_1M_RHO_RANGE[0]), 0.0))
     q = math.exp(min(max(best.x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
     lr = 2.0 * (-best.fun - white)

@@ -300,27 +300,18 @@ def fit_with_sources(prob, res, rnd, effects=()):
     model = static_model(prob.model, [e for e in effs if e.k == 0], ctx)
     with_par = [e for e in effs if e.k > 0]
     eff_extras = extra_params(with_par)
-    n0 = prob.P + 6 + prob.E
-    inner_fn = prob.effect_fn if prob.E else None
-    n_inner = prob.E
-    if with_par:
-        base = effect_fn(with_par, ctx, res.theta[prob.P:prob.P + 6])
-        if inner_fn is None:
-            inner_fn = base
-        else:   # effects after the problem's own extras
-            def inner_fn(E, a=prob.effect_fn, b=base, k=prob.E):
-                ia, ib = a(E[:, :k]), b(E[:, k:])
-                return type(ia)({**ia.overrides, **ib.overrides}, ib.atmospheres or ia.atmospheres,
-                                ib.time_shift if ib.time_shift is not None else ia.time_shift,
-                                {**ia.output_scale, **ib.output_scale}, ia.atmosphere_tables)
-        n_inner = prob.E + len(eff_extras)
+    if prob.E:
+        raise ValueError("fit_with_sources extends a Scheme 1 problem, which has no extra parameters yet")
+    n0 = prob.P + 6
+    inner_fn = effect_fn(with_par, ctx, res.theta[prob.P:prob.P + 6]) if with_par else None
+    n_inner = len(eff_extras)
     theta0 = np.concatenate([res.theta, [e.start for e in eff_extras], [e[2] for e in extras]])
     free = np.concatenate([res.free, np.ones(len(eff_extras) + len(extras), bool)])
     fn = source_fn(extras, rnd, model, inner=inner_fn, n_inner=n_inner)
     p2 = OutputErrorProblem(model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
                             priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)),
                             channels=prob.channels,
-                            extras=tuple(prob.extras) + tuple(eff_extras) + tuple(e[1] for e in extras),
+                            extras=tuple(eff_extras) + tuple(e[1] for e in extras),
                             effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model)
     res2 = p2.fit(fallback=True)
     if not res2.success:
