@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
-from .csv import read_text
+from .csv import read_text, read_toml
 
 __all__ = ["CampaignRound", "Campaign", "is_campaign_file", "read_campaign", "write_campaign"]
 
@@ -87,14 +87,7 @@ def read_campaign(path):
         fewer than one round.
     """
     path = Path(path)
-    text = read_text(path, "campaign file")
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML ({exc})") from None
-    except RecursionError:
-        raise InputError(f"{path}: not a campaign file: arrays or tables nested too deeply for TOML to be read "
-                         f"(a campaign lists [[rounds]] of name, track and round)") from None
+    doc = read_toml(path, "campaign file", "a campaign lists [[rounds]] of name, track and round")
     unknown = [k for k in doc if k not in ("campaign", "rounds")]
     if unknown:
         raise InputError(f"{path}: unknown top-level key {unknown[0]!r}; allowed: [campaign], [[rounds]]")

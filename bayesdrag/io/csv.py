@@ -97,6 +97,23 @@ def read_text(path: Path, what: str, max_bytes=None) -> str:
     return text
 
 
+def read_toml(path: Path, what: str, holds: str) -> dict:
+    """A TOML file (``what``: "round file", ...) as a dict: its text by :func:`read_text`, one
+    line naming the file for invalid TOML and for nesting too deep to parse (``holds`` says what
+    such a file should contain)."""
+    import tomllib
+
+    path = Path(path)
+    text = read_text(path, what)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a {what}: arrays or tables nested too deeply for TOML to be read "
+                         f"({holds})") from None
+
+
 def _is_number(s: str) -> bool:
     try:
         float(s)

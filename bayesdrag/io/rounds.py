@@ -9,7 +9,6 @@ from __future__ import annotations
 import difflib
 import math
 import os
-import tomllib
 from pathlib import Path
 
 import tomli_w
@@ -19,7 +18,7 @@ from ..errors import InputError
 from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
                      Launch, Projectile, Radar, Round, Systematics)
 from ..validate import number, type_name
-from .csv import read_text
+from .csv import read_toml
 from .drag_tables import read_drag_table
 from .met import read_met_profile, write_met_profile
 
@@ -132,14 +131,7 @@ def read_round(path):
         missing or malformed reference drag table (naming the key and the CSV file).
     """
     path = Path(path)
-    text = read_text(path, "round file")
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise InputError(f"{path}: not a round file: arrays or tables nested too deeply for TOML to be read "
-                         f"(a round file holds sections of plain keys)") from None
+    doc = read_toml(path, "round file", "a round file holds sections of plain keys")
 
     for sec, tab in doc.items():
         if sec not in _SCHEMA:
