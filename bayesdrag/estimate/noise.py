@@ -170,7 +170,10 @@ def noise_and_outliers(track, channels, sigma_given=None, k=OUTLIER_K):
                 # short or coarsely quantised track the smoother follows the data too closely
                 # and its residual sd is far below the noise (Warner's 16-sample reports)
                 s = max(s, float(sigma_given[c]))
-            scale = np.maximum(np.maximum(s, local_robust_sd(e, valid)), OUTLIER_MIN_SD)
+            # the local scale without the samples the channel-wide rule would flag: a lone spike
+            # (and the smear the smoother gives its neighbours) must not raise its own yardstick
+            spike = np.abs(z - (zz - e)) > k * max(s, OUTLIER_MIN_SD)
+            scale = np.maximum(np.maximum(s, local_robust_sd(e, valid & ~spike)), OUTLIER_MIN_SD)
             new = valid & (np.abs(z - (zz - e)) > k * scale)
             if np.array_equal(new, flagged):
                 break
