@@ -404,6 +404,10 @@ class Spline(DragModel):
     def basis_slope(self, mach):
         return self._design(mach, 1)
 
+    def basis_curvature(self, mach):
+        """Second derivative of the basis d^2 B / dM^2 (..., P) (zero beyond the end knots)."""
+        return self._design(mach, 2)
+
     @property
     def bounds(self):
         P = self.n_params

@@ -71,6 +71,7 @@ from scipy.special import gammaln
 
 from ..errors import FitError, InputError
 from . import colored
+from .coords import drift_coordinates
 
 #: prior sd of non-drag parameters in units of their Cramér-Rao sd
 IC_PRIOR_FACTOR = 100.0
@@ -342,9 +343,25 @@ class LogPosterior:
             full[:self.n_theta, :self.n_theta] = cov
             full[self.n_theta:, self.n_theta:] = np.diag(np.concatenate(extra) ** 2)
             cov = full
+        # priors split in the free parameters' own space (linear ones stay one matrix product)
+        self.coords = None
+        self._split_priors(mean[:self.n_theta], np.sqrt(np.diag(cov))[:self.n_theta])
+        # sample the spline in coordinates where the air and shell sources decouple (coords.py)
+        nominal = {p.name: p.mean for p in problem.priors}
+        self.coords = drift_coordinates(problem, self.idx, mass=nominal.get("mass_sd"),
+                                        diameter=nominal.get("diameter_sd"))
+        if self.coords is not None:
+            n = self.n_theta
+            x0 = self.coords.from_theta(mean[:n])[0]
+            Ji = np.linalg.inv(self.coords.jacobian(x0))
+            mean = mean.copy()
+            mean[:n] = x0
+            cov = cov.copy()
+            cov[:n, :] = Ji @ cov[:n, :]
+            cov[:, :n] = cov[:, :n] @ Ji.T
+            cov = 0.5 * (cov + cov.T)
         self.laplace_mean = mean
         self.laplace_cov = cov
-        self._split_priors(np.sqrt(np.diag(cov))[:self.n_theta])
 
     def _ar_laplace(self, res):
         """Centre and block-diagonal covariance of the sampled ``log_1m_rho``, ``log_q`` from
@@ -381,12 +398,12 @@ class LogPosterior:
             cov[2 * n:2 * n + 2, 2 * n:2 * n + 2] = C
         return mean, cov
 
-    def _split_priors(self, scale):
+    def _split_priors(self, base, scale):
         """Sort the problem's priors into linear ones (evaluated as one matrix product: the
         launch position and spline smoothness priors) and the rest (evaluated per walker).
-        Linearity is checked numerically at random points a few Laplace sd from the mode."""
+        Linearity in the free parameters is checked numerically at random points a few Laplace
+        sd ``scale`` from ``base``."""
         lin, G, c, self._nonlin = [], [], [], []
-        base = self.laplace_mean[:self.n_theta]
         rng = np.random.default_rng(0)
         for p in self.problem.priors:
             try:
@@ -415,20 +432,40 @@ class LogPosterior:
         self._lin_sd = np.array([p.sd for p in lin])
 
     # ------------------------------------------------------------------------------------
+    def free_theta(self, X):
+        """Free parameters (W, n_theta) of sampled coordinates (W, D) (the coordinate map of
+        :mod:`~bayesdrag.estimate.coords` undone where it is used)."""
+        X = np.atleast_2d(X)
+        T = X[:, :self.n_theta]
+        return T if self.coords is None else self.coords.to_theta(T)
+
     def full_theta(self, X):
         """Full parameter vectors (W, n) from sampled coordinates (W, D) (fixed parameters at
         their ML values)."""
         X = np.atleast_2d(X)
         th = np.repeat(self.theta_ml[None], X.shape[0], axis=0)
-        th[:, self.idx] = X[:, :self.n_theta]
+        th[:, self.idx] = self.free_theta(X)
         return th
+
+    def reported(self, X):
+        """Sampled coordinates (W, D) with the free parameters mapped back to their own
+        units (what draws, summaries and files report)."""
+        X = np.array(np.atleast_2d(X), float)
+        if self.coords is not None:
+            X[:, :self.n_theta] = self.coords.to_theta(X[:, :self.n_theta])
+        return X
 
     def log_prior(self, X):
         """Log prior (W,) of coordinates (W, D); ``-inf`` outside the support."""
         X = np.atleast_2d(X)
-        T = X[:, :self.n_theta]
+        with np.errstate(all="ignore"):
+            T = self.free_theta(X)
         ok = np.all((T >= self.lower) & (T <= self.upper), axis=1) & np.all(np.isfinite(X), axis=1)
         lp = np.zeros(X.shape[0])
+        if self.coords is not None:
+            with np.errstate(all="ignore"):
+                lp += self.coords.log_jacobian(X[:, :self.n_theta])
+            ok &= np.isfinite(lp)
         g = np.isfinite(self.gauss_sd)
         if g.any():
             dz = (T[:, g] - self.theta_ml[self.idx][g]) / self.gauss_sd[g]

@@ -528,6 +528,7 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, 
     W, S, D = draws.shape
     flat = draws.reshape(-1, D)
     sig = post.sigma_draws(flat, blobs.reshape(-1, post.C), rng=noise_rng)
+    draws = post.reported(flat).reshape(W, S, D)      # sampled coordinates -> parameters' units
     if post.likelihood == "gaussian":
         full = np.concatenate([draws, np.log(sig).reshape(W, S, post.C)], axis=-1)
         names = post.names + tuple(f"log_sigma_{c}" for c in post.channels)
