@@ -41,7 +41,7 @@ SHELLS = (("G7", 15.0, 0.105, 700.0, 30.0, 0.05, 1.0),
           ("G1", 33.4, 0.130, 810.0, 20.0, 0.05, 1.0))
 
 
-def replicate(k, rng, posterior):
+def replicate(k, rng, posterior, walkers=None):
     from acceptance.pbc_suite import table, truth_cd
     from support.pbc_reference import pbc_trajectory
 
@@ -66,13 +66,18 @@ def replicate(k, rng, posterior):
     rnd = Round(Projectile(mass=mass, diameter=diam, name=f"{name} shell"),
                 Launch(velocity=v0, elevation_deg=qe), radar=Radar(sigma=sd),
                 systematics=Systematics(density=DENSITY_SD, temperature=TEMPERATURE_SD))
-    res = fit(track, rnd, mcmc=posterior, seed=int(rng.integers(2**31)))
+    kw = {"walkers": walkers, "max_steps": 4000} if (posterior and walkers) else {}
+    res = fit(track, rnd, mcmc=posterior, seed=int(rng.integers(2**31)), **kw)
     rows = res.summary["cd"]
     mach = np.array([r["mach"] for r in rows])
     det = res.summary["ml"]["mach_range_determined"] or [mach.min(), mach.max()]
     qs = np.linspace(0.1, 0.9, N_MACH)
     pick = [int(np.argmin(np.abs(mach - (det[0] + q * (det[1] - det[0]))))) for q in qs]
     out = {"shell": name, "ratio": ratio, "dT": dT, "ml": [], "post": []}
+    if posterior:
+        m = res.summary["mcmc"]
+        out["mcmc"] = {"converged": bool(m.get("converged")), "steps": m.get("steps"),
+                       "seconds": m.get("seconds"), "acceptance": m.get("acceptance")}
     for i in pick:
         r = rows[i]
         truth = float(truth_cd(name, r["mach"]))
@@ -90,12 +95,22 @@ def main(argv=None):
     ap.add_argument("--replicates", type=int, default=300, help="ML replicates (>= 300 for the acceptance)")
     ap.add_argument("--posterior", type=int, default=50, help="how many of them also sample the posterior")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--walkers", type=int, default=128,
+                    help="emcee walkers of the posterior replicates (128: ~5x the ESS per trajectory of 16 on "
+                         "these posteriors, see docs/bayes.md)")
     a = ap.parse_args(argv)
+    if a.walkers and a.walkers > 32:
+        # the convergence check reads the whole chain (autocorrelation FFT, split R-hat): with
+        # 128 walkers every 25 steps it took ~85 % of the run; every 200 steps it is a few %
+        from bayesdrag.estimate import sampler
+        sampler.CHECK_EVERY = 200
     rng = np.random.default_rng(a.seed)
     recs = []
     t0 = time.perf_counter()
     for k in range(a.replicates):
-        recs.append(replicate(k, rng, k < a.posterior))
+        recs.append(replicate(k, rng, k < a.posterior, a.walkers))
+        if "mcmc" in recs[-1]:
+            print(f"replicate {k}: posterior {recs[-1]['post']} {recs[-1]['mcmc']}", flush=True)
         if (k + 1) % 10 == 0:
             ml = np.mean([x for r in recs for x in r["ml"]])
             print(f"{k + 1} replicates, ML total band coverage {ml:.3f}, {time.perf_counter() - t0:.0f} s",
@@ -110,7 +125,9 @@ def main(argv=None):
         return {"pooled": float(p), "per_mach": [float(v) for v in X.mean(axis=0)], "replicates": int(n),
                 "se": float(math.sqrt(p * (1 - p) / n))}
 
+    conv = [r["mcmc"]["converged"] for r in recs if "mcmc" in r]
     out = {"density_sd": DENSITY_SD, "temperature_sd": TEMPERATURE_SD, "ml_total": cov("ml"),
+           "posterior_converged": f"{sum(conv)}/{len(conv)}",
            "posterior_total": cov("post"), "seconds": round(time.perf_counter() - t0, 1)}
     print(json.dumps(out))
     return out
