@@ -69,7 +69,23 @@ def _passive_openmp_threads():
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
+def _package_numba_locator():
+    """numba finds bayesdrag's compiled functions by the package's own locator
+    (:mod:`bayesdrag._numba_cache`: one cache per source, wherever it is installed), then by its
+    own locators; a ``NUMBA_CACHE_LOCATOR_CLASSES`` the user set is respected."""
+    if os.environ.get("NUMBA_CACHE_LOCATOR_CLASSES"):
+        return
+    numba_locators = ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator",
+                      "IPythonCacheLocator", "ZipCacheLocator")
+    os.environ["NUMBA_CACHE_LOCATOR_CLASSES"] = ",".join(
+        ["bayesdrag._numba_cache.PackageCacheLocator"] + [f"numba.core.caching.{n}" for n in numba_locators])
+    config = getattr(sys.modules.get("numba"), "config", None)
+    if config is not None and hasattr(config, "CACHE_LOCATOR_CLASSES"):   # numba read the environment already
+        config.CACHE_LOCATOR_CLASSES = os.environ["NUMBA_CACHE_LOCATOR_CLASSES"]
+
+
 _use_private_numba_cache()
+_package_numba_locator()
 _passive_openmp_threads()
 
 #: public name -> module that defines it
