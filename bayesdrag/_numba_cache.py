@@ -37,3 +37,39 @@ class PackageCacheLocator(caching.UserProvidedCacheLocator):
         if not config.CACHE_DIR or not os.path.abspath(py_file).startswith(_PKG + os.sep):
             return None
         return super().from_function(py_func, py_file)
+
+
+def compile_summary():
+    """What this process compiled of bayesdrag's cached numba functions, and what it loaded.
+
+    Looks at the dispatchers of the bayesdrag modules already imported (none is imported
+    here): an overload missing from the cache was compiled, and numba's timers say how long.
+
+    Returns
+    -------
+    dict
+        ``compiled`` (names of the functions compiled here), ``compile_seconds`` (their
+        compiler time [s]), ``loaded`` (how many overloads came from the cache) and
+        ``cache_dir``.
+    """
+    import sys
+
+    from numba.core.dispatcher import Dispatcher
+
+    compiled, seconds, loaded = [], 0.0, 0
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("bayesdrag.") or mod is None:
+            continue
+        for attr, fn in list(vars(mod).items()):
+            if (not isinstance(fn, Dispatcher) or getattr(fn, "__module__", name) != name
+                    or type(getattr(fn, "_cache", None)).__name__ == "NullCache"):
+                continue            # not bayesdrag's, or not cached (compiled inside a cached one)
+            stats = fn.stats
+            loaded += sum(stats.cache_hits.values())
+            if sum(stats.cache_misses.values()):
+                compiled.append(f"{name.split('.', 1)[1]}.{attr}")
+                for cres in fn.overloads.values():
+                    timers = (getattr(cres, "metadata", None) or {}).get("timers", {})
+                    seconds += float(timers.get("compiler_lock", 0.0))
+    return {"compiled": sorted(compiled), "compile_seconds": round(seconds, 2), "loaded": loaded,
+            "cache_dir": config.CACHE_DIR or None}

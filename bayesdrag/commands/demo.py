@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .._gc import paused_gc
+from .._numba_cache import compile_summary
 from ..errors import InputError
 from ..io.outputs import write_figure, write_json
 from .fit import run_fit
@@ -50,6 +51,7 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     with output_run(outdir, "demo", track_path, round_path, rnd, FitOptions(seed=seed)) as run:
         summary, result = _demo_run(run, track, rnd, track_path, round_path, seed, quiet)
     m = result["mcmc"]
+    compiled = summary["compiled_code"]
     det, worst = summary["mach_range_determined"], summary["max_rel_diff_posterior_mean_to_reference_in_determined_range"]
     echo(f"demo: {track.n} samples of a 6-DOF track (paper Table 1 shell, M101 drag) vs the point-mass model")
     echo("  rms differences with the firing-table drag: "
@@ -58,6 +60,11 @@ def run_demo(outdir: Path, echo=print, seed=0, quiet=False):
     if worst is not None:
         echo(f"  Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}; posterior mean within {100 * worst:.1f} % "
              f"of the M101 firing table there")
+    if compiled["compiled"]:
+        echo(f"  first run on this installation: {compiled['compile_seconds']:.1f} s compiling "
+             f"{len(compiled['compiled'])} functions (kept in {compiled['cache_dir']}; later runs load them)")
+    else:
+        echo(f"  compiled code loaded from the cache ({compiled['loaded']} functions, no compiling)")
     echo(f"  report: {(outdir / 'report.html').resolve()}")
     return summary
 
@@ -122,6 +129,7 @@ def _demo_run(run, track, rnd, track_path, round_path, seed, quiet):
                    "warnings": list(res.warnings)},
         "mcmc": {k: result["mcmc"][k] for k in ("converged", "message", "steps", "walkers", "tau_max", "seconds")},
         "report": str((run.folder / "report.html").resolve()),
+        "compiled_code": compile_summary(),
         "note": "the 6-DOF shell flies slightly longer and drifts right (yaw of repose, not in the "
                 "point-mass model), which the fit partly absorbs in Cd and the initial state; the "
                 "residual autocorrelation in the report shows it",

@@ -42,3 +42,17 @@ def test_files_outside_the_package_are_left_to_numba(tmp_path, monkeypatch):
     ns = {}
     exec(compile(f.read_text(), str(f), "exec"), ns)
     assert _numba_cache.PackageCacheLocator.from_function(ns["g"], str(f)) is None
+
+
+def test_compile_summary_names_the_package_functions_it_compiled_or_loaded():
+    """What the demo reports: compiled (with numba's compiler time) or loaded from the cache."""
+    import numpy as np
+
+    from bayesdrag.estimate import colored
+
+    colored.whitened_ss(np.zeros((2, 5)), 0.5, 1.0, np.ones(4))
+    s = _numba_cache.compile_summary()
+    assert set(s) == {"compiled", "compile_seconds", "loaded", "cache_dir"}
+    assert s["loaded"] + len(s["compiled"]) >= 1
+    assert all(n.split(".")[0] in ("dynamics", "estimate") for n in s["compiled"])
+    assert s["compile_seconds"] >= 0.0
