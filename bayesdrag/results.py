@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._gc import paused_gc
 from .io.outputs import atomic_write, ensure_space, write_json
 
 __all__ = ["FitResult", "DiagnosisResult", "PARTIAL", "CHAIN"]
@@ -188,14 +189,15 @@ class FitResult:
 
         out = Path(directory)
         written = [out / "result.json"]
-        write_json(out / "result.json", self.to_dict())
-        idata = self.to_inference_data()
-        if idata is not None:
-            # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
-            ensure_space(out, _netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
-            atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
-            written.append(out / "posterior.nc")
-        written += write_fit_report(out, self, sources=sources or {})
+        with paused_gc():       # thousands of figure artists: no collections over the fit's objects
+            write_json(out / "result.json", self.to_dict())
+            idata = self.to_inference_data()
+            if idata is not None:
+                # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
+                ensure_space(out, _netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
+                atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
+                written.append(out / "posterior.nc")
+            written += write_fit_report(out, self, sources=sources or {})
         return written
 
 

@@ -1,4 +1,17 @@
-"""Warm timings of the fits on one round (issues 4 and 5).
+"""Warm timings of the fits on one round (issues 4, 5 and 17).
+
+* ``bayes_spline`` (DESIGN.md): a full Bayesian fit (``bayesdrag.fit`` with the default options:
+  ML + sampling to convergence) of the default spline on the shipped demo track, warm, with the
+  trajectories it simulated, the batched kernel's limit for them (trajectories x the kernel's
+  microseconds per trajectory on large batches of the same track, measured in the same run),
+  their ratio, and the ESS per second (the smallest bulk ESS of the sampled coordinates over the
+  fit's seconds). With ``--reference FILE`` the posterior (Cd at five Mach numbers: mean, 5 % and
+  95 % quantiles with their Monte-Carlo standard errors) is compared with the run stored there
+  (``benchmarks/reference_posterior_demo.json``, taken before issue 17's changes);
+  ``--save-reference FILE`` stores this run's.
+
+The older synthetic-track timings (keys ``ml_*``, ``bayes_reference-scale`` and, without
+``--quick``, ``synthetic_bayes_spline``):
 
 * one Scheme 1 ML fit (``poly2-split``: 6 drag coefficients + 6 initial conditions) of a
   ~1500-sample point-mass track (M101 truth, 1 m / 0.3 m/s noise): time and iterations;
@@ -14,7 +27,7 @@ Every timing is the second of two runs (numba's compiled kernel and caches warm)
 load average is printed with the results: on a shared 2-core machine the kernel time scales
 with it. The last line is one JSON object.
 
-    python3 benchmarks/fit.py [--moves] [--quick]
+    python3 benchmarks/fit.py [--moves] [--quick] [--reference FILE] [--save-reference FILE]
 """
 from __future__ import annotations
 
@@ -31,6 +44,153 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
+
+
+#: Mach numbers at which the demo posterior is compared with the reference run
+REFERENCE_MACH = (0.95, 1.1, 1.5, 2.0, 2.35)
+#: a statistic agrees with the reference within this many combined Monte-Carlo standard errors
+#: (3 sqrt(2) MCSE when both runs have the same MCSE)
+REFERENCE_Z = 3.0
+#: trajectories per batch for the kernel's limit (the best of these sizes counts)
+LIMIT_BATCHES = (64, 128, 256)
+DEMO_SEED = 1
+
+
+def demo_round_and_track():
+    """The shipped demo track (as ``bayesdrag demo`` reads it) and its round."""
+    from bayesdrag.commands.demo import demo_inputs
+    from bayesdrag.io.rounds import read_round
+    from bayesdrag.io.tracks import read_track
+    from bayesdrag.track import thin_for_fit
+
+    track_path, round_path = demo_inputs()
+    return thin_for_fit(read_track(track_path)), read_round(round_path)
+
+
+class KernelCount:
+    """Counts the trajectories (and the seconds) of every batched-kernel call while active: the
+    kernel module's two entry points are wrapped for the duration (benchmark instrumentation)."""
+
+    def __init__(self):
+        self.trajectories = 0
+        self.calls = 0
+        self.seconds = 0.0
+
+    def __enter__(self):
+        from bayesdrag.dynamics import kernel as K
+
+        self._orig = (K.integrate_batch, K.integrate_batch_serial)
+
+        def wrap(fn):
+            def run(y0, *args):
+                t = time.perf_counter()
+                out = fn(y0, *args)
+                self.seconds += time.perf_counter() - t
+                self.trajectories += y0.shape[0]
+                self.calls += 1
+                return out
+            return run
+
+        K.integrate_batch, K.integrate_batch_serial = map(wrap, self._orig)
+        return self
+
+    def __exit__(self, *exc):
+        from bayesdrag.dynamics import kernel as K
+
+        K.integrate_batch, K.integrate_batch_serial = self._orig
+
+
+def kernel_us_per_trajectory(problem, theta, cov, *, batches=LIMIT_BATCHES, repeats=5, seed=0):
+    """Batched kernel's best microseconds per trajectory over batches of ``batches`` parameter
+    sets of ``problem`` drawn around ``theta`` (free coordinates ~ N(theta, cov)): kernel time
+    only, the best of ``repeats`` calls per size."""
+    return min(_kernel_us(problem, theta, cov, b, repeats, seed) for b in batches)
+
+
+def _kernel_us(problem, theta, cov, batch, repeats, seed):
+    rng = np.random.default_rng(seed)
+    idx = np.flatnonzero(problem.free)
+    th = np.repeat(np.asarray(theta, float)[None], batch, axis=0)
+    L = np.linalg.cholesky(cov)
+    th[:, idx] += rng.standard_normal((batch, idx.size)) @ L.T
+    th[:, idx] = np.clip(th[:, idx], problem.lower[idx], problem.upper[idx])
+    best = np.inf
+    for _ in range(repeats):
+        with KernelCount() as kc:
+            problem.predict(th)
+        best = min(best, kc.seconds / kc.trajectories)
+    return 1e6 * best
+
+
+def demo_posterior(result):
+    """Cd at :data:`REFERENCE_MACH` from a fit's posterior: mean, q05, q95 and their MCSE
+    (ArviZ's mean and quantile MCSE on the walkers as chains), plus r_hat."""
+    import arviz as az
+
+    from bayesdrag.estimate.sampler import cd_draws, split_rank_rhat
+
+    f1 = result.scheme1
+    cd = cd_draws(result.posterior, f1.drag_model, np.array(REFERENCE_MACH), f1.problem.P)   # (W, S, M)
+    rhat = split_rank_rhat(cd)
+    out = {}
+    for j, m in enumerate(REFERENCE_MACH):
+        flat = cd[..., j].reshape(-1)
+        x = az.convert_to_dataset({"cd": cd[..., j]})
+        row = {"mean": float(flat.mean()), "mcse_mean": float(az.mcse(x, method="mean")["cd"]),
+               "r_hat": float(rhat[j]), "ess_bulk": float(az.ess(x, method="bulk")["cd"])}
+        for p, k in ((0.05, "q05"), (0.95, "q95")):
+            row[k] = float(np.quantile(flat, p))
+            row[f"mcse_{k}"] = float(az.mcse(x, method="quantile", prob=p)["cd"])
+        out[f"{m:g}"] = row
+    return out
+
+
+def compare_posterior(new, ref):
+    """Each statistic's difference from the reference in combined MCSE units; ok when all are
+    within :data:`REFERENCE_Z` and every r_hat < 1.01."""
+    worst, rows = 0.0, {}
+    for m, r in ref.items():
+        n = new[m]
+        z = {}
+        for k in ("mean", "q05", "q95"):
+            se = np.hypot(r[f"mcse_{k}"], n[f"mcse_{k}"])
+            z[k] = round(float((n[k] - r[k]) / se), 2)
+            worst = max(worst, abs(z[k]))
+        rows[m] = z
+    rhat = max(n["r_hat"] for n in new.values())
+    return {"z": rows, "max_abs_z": round(worst, 2), "r_hat_max": rhat,
+            "ok": bool(worst <= REFERENCE_Z and rhat < 1.01)}
+
+
+def time_demo_bayes(seed=DEMO_SEED):
+    """The DESIGN.md ``bayes_spline`` benchmark: ``bayesdrag.fit`` of the shipped demo track
+    with the default options (spline, ML + sampling to convergence), the second of two runs."""
+    from bayesdrag.commands.fit import fit
+    from bayesdrag.commands.options import FitOptions
+
+    track, rnd = demo_round_and_track()
+    fit(track, rnd, FitOptions(seed=seed))
+    with KernelCount() as kc:
+        t = time.perf_counter()
+        res = fit(track, rnd, FitOptions(seed=seed))
+        seconds = time.perf_counter() - t
+    b = res.posterior
+    post = res.log_posterior
+    us = kernel_us_per_trajectory(res.scheme1.problem, post.mode, post.laplace_cov[:post.n_theta, :post.n_theta])
+    sampled = list(post.names)
+    ess_bulk = float(b.summary.loc[sampled, "ess_bulk"].min())
+    ess_tail = float(b.summary.loc[sampled, "ess_tail"].min())
+    limit = kc.trajectories * us * 1e-6
+    out = {"seconds": round(seconds, 3), "trajectories_simulated": kc.trajectories, "kernel_calls": kc.calls,
+           "kernel_seconds": round(kc.seconds, 3), "kernel_us_per_trajectory_large_batch": round(us, 2),
+           "kernel_limit_seconds": round(limit, 3), "ratio_to_limit": round(seconds / limit, 2),
+           "sampling_seconds": round(b.elapsed, 3), "ess_bulk_min": ess_bulk, "ess_tail_min": ess_tail,
+           "ess_per_second": round(ess_bulk / seconds, 1),
+           "ess_per_sampling_second": round(ess_bulk / b.elapsed, 1),
+           "parameters": post.ndim, "steps": b.steps, "walkers": b.nwalkers, "tau_max": float(np.max(b.tau)),
+           "acceptance": round(b.acceptance, 3), "converged": b.converged,
+           "r_hat_max": float(b.summary["r_hat"].max()), "samples": track.n, "seed": seed}
+    return out, demo_posterior(res)
 
 
 def round_and_track(dt=0.0217):
@@ -102,28 +262,62 @@ def compare_moves(track, rnd, steps):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--moves", action="store_true", help="also compare the move mixes")
-    ap.add_argument("--quick", action="store_true", help="skip the spline Bayesian fit")
+    ap.add_argument("--quick", action="store_true", help="skip the synthetic spline Bayesian fit")
+    ap.add_argument("--demo-only", action="store_true", help="only the bayes_spline benchmark on the demo track")
+    ap.add_argument("--reference", type=Path, default=None,
+                    help="compare the demo posterior with this stored run (reference_posterior_demo.json)")
+    ap.add_argument("--save-reference", type=Path, default=None, help="store the demo posterior here")
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore")
-    track, rnd = round_and_track()
     load = os.getloadavg()[0]
-    out = {"samples": track.n, "load_average_1min": load, "cpus": os.cpu_count()}
-    t_ml, res, prob = time_ml(track, rnd, "poly2-split")
-    print(f"ML, poly2-split ({int(res.free.sum())} free parameters, {track.n} samples): {t_ml:.3f} s warm, "
-          f"{res.iterations} iterations ({res.message})", flush=True)
-    out["ml_seconds"] = round(t_ml, 4)
-    out["ml_iterations"] = res.iterations
-    out["ml_parameters"] = int(res.free.sum())
-    for drag in ("reference-scale",) + (() if a.quick else ("spline",)):
-        t_b, b, D = time_bayes(track, rnd, drag)
-        print(f"Bayes, {drag} ({D} sampled parameters): {t_b:.2f} s warm (ML + sampling), "
-              f"tau max {np.max(b.tau):.1f} steps, {b.steps} steps x {b.nwalkers} walkers, {b.message}", flush=True)
-        out[f"bayes_{drag}"] = {"seconds": round(t_b, 3), "tau_max": float(np.max(b.tau)), "steps": b.steps,
-                                "walkers": b.nwalkers, "parameters": D, "converged": b.converged,
-                                "r_hat_max": float(b.summary["r_hat"].max()),
-                                "ess_bulk_min": float(b.summary["ess_bulk"].min())}
-    if a.moves:
-        out["moves"] = compare_moves(track, rnd, steps=400)
+    out = {"load_average_1min": load, "cpus": os.cpu_count()}
+    spline, cd = time_demo_bayes()
+    out["bayes_spline"] = spline
+    print(f"Bayes, default spline on the demo track ({spline['parameters']} sampled parameters, "
+          f"{spline['samples']} samples): {spline['seconds']:.2f} s warm (fit), sampling {spline['sampling_seconds']:.2f} s, "
+          f"{spline['steps']} steps x {spline['walkers']} walkers, tau max {spline['tau_max']:.1f}; "
+          f"{spline['trajectories_simulated']} trajectories, kernel {spline['kernel_us_per_trajectory_large_batch']:.1f} "
+          f"us/trajectory on large batches -> limit {spline['kernel_limit_seconds']:.2f} s, ratio "
+          f"{spline['ratio_to_limit']:.1f}; ESS (bulk, min) {spline['ess_bulk_min']:.0f} -> "
+          f"{spline['ess_per_second']:.0f} per second", flush=True)
+    if a.save_reference is not None:
+        a.save_reference.write_text(json.dumps({"what": "Cd posterior of bayesdrag.fit on the shipped demo track, "
+                                                        "default options, seed %d" % DEMO_SEED,
+                                                "load_average_1min": load, "bayes_spline": spline,
+                                                "cd": cd}, indent=1) + "\n")
+        print(f"reference posterior written to {a.save_reference}")
+    if a.reference is not None:
+        ref = json.loads(a.reference.read_text())
+        cmp = compare_posterior(cd, ref["cd"])
+        ref_ess = ref["bayes_spline"]["ess_per_second"]
+        cmp["ess_per_second_reference"] = ref_ess
+        cmp["ess_per_second_gain"] = round(spline["ess_per_second"] / ref_ess, 2)
+        out["posterior_vs_reference"] = cmp
+        print(f"posterior vs {a.reference.name}: max |difference| {cmp['max_abs_z']:.2f} combined MCSE "
+              f"(allowed {REFERENCE_Z:g}), r_hat max {cmp['r_hat_max']:.4f}: {'OK' if cmp['ok'] else 'DIFFERENT'}; "
+              f"ESS/s x{cmp['ess_per_second_gain']:.1f} the reference run's (load then "
+              f"{ref['load_average_1min']:.1f})", flush=True)
+    if not a.demo_only:
+        track, rnd = round_and_track()
+        out["samples"] = track.n
+        t_ml, res, prob = time_ml(track, rnd, "poly2-split")
+        print(f"ML, poly2-split ({int(res.free.sum())} free parameters, {track.n} samples): {t_ml:.3f} s warm, "
+              f"{res.iterations} iterations ({res.message})", flush=True)
+        out["ml_seconds"] = round(t_ml, 4)
+        out["ml_iterations"] = res.iterations
+        out["ml_parameters"] = int(res.free.sum())
+        for drag in ("reference-scale",) + (() if a.quick else ("spline",)):
+            t_b, b, D = time_bayes(track, rnd, drag)
+            print(f"Bayes, {drag}, synthetic track ({D} sampled parameters): {t_b:.2f} s warm (ML + sampling), "
+                  f"tau max {np.max(b.tau):.1f} steps, {b.steps} steps x {b.nwalkers} walkers, {b.message}",
+                  flush=True)
+            key = "bayes_reference-scale" if drag == "reference-scale" else "synthetic_bayes_spline"
+            out[key] = {"seconds": round(t_b, 3), "tau_max": float(np.max(b.tau)), "steps": b.steps,
+                        "walkers": b.nwalkers, "parameters": D, "converged": b.converged,
+                        "r_hat_max": float(b.summary["r_hat"].max()),
+                        "ess_bulk_min": float(b.summary["ess_bulk"].min())}
+        if a.moves:
+            out["moves"] = compare_moves(track, rnd, steps=400)
     out["load_average_1min_end"] = os.getloadavg()[0]
     print(f"load average (1 min) {load:.1f} at the start, {out['load_average_1min_end']:.1f} at the end, "
           f"on {os.cpu_count()} CPUs")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._threads import single_blas
 from ..errors import FitError, InputError
 from ..estimate.quality import assess, check_against_flexible, intervals
 from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1, model_error_floor
@@ -32,6 +33,7 @@ def _echo_err(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
+@single_blas
 def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, progress=False, **kwargs):
     """Estimate Cd(M) from a track.
 

@@ -103,6 +103,37 @@ def independence_move(mean, cov, *, dof=PROPOSAL_DOF, scale=PROPOSAL_SCALE, gaus
     return move
 
 
+def random_walk_move(cov):
+    """An ``emcee.moves.MHMove``: random-walk Metropolis with Gaussian steps ``N(0, cov)``, each
+    walker its own step.
+
+    The Cholesky factor of ``cov`` is computed once here, so a proposal costs one (W, D) x
+    (D, D) product (emcee's ``GaussianMove`` draws with ``multivariate_normal``, an SVD of the
+    covariance at every proposal, and moves every walker by the same step). The step is
+    symmetric, so the acceptance is the target ratio and the move leaves any target invariant.
+
+    Parameters
+    ----------
+    cov : (D, D) array_like
+        Covariance of the step, in the sampled coordinates' units (positive definite).
+
+    Returns
+    -------
+    emcee.moves.MHMove
+        Draws with the sampler's own random state (so a stored chain resumes exactly).
+    """
+    L = np.linalg.cholesky(np.asarray(cov, float))
+    D = L.shape[0]
+
+    def proposal(coords, random):
+        W = coords.shape[0]
+        return coords + random.randn(W, D) @ L.T, np.zeros(W)
+
+    move = emcee.moves.MHMove(proposal, ndim=D)
+    move.description = "random-walk Metropolis (Gaussian, precomputed Cholesky factor)"
+    return move
+
+
 def make_moves(kind, post, *, nwalkers=None, weight=None, scale=None, dof=None):
     """Move mix by name.
 
@@ -111,7 +142,8 @@ def make_moves(kind, post, *, nwalkers=None, weight=None, scale=None, dof=None):
     kind : {"auto", "de", "stretch"}
         ``auto``: the independence move (weight ``weight``) plus, for the rest, ``DEMove`` when
         there are at least 2 D walkers (emcee's red-blue moves need them), else a random-walk
-        Metropolis move (``GaussianMove``) with the Laplace covariance scaled by 2.38^2 / D;
+        Metropolis move (:func:`random_walk_move`) with the Laplace covariance scaled by
+        2.38^2 / D;
         ``de``: DE 80 % + DE snooker 20 % (emcee's recommendation); ``stretch``: emcee's
         default.
     post : LogPosterior
@@ -143,7 +175,7 @@ def make_moves(kind, post, *, nwalkers=None, weight=None, scale=None, dof=None):
         if nwalkers is not None and nwalkers >= 2 * post.ndim:
             other = emcee.moves.DEMove()
         else:
-            other = emcee.moves.GaussianMove(post.laplace_cov * 2.38 ** 2 / post.ndim)
+            other = random_walk_move(post.laplace_cov * 2.38 ** 2 / post.ndim)
         return [(ind, w), (other, 1 - w)]
     if kind == "de":
         return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]

@@ -322,7 +322,10 @@ def test_a_folder_written_before_manifests_is_cleaned_up_not_mixed(case, capsys)
 def test_a_run_killed_while_working_leaves_the_earlier_set_and_no_stray_file(case, capsys):
     out = case / "out"
     before = _earlier_run(out)
-    proc = _popen(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", *QUICK], cwd=case)
+    # 1000 walkers: a step then takes tens of ms, so the run is still sampling a second after its
+    # chain file appears (with 16 it converged within that second once the sampler got faster)
+    proc = _popen(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", "--walkers", "1000", *QUICK],
+                  cwd=case)
     _wait_for(lambda: (out / "chain.partial.h5").exists(), proc, "sampling")
     proc.send_signal(signal.SIGKILL)
     proc.wait()
@@ -597,7 +600,10 @@ def test_a_reference_drag_pointing_at_any_file_never_echoes_it(case, capsys):
 
 def test_ctrl_c_while_sampling_exits_130_without_a_traceback(case):
     out = case / "out"
-    proc = _popen(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", *QUICK], cwd=case)
+    # 1000 walkers: a step then takes tens of ms, so the run is still sampling a second after its
+    # chain file appears (with 16 it converged within that second once the sampler got faster)
+    proc = _popen(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", "--walkers", "1000", *QUICK],
+                  cwd=case)
     _wait_for(lambda: (out / "chain.partial.h5").exists(), proc, "sampling")
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)

@@ -11,7 +11,7 @@ from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.posterior import LogPosterior
 from bayesdrag.estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior, split_rank_rhat
-from bayesdrag.estimate.moves import independence_move
+from bayesdrag.estimate.moves import independence_move, random_walk_move
 from bayesdrag.estimate.inference import to_inference_data
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.synthetic import add_noise
@@ -37,6 +37,39 @@ def _gaussian_target(D, rng):
     return rng.standard_normal(D) * s, C
 
 
+def _check_reproduces(moves, mu, C, rng, *, steps=6000, W=16, min_eff=2000):
+    """Run ``moves`` on the Gaussian N(mu, C); its mean, sd and correlations must be the
+    target's within a few Monte Carlo errors."""
+    import emcee
+
+    D = mu.size
+    Ci = np.linalg.inv(C)
+    sd = np.sqrt(np.diag(C))
+    L = np.linalg.cholesky(C)
+
+    def logp(X):
+        d = X - mu
+        return -0.5 * np.einsum("ij,jk,ik->i", d, Ci, d)
+
+    s = emcee.EnsembleSampler(W, D, logp, moves=moves, vectorize=True)
+    s.random_state = np.random.RandomState(3).get_state()
+    p0 = mu + rng.standard_normal((W, D)) @ L.T
+    s.run_mcmc(p0, steps)
+    x = s.get_chain(discard=500, flat=True)
+    tau = np.max(emcee.autocorr.integrated_time(s.get_chain(discard=500), quiet=True))
+    n_eff = x.shape[0] / tau
+    # mean within 4 Monte Carlo standard errors, per coordinate
+    z = (x.mean(0) - mu) / (sd / math.sqrt(n_eff))
+    assert np.max(np.abs(z)) < 4.0, z
+    # sd and correlations within 5 Monte Carlo errors (sd: 1/sqrt(2 n_eff) relative;
+    # correlation: (1 - rho^2)/sqrt(n_eff))
+    assert n_eff > min_eff
+    assert np.max(np.abs(x.std(0) / sd - 1)) < 5 / math.sqrt(2 * n_eff), x.std(0) / sd
+    corr_t = C / np.outer(sd, sd)
+    corr_s = np.corrcoef(x.T)
+    assert np.all(np.abs(corr_s - corr_t) < 5 * (1 - corr_t**2) / math.sqrt(n_eff) + 1e-9)
+
+
 def test_move_mix_reproduces_correlated_gaussian():
     """The independence move (here deliberately mis-centred by 0.7 sd along a whitened
     direction and mis-shaped: 0.6x to 1.6x the true variance along different principal axes)
@@ -47,36 +80,30 @@ def test_move_mix_reproduces_correlated_gaussian():
     rng = np.random.default_rng(11)
     D = 8
     mu, C = _gaussian_target(D, rng)
-    Ci = np.linalg.inv(C)
-    sd = np.sqrt(np.diag(C))
     L = np.linalg.cholesky(C)
     w, V = np.linalg.eigh(C)
     wrong = V @ np.diag(w * np.linspace(0.6, 1.6, D)) @ V.T   # wrong shape and size
     centre = mu + L @ np.full(D, 0.7 / math.sqrt(D))            # wrong centre (0.7 sd off)
+    _check_reproduces([(independence_move(centre, wrong), 0.9), (emcee.moves.GaussianMove(wrong * 2.38**2 / D), 0.1)],
+                      mu, C, rng)
+    # the mix the sampler uses (random walk with its Cholesky factor computed once)
+    _check_reproduces([(independence_move(centre, wrong), 0.9), (random_walk_move(wrong * 2.38**2 / D), 0.1)],
+                      mu, C, np.random.default_rng(12))
 
-    def logp(X):
-        d = X - mu
-        return -0.5 * np.einsum("ij,jk,ik->i", d, Ci, d)
 
-    moves = [(independence_move(centre, wrong), 0.9), (emcee.moves.GaussianMove(wrong * 2.38**2 / D), 0.1)]
-    W = 16
-    s = emcee.EnsembleSampler(W, D, logp, moves=moves, vectorize=True)
-    s.random_state = np.random.RandomState(3).get_state()
-    p0 = mu + rng.standard_normal((W, D)) @ L.T
-    s.run_mcmc(p0, 6000)
-    x = s.get_chain(discard=500, flat=True)
-    tau = np.max(emcee.autocorr.integrated_time(s.get_chain(discard=500), quiet=True))
-    n_eff = x.shape[0] / tau
-    # mean within 4 Monte Carlo standard errors, per coordinate
-    z = (x.mean(0) - mu) / (sd / math.sqrt(n_eff))
-    assert np.max(np.abs(z)) < 4.0, z
-    # sd and correlations within 5 Monte Carlo errors (sd: 1/sqrt(2 n_eff) relative;
-    # correlation: (1 - rho^2)/sqrt(n_eff))
-    assert n_eff > 2000
-    assert np.max(np.abs(x.std(0) / sd - 1)) < 5 / math.sqrt(2 * n_eff), x.std(0) / sd
-    corr_t = C / np.outer(sd, sd)
-    corr_s = np.corrcoef(x.T)
-    assert np.all(np.abs(corr_s - corr_t) < 5 * (1 - corr_t**2) / math.sqrt(n_eff) + 1e-9)
+def test_random_walk_move_alone_reproduces_correlated_gaussian():
+    """The random-walk move by itself (a mis-shaped covariance: 0.6x to 1.6x the target's
+    variance along its principal axes) is an exact Metropolis move: the target's mean, sd and
+    correlations come out within Monte Carlo errors; each walker draws its own step."""
+    rng = np.random.default_rng(21)
+    D = 4
+    mu, C = _gaussian_target(D, rng)
+    w, V = np.linalg.eigh(C)
+    wrong = V @ np.diag(w * np.linspace(0.6, 1.6, D)) @ V.T
+    move = random_walk_move(wrong * 2.38**2 / D)
+    steps, _ = move.get_proposal(np.zeros((5, D)), np.random.RandomState(0))
+    assert len({tuple(r) for r in steps}) == 5                   # one step per walker
+    _check_reproduces([(move, 1.0)], mu, C, rng, steps=12000, min_eff=1000)
 
 
 def test_split_rank_rhat_matches_arviz():

@@ -36,6 +36,9 @@ def test_kalman_whitening_is_the_exact_gaussian_likelihood(rho, q, irregular):
     ss_b, ld_b = colored.whitened_ss(np.stack([e, 2 * e]), np.array([rho, rho]), np.array([q, q]), dt_ratio)
     assert ss_b == pytest.approx([ss_exact, 4 * ss_exact], rel=EXACT_TOL)
     assert ld_b == pytest.approx([ld_exact, ld_exact], rel=EXACT_TOL)
+    ss_s, ld_s = colored.whitened_ss(np.stack([e, 2 * e]), rho, q, dt_ratio)   # shared noise parameters
+    assert ss_s == pytest.approx([ss_exact, 4 * ss_exact], rel=EXACT_TOL)
+    assert ld_s == pytest.approx([ld_exact, ld_exact], rel=EXACT_TOL)
 
 
 def test_white_residuals_stay_white():
@@ -54,3 +57,19 @@ def test_model_error_is_found_and_its_size_estimated():
     assert sigma == pytest.approx(2.0, rel=0.1)          # the white part [m]
     assert 0.95 < rho < 0.999                             # correlation time 20-1000 samples
     assert 4.0 / 3 < q < 4.0 * 3                          # variance ratio within a factor 3
+
+
+@pytest.mark.parametrize("irregular", [False, True])
+def test_shared_noise_parameters_give_the_per_walker_numbers(irregular):
+    """The filter shared by walkers with the same rho and q (the posterior's plug-in) does each
+    walker's arithmetic in the same order as the per-walker filter: identical results."""
+    rng = np.random.default_rng(5)
+    n, W = 700, 13
+    t = np.cumsum(rng.uniform(0.5, 1.5, n)) if irregular else np.arange(n, dtype=float)
+    dt_ratio = np.diff(t) / np.median(np.diff(t))
+    r = rng.standard_normal((W, n)) * rng.uniform(0.5, 3.0, (W, 1))
+    for rho, q in ((0.97, 2.0), (0.5, 1e-3), (1 - 1e-5, 50.0)):
+        ss_s, ld_s = colored.whitened_ss(r, rho, q, dt_ratio)
+        ss_w, ld_w = colored.whitened_ss(r, np.full(W, rho), np.full(W, q), dt_ratio)
+        np.testing.assert_array_equal(ss_s, ss_w)
+        np.testing.assert_array_equal(ld_s, ld_w)
