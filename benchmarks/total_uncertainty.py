@@ -66,7 +66,7 @@ def replicate(k, rng, posterior, walkers=None):
     rnd = Round(Projectile(mass=mass, diameter=diam, name=f"{name} shell"),
                 Launch(velocity=v0, elevation_deg=qe), radar=Radar(sigma=sd),
                 systematics=Systematics(density=DENSITY_SD, temperature=TEMPERATURE_SD))
-    kw = {"walkers": walkers, "max_steps": 4000} if (posterior and walkers) else {}
+    kw = {"walkers": walkers, "max_steps": 3000} if (posterior and walkers) else {}
     res = fit(track, rnd, mcmc=posterior, seed=int(rng.integers(2**31)), **kw)
     rows = res.summary["cd"]
     mach = np.array([r["mach"] for r in rows])
@@ -77,7 +77,8 @@ def replicate(k, rng, posterior, walkers=None):
     if posterior:
         m = res.summary["mcmc"]
         out["mcmc"] = {"converged": bool(m.get("converged")), "steps": m.get("steps"),
-                       "seconds": m.get("seconds"), "acceptance": m.get("acceptance")}
+                       "seconds": m.get("seconds"), "acceptance": m.get("acceptance"),
+                       "message": m.get("message")}
     for i in pick:
         r = rows[i]
         truth = float(truth_cd(name, r["mach"]))
