@@ -13,22 +13,25 @@ importance weights of the independence proposal had a standard deviation of 83 (
 sample fraction of 4 %, acceptance ~0.1), although every single direction of the Laplace
 approximation was within 30 % of the true curvature.
 
-:class:`DriftCoordinates` samples instead the coefficients of the *identified* curve
+:class:`DriftCoordinates` samples instead the coefficients ``c~`` of the *identified* curve: with
+``psi(M, dT) = rho(z, 0) / rho(z, dT)`` and ``k(M, dT) = a(z, dT) / a(z, 0)`` the density and
+sound-speed changes of a temperature offset at the height ``z(M)`` where the flight passes Mach
+``M`` (from the fit's trajectory and the round's atmosphere, so a track whose transonic part
+flies high gets that height's temperature),
 
-    g(M0) = f * Cd(M0 * k),   f = r * T / (T + dT) * (d / d0)^2 * (m0 / m),   k = sqrt((T + dT) / T)
+    Cd(M) = psi(M, dT) / f * g(k(M, dT) M),   f = r (d / d0)^2 (m0 / m),   g(M) = sum c~_j B_j(M)
 
-on the nominal Mach axis ``M0`` (``T`` the air temperature at the track's mean height): ``c~``
-with ``c = (I + delta A1 + delta^2 / 2 A2) c~ / f``, ``delta = k - 1``, where ``A1`` and ``A2``
-are the least-squares projections of ``M B'(M)`` and ``M^2 B''(M)`` onto the spline basis
-``B`` (the first terms of the Taylor series of ``B(k M)`` in ``k``). The map is a smooth
-bijection for any ``|delta| << 1``; the posterior density in the new coordinates carries the log
-Jacobian ``log|det(I + delta A1 + delta^2 / 2 A2)| - P log f``, so the target is exactly the
-same posterior whatever the quality of the approximation; only the sampler's efficiency depends
-on it. Reported draws are mapped back to ``c`` (:meth:`DriftCoordinates.to_theta`).
+expanded to second order in ``dT``: ``c = (I + dT A1 + dT^2 / 2 A2) c~ / f`` with ``A1``, ``A2``
+the least-squares projections onto the spline basis ``B`` of the Taylor terms of
+``psi B(k M)`` (``B'``, ``B''`` the basis derivatives). The map is a smooth bijection for any
+offset a round can declare; the posterior density in the new coordinates carries the log
+Jacobian ``log|det(I + dT A1 + dT^2 / 2 A2)| - P log f``, so the target is exactly the same
+posterior whatever the quality of the approximation; only the sampler's efficiency depends on
+it. Reported draws are mapped back to ``c`` (:meth:`DriftCoordinates.to_theta`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,9 +53,7 @@ class DriftCoordinates:
         Positions of the sources present (density ratio, temperature offset [K], mass [kg],
         diameter [m]) in the free-parameter vector.
     A1, A2 : (P, P) ndarray
-        First- and second-order stretch matrices.
-    T_ref : float
-        Air temperature [K] at the track's mean height.
+        First- [1/K] and second-order [1/K^2] temperature matrices.
     m0, d0 : float
         Nominal mass [kg] and diameter [m].
     """
@@ -61,32 +62,28 @@ class DriftCoordinates:
     pos: dict
     A1: np.ndarray
     A2: np.ndarray
-    T_ref: float
     m0: float
     d0: float
 
     # ------------------------------------------------------------------------------------
     def _factors(self, T):
-        """``(f, delta)`` (each (W,)) of free-parameter vectors ``T`` (W, n)."""
+        """``(f, dT)`` (each (W,)) of free-parameter vectors ``T`` (W, n)."""
         W = T.shape[0]
         f = np.ones(W)
-        delta = np.zeros(W)
+        dT = np.zeros(W)
         p = self.pos
         if DENSITY in p:
             f = f * T[:, p[DENSITY]]
         if TEMPERATURE in p:
             dT = T[:, p[TEMPERATURE]]
-            ratio = (self.T_ref + dT) / self.T_ref
-            f = f / ratio
-            delta = np.sqrt(np.maximum(ratio, 1e-6)) - 1.0
         if DIAMETER in p:
             f = f * (T[:, p[DIAMETER]] / self.d0) ** 2
         if MASS in p:
             f = f * self.m0 / T[:, p[MASS]]
-        return f, delta
+        return f, dT
 
     def _matrix(self, delta):
-        """(W, P, P) ``I + delta A1 + delta^2 / 2 A2``."""
+        """(W, P, P) ``I + dT A1 + dT^2 / 2 A2`` of offsets ``delta`` (W,) [K]."""
         P = self.A1.shape[0]
         d = delta[:, None, None]
         return np.eye(P)[None] + d * self.A1[None] + 0.5 * d * d * self.A2[None]
@@ -132,20 +129,22 @@ class DriftCoordinates:
         return J
 
 
-def drift_coordinates(problem, idx, *, mass=None, diameter=None):
+def drift_coordinates(problem, idx, theta, *, mass=None, diameter=None):
     """The :class:`DriftCoordinates` of a posterior, or ``None`` where they do not apply.
 
     They apply when the drag model is linear in its coefficients with a spline basis (it has
-    ``basis`` and ``basis_slope``; a table scaled by one factor has no shape to stretch), all its
-    coefficients are free, and at least one of the density, temperature, mass or diameter
-    sources is a free parameter.
+    ``basis``, ``basis_slope`` and ``knots``; a table scaled by one factor has no shape to
+    stretch), all its coefficients are free, and at least one of the density, temperature, mass
+    or diameter sources is a free parameter.
 
     Parameters
     ----------
     problem : OutputErrorProblem
-        Its ``names``, ``P``, ``model`` (``drag``, ``atmosphere``) and ``track``.
+        Its ``names``, ``P``, ``model`` (``drag``, ``atmosphere``), ``channels`` and ``predict``.
     idx : (n,) ndarray of int
         Indices of the free parameters in the problem's full vector.
+    theta : (n_full,) ndarray
+        The full parameter vector whose trajectory gives the height at each Mach number.
     mass, diameter : float, keyword-only
         Nominal mass [kg] and diameter [m] (needed only when those sources are free).
 
@@ -158,7 +157,7 @@ def drift_coordinates(problem, idx, *, mass=None, diameter=None):
         return None
     free_names = [problem.names[j] for j in idx]
     P = problem.P
-    if not all(j in set(idx.tolist()) for j in range(P)):
+    if not set(range(P)) <= set(np.asarray(idx).tolist()):
         return None
     pos = {n: free_names.index(n) for n in (DENSITY, TEMPERATURE, MASS, DIAMETER) if n in free_names}
     if not mass:
@@ -171,17 +170,67 @@ def drift_coordinates(problem, idx, *, mass=None, diameter=None):
     grid = np.concatenate([np.linspace(a, b, GRID_PER_INTERVAL, endpoint=False)
                            for a, b in zip(knots[:-1], knots[1:])] + [knots[-1:]])
     B = drag.basis(grid)
-    B1 = drag.basis_slope(grid)
-    B2 = drag.basis_curvature(grid) if hasattr(drag, "basis_curvature") else np.zeros_like(B)
     pinv = np.linalg.pinv(B)
-    A1 = pinv @ (grid[:, None] * B1)
-    A2 = pinv @ ((grid ** 2)[:, None] * B2)
-    T_ref = 288.15
+    A1 = A2 = np.zeros((P, P))
     try:
-        z = problem.track.channels.get("z")
-        zbar = float(np.nanmean(z)) if z is not None else 0.0
-        T_ref = float(problem.model.atmosphere.at_height(zbar).temperature)
-    except Exception:  # noqa: BLE001 - any atmosphere without at_height: sea-level ICAO
-        pass
+        air = air_derivatives(problem.model.atmosphere, height_at_mach(problem, theta, grid))
+    except (AttributeError, TypeError, ValueError):   # no atmosphere model to differentiate
+        air = None
+    if TEMPERATURE in pos and air is not None:
+        psi1, psi2, k1, k2 = air
+        B1 = grid[:, None] * drag.basis_slope(grid)
+        B2 = (grid ** 2)[:, None] * (drag.basis_curvature(grid) if hasattr(drag, "basis_curvature")
+                                     else np.zeros_like(B))
+        A1 = pinv @ (psi1[:, None] * B + k1[:, None] * B1)
+        A2 = pinv @ (psi2[:, None] * B + k2[:, None] * B1 + (k1 ** 2)[:, None] * B2
+                     + (2 * psi1 * k1)[:, None] * B1)
     drag_pos = np.array([free_names.index(problem.names[j]) for j in range(P)])
-    return DriftCoordinates(drag_pos, pos, A1, A2, T_ref, float(mass or 1.0), float(diameter or 1.0))
+    return DriftCoordinates(drag_pos, pos, A1, A2, float(mass or 1.0), float(diameter or 1.0))
+
+
+def height_at_mach(problem, theta, mach):
+    """Height above the gun [m] (M,) where the trajectory of ``theta`` flies Mach ``mach`` (M,).
+
+    Interpolated in the samples sorted by Mach (a flight that passes a Mach number twice gets
+    one of the heights; outside its span the nearest end's). 0 when the problem has no ``z``.
+    """
+    y, m = problem.predict(np.asarray(theta, float)[None])
+    m = np.asarray(m[0], float)
+    if "z" not in problem.channels:
+        return np.zeros_like(np.asarray(mach, float))
+    z = np.asarray(y[0, :, problem.channels.index("z")], float)
+    ok = np.isfinite(m) & np.isfinite(z)
+    if not ok.any():
+        return np.zeros_like(np.asarray(mach, float))
+    order = np.argsort(m[ok])
+    return np.interp(mach, m[ok][order], z[ok][order])
+
+
+#: temperature step [K] of the air derivatives
+AIR_STEP_K = 1.0
+
+
+def air_derivatives(atm, z):
+    """First and second derivatives in a temperature offset [1/K, 1/K^2] of the density factor
+    ``psi = rho(z, 0) / rho(z, dT)`` and the sound-speed ratio ``k = a(z, dT) / a(z, 0)``.
+
+    Parameters
+    ----------
+    atm : Atmosphere or MetProfile
+        Anything with ``temperature_offset`` (a dataclass field) and ``at_height``.
+    z : (M,) ndarray
+        Heights above the gun [m].
+
+    Returns
+    -------
+    psi1, psi2, k1, k2 : (M,) ndarray
+    """
+    h = AIR_STEP_K
+    s = [atm.at_height(z) if d == 0 else replace(atm, temperature_offset=atm.temperature_offset + d).at_height(z)
+         for d in (-h, 0.0, h)]
+    rho = [np.asarray(a.density, float) for a in s]
+    snd = [np.asarray(a.speed_of_sound, float) for a in s]
+    psi = [rho[1] / r for r in rho]
+    k = [a / snd[1] for a in snd]
+    return ((psi[2] - psi[0]) / (2 * h), (psi[2] - 2 * psi[1] + psi[0]) / h ** 2,
+            (k[2] - k[0]) / (2 * h), (k[2] - 2 * k[1] + k[0]) / h ** 2)

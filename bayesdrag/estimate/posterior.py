@@ -348,7 +348,7 @@ class LogPosterior:
         self._split_priors(mean[:self.n_theta], np.sqrt(np.diag(cov))[:self.n_theta])
         # sample the spline in coordinates where the air and shell sources decouple (coords.py)
         nominal = {p.name: p.mean for p in problem.priors}
-        self.coords = drift_coordinates(problem, self.idx, mass=nominal.get("mass_sd"),
+        self.coords = drift_coordinates(problem, self.idx, self.mode, mass=nominal.get("mass_sd"),
                                         diameter=nominal.get("diameter_sd"))
         if self.coords is not None:
             n = self.n_theta
