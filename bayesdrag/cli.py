@@ -172,6 +172,9 @@ def _add_fit_options(p, batch=False):
     p.add_argument("--noise-model", choices=NOISE_MODELS, default=d.noise_model,
                    help="auto (default: per channel from the residuals), white (independent samples) or ar1 "
                         "(white noise plus an AR(1) model-error process: correlated residuals widen the bands)")
+    p.add_argument("--sample-ar", action="store_true",
+                   help="sample the AR(1) model-error coefficients in the posterior (default: held at their ML "
+                        "values; slow mixing where rho reaches its bound)")
     p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto",
                    help="fit these effects of the diagnosis library with Cd as nuisance parameters (auto: the ones "
                         "`bayesdrag diagnose` names); the report shows Cd with and without them")
@@ -253,7 +256,8 @@ def _fit_options(args):
         if not ch:
             raise InputError(f"command line: --channels {args.channels!r} names no channel; use e.g. x,z,v")
         kw["channels"] = ch
-    for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu", "noise_model"):
+    for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu", "noise_model",
+              "sample_ar"):
         if hasattr(args, k):
             kw[k] = getattr(args, k)
     if getattr(args, "with_effects", ""):

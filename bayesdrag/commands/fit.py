@@ -212,7 +212,7 @@ def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=Fal
     from ..estimate.posterior import LogPosterior
     from ..estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior, widen_to_floor
 
-    post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu)
+    post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu, sample_ar=opts.sample_ar)
     walkers = opts.walkers
     if opts.moves != "auto" and walkers is None:
         walkers = 2 * post.ndim + 2

@@ -71,6 +71,11 @@ class FitOptions:
         process per channel, so residuals that model error has made correlated widen the
         bands; ``auto`` (default): ``ar1`` for the channels whose white-noise residuals show
         such a process (:func:`bayesdrag.estimate.scheme1.choose_noise_model`).
+    sample_ar : bool
+        Sample the AR(1) model-error coefficients (``log(1 - rho)``, ``log q`` per ``ar1``
+        channel) in the posterior instead of holding them at their ML values (default False:
+        where the data push rho to its bound, as on the shipped demo's v channel, the posterior
+        is truncated there and the chain mixes slowly, acceptance 0.04-0.07; see docs/bayes.md).
     with_effects : tuple of str or "auto"
         Effects of the diagnosis library fitted with Cd as nuisance parameters (``--with``);
         ``auto``: the ones the diagnosis names. Effects that share a declared source's quantity
@@ -97,6 +102,7 @@ class FitOptions:
     likelihood: str = "gaussian"
     nu: float | str = DEFAULT_NU
     noise_model: str = "auto"
+    sample_ar: bool = False
     with_effects: tuple | str = ()
     window: int = 50
     overlap: int = 0
@@ -140,6 +146,8 @@ class FitOptions:
                  "--scheme 2 (a window's constant Cd cannot carry them)")
         if self.noise_model not in NOISE_MODELS:
             _bad("noise_model", self.noise_model, f"use one of {', '.join(NOISE_MODELS)}")
+        if not isinstance(self.sample_ar, bool):
+            _bad("sample_ar", self.sample_ar, "use True or False")
         if self.nu != "sample":
             try:
                 nu = float(self.nu)

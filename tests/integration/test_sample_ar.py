@@ -1,0 +1,54 @@
+"""``--sample-ar``: the AR(1) model-error coefficients sampled in the posterior (issue 15)."""
+import numpy as np
+import pytest
+
+from bayesdrag.commands.fit import fit
+from bayesdrag.commands.options import FitOptions
+from bayesdrag.dynamics.pointmass import PointMassModel
+from bayesdrag.dynamics.trajectory import initial_state
+from bayesdrag.errors import InputError
+from bayesdrag.io.drag_tables import load_m101
+from bayesdrag.round import Launch, Projectile, Radar, Round
+from bayesdrag.synthetic import add_noise
+from bayesdrag.track import RadarTrack
+
+SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
+
+
+#: AR(1) model error added to the x channel: lag-one correlation per sample and sd [m]
+RHO_TRUE, AR_SD = 0.9, 3.0
+
+
+def _ar1(n, rho, sd, rng):
+    e = np.empty(n)
+    e[0] = sd * rng.standard_normal()
+    for k in range(1, n):
+        e[k] = rho * e[k - 1] + sd * np.sqrt(1 - rho ** 2) * rng.standard_normal()
+    return e
+
+
+def test_sample_ar_puts_the_ar_coefficients_in_the_posterior():
+    rng = np.random.default_rng(5)
+    m101 = load_m101()
+    tr = PointMassModel(42.6, 0.155, m101).simulate((), initial_state(818.0, 15.0), backend="scipy",
+                                                     stop_at_impact=True, dt=0.25)
+    ch = {c: tr.channel(c) for c in "xyzv"}
+    ch["x"] = ch["x"] + _ar1(tr.t.size, RHO_TRUE, AR_SD, rng)
+    track = add_noise(RadarTrack(tr.t, ch, {}), SIGMA, rng)
+    rnd = Round(Projectile("155", 42.6, 0.155, None, None), Launch(15.0, 818.0), radar=Radar(dict(SIGMA)))
+    res = fit(track, rnd, sample_ar=True, walkers=64, max_steps=400, seed=2)
+    assert res.summary["ml"]["noise"]["model"]["x"] == "ar1"
+    post = res.summary["posterior"]
+    assert "log_1m_rho_x" in post["mean"] and "log_q_x" in post["mean"]
+    # the sampled lag-one correlation of the x model error brackets the one put in (90 % interval
+    # of rho = 1 - exp(log_1m_rho), widened by 0.05 for a short chain)
+    rho_lo = 1 - np.exp(post["q95"]["log_1m_rho_x"])
+    rho_hi = 1 - np.exp(post["q05"]["log_1m_rho_x"])
+    assert rho_lo - 0.05 <= RHO_TRUE <= rho_hi + 0.05, (rho_lo, rho_hi)
+    held = fit(track, rnd, walkers=64, max_steps=400, seed=2)
+    assert not any(k.startswith("log_1m_rho") for k in held.summary["posterior"]["mean"])
+
+
+def test_sample_ar_must_be_a_bool():
+    with pytest.raises(InputError, match="sample_ar"):
+        FitOptions(sample_ar="yes")
