@@ -210,12 +210,10 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
 
 def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=False):
     from ..estimate.posterior import LogPosterior
-    from ..estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior, widen_to_floor
+    from ..estimate.sampler import cd_draws, cd_posterior_rows, default_walkers, sample_posterior, widen_to_floor
 
     post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu, sample_ar=opts.sample_ar)
-    walkers = opts.walkers
-    if opts.moves != "auto" and walkers is None:
-        walkers = 2 * post.ndim + 2
+    walkers = opts.walkers if opts.walkers is not None else default_walkers(post, opts.moves)
     bayes = sample_posterior(post, nwalkers=walkers, moves=opts.moves, max_steps=opts.max_steps, seed=opts.seed,
                              backend_path=chain_path, resume=bool(resume and chain_path and Path(chain_path).exists()),
                              progress=progress, log=log)

@@ -84,7 +84,8 @@ class FitOptions:
     window, overlap : int
         Scheme 2: samples per window (default 50) and shared by consecutive windows (0).
     walkers : int or None
-        emcee walkers (default: 16 with the ``auto`` moves, else 2 x parameters + 2).
+        emcee walkers (default: 16 with the ``auto`` moves, 128 when a declared ``temperature_sd``
+        is sampled, else 2 x parameters + 2; :func:`bayesdrag.estimate.sampler.default_walkers`).
     max_steps : int
         Hard limit of sampler steps (the run stops earlier at convergence); at least
         :data:`MIN_MAX_STEPS`.

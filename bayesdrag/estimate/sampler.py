@@ -51,6 +51,11 @@ RHAT_MAX = 1.01
 ESS_MIN = 400
 #: default number of walkers
 DEFAULT_WALKERS = 16
+#: default walkers when a declared temperature offset is sampled (drift coordinates with a
+#: temperature): on a py-ballisticcalc track with density_sd 0.002 and temperature_sd 0.5 16 walkers
+#: gave tau ~220 steps (not converged in 10 000 steps, 528 s), 128 walkers tau 28 and 5x the ESS
+#: per simulated trajectory (docs/bayes.md, Known limits)
+SOURCE_WALKERS = 128
 #: default steps between convergence checks (and chain-file flushes)
 CHECK_EVERY = 25
 
@@ -646,3 +651,27 @@ def widen_to_floor(cd, rows):
     for r, v in zip(rows, k):
         r["model_error_widening"] = float(v)
     return mean + (cd - mean) * k
+
+
+def default_walkers(post, moves="auto"):
+    """Walkers of a run whose ``nwalkers`` was not given.
+
+    Parameters
+    ----------
+    post : LogPosterior
+        Its ``ndim`` and ``coords`` (:mod:`bayesdrag.estimate.coords`).
+    moves : str
+        The move mix's name.
+
+    Returns
+    -------
+    int
+        ``2 ndim + 2`` for the ensemble moves (``de``, ``stretch``); :data:`SOURCE_WALKERS` for
+        the ``auto`` mix when a temperature offset is sampled; else :data:`DEFAULT_WALKERS`.
+    """
+    if moves != "auto":
+        return 2 * post.ndim + 2
+    coords = getattr(post, "coords", None)
+    if coords is not None and "temperature.dT" in coords.pos:
+        return SOURCE_WALKERS
+    return DEFAULT_WALKERS

@@ -68,3 +68,13 @@ def test_reported_draws_are_in_the_parameters_units(post):
     drag = post.coords.drag
     assert np.allclose(rep[drag], post.full_theta(x)[0, post.idx][drag])
     assert not np.allclose(rep[drag], x[0, drag], rtol=1e-4)
+
+
+def test_default_walkers_follow_the_sampled_temperature(post):
+    from types import SimpleNamespace
+
+    from bayesdrag.estimate.sampler import DEFAULT_WALKERS, SOURCE_WALKERS, default_walkers
+
+    assert default_walkers(post) == SOURCE_WALKERS == 128
+    assert default_walkers(post, "de") == 2 * post.ndim + 2
+    assert default_walkers(SimpleNamespace(ndim=41, coords=None)) == DEFAULT_WALKERS == 16
