@@ -100,11 +100,6 @@ def main(argv=None):
                     help="emcee walkers of the posterior replicates (128: ~5x the ESS per trajectory of 16 on "
                          "these posteriors, see docs/bayes.md)")
     a = ap.parse_args(argv)
-    if a.walkers and a.walkers > 32:
-        # the convergence check reads the whole chain (autocorrelation FFT, split R-hat): with
-        # 128 walkers every 25 steps it took ~85 % of the run; every 200 steps it is a few %
-        from bayesdrag.estimate import sampler
-        sampler.CHECK_EVERY = 200
     rng = np.random.default_rng(a.seed)
     recs = []
     t0 = time.perf_counter()

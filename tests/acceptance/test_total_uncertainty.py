@@ -5,6 +5,8 @@
 * A 6-DOF track with a withheld 6 m/s cross wind (diagnosis case 6dof-wind-34): ``--with auto``
   names the wind, recovers it, and its band covers the table at >= 80 %; without it the result
   says the residuals are structured.
+* py-ballisticcalc tracks in air drawn from the declared sds (benchmarks/total_uncertainty.py,
+  100 ML replicates and 2 posterior ones): the ML total band's coverage is nominal.
 """
 import sys
 from importlib.resources import files
@@ -59,3 +61,27 @@ def test_withheld_cross_wind_is_fitted_with_auto():
     assert all("ml_without_effects" in row for row in r.summary["cd"])
     plain = fit(tr, rnd, mcmc=False)
     assert any("autocorrelated" in x and "model error" in x for x in plain.warnings)
+
+
+#: ML total band Monte Carlo (benchmarks/total_uncertainty.py): replicates and the acceptance
+#: interval of its coverage, widened by 2 binomial standard errors of this many replicates
+MC_REPLICATES = 100
+MC_COVERAGE = (0.85, 0.95)
+#: posterior replicates in this test (a smoke run of the benchmark's; its >= 50-replicate figure
+#: is in docs/bayes.md) and the least share of their 5 Mach points inside the band
+MC_POSTERIOR = 2
+MC_POSTERIOR_MIN = 0.6
+
+
+def test_total_band_monte_carlo_with_declared_air():
+    """py-ballisticcalc tracks flown in air drawn from the declared density_sd 0.002 and
+    temperature_sd 0.5: the ML total band holds the truth at the nominal rate; the posterior
+    replicates run through and hold it too."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    import total_uncertainty as tu
+
+    out = tu.main(["--replicates", str(MC_REPLICATES), "--posterior", str(MC_POSTERIOR), "--seed", "3"])
+    ml = out["ml_total"]
+    lo, hi = MC_COVERAGE
+    assert lo - 2 * ml["se"] <= ml["pooled"] <= hi + 2 * ml["se"], ml
+    assert out["posterior_total"]["pooled"] >= MC_POSTERIOR_MIN, out["posterior_total"]
