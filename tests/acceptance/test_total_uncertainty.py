@@ -6,7 +6,8 @@
   names the wind, recovers it, and its band covers the table at >= 80 %; without it the result
   says the residuals are structured.
 * py-ballisticcalc tracks in air drawn from the declared sds (benchmarks/total_uncertainty.py,
-  100 ML replicates and 2 posterior ones): the ML total band's coverage is nominal.
+  100 ML replicates): the ML total band's coverage is nominal; on two posterior replicates the
+  posterior band agrees with it.
 """
 import sys
 from importlib.resources import files
@@ -67,21 +68,36 @@ def test_withheld_cross_wind_is_fitted_with_auto():
 #: interval of its coverage, widened by 2 binomial standard errors of this many replicates
 MC_REPLICATES = 100
 MC_COVERAGE = (0.85, 0.95)
-#: posterior replicates in this test (a smoke run of the benchmark's; its >= 50-replicate figure
-#: is in docs/bayes.md) and the least share of their 5 Mach points inside the band
+#: posterior replicates here (the benchmark's >= 50-replicate coverage is in docs/bayes.md: a
+#: density error common to the whole curve makes a single replicate miss at every Mach point, so
+#: two replicates cannot test coverage) and the least share of their Mach points where the
+#: posterior band and the ML total band agree on holding the truth
 MC_POSTERIOR = 2
-MC_POSTERIOR_MIN = 0.6
+MC_AGREE_MIN = 0.8
+
+
+def _benchmark():
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    import total_uncertainty as tu
+
+    return tu
 
 
 def test_total_band_monte_carlo_with_declared_air():
     """py-ballisticcalc tracks flown in air drawn from the declared density_sd 0.002 and
-    temperature_sd 0.5: the ML total band holds the truth at the nominal rate; the posterior
-    replicates run through and hold it too."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    import total_uncertainty as tu
-
-    out = tu.main(["--replicates", str(MC_REPLICATES), "--posterior", str(MC_POSTERIOR), "--seed", "3"])
+    temperature_sd 0.5: the ML total band holds the truth at the nominal rate."""
+    out = _benchmark().main(["--replicates", str(MC_REPLICATES), "--posterior", "0", "--seed", "3"])
     ml = out["ml_total"]
     lo, hi = MC_COVERAGE
     assert lo - 2 * ml["se"] <= ml["pooled"] <= hi + 2 * ml["se"], ml
-    assert out["posterior_total"]["pooled"] >= MC_POSTERIOR_MIN, out["posterior_total"]
+
+
+def test_posterior_total_band_agrees_with_the_ml_one():
+    """The sampled sources give the posterior the same total band as the linearised ML budget."""
+    tu = _benchmark()
+    rng = np.random.default_rng(4)
+    agree = []
+    for k in range(MC_POSTERIOR):
+        r = tu.replicate(k, rng, True, 128)
+        agree += [a == b for a, b in zip(r["ml"], r["post"])]
+    assert np.mean(agree) >= MC_AGREE_MIN, agree
