@@ -78,3 +78,18 @@ def test_default_walkers_follow_the_sampled_temperature(post):
     assert default_walkers(post) == SOURCE_WALKERS == 128
     assert default_walkers(post, "de") == 2 * post.ndim + 2
     assert default_walkers(SimpleNamespace(ndim=41, coords=None)) == DEFAULT_WALKERS == 16
+
+
+def test_the_map_stays_a_bijection_over_the_whole_temperature_bound(post):
+    """Beyond its well-conditioned range the temperature term is held, so the map inverts even
+    at the parameter's bounds (20 declared sd) where its Taylor terms alone would be singular."""
+    j = post.coords.pos[TEMPERATURE]
+    lo, hi = post.coords.dT_range
+    assert lo < 0 < hi
+    for d in (post.lower[j], lo - 1.0, hi + 1.0, post.upper[j]):
+        x = post.laplace_mean[:post.n_theta].copy()
+        x[j] = d
+        assert np.isfinite(post.coords.log_jacobian(x[None])[0])
+        back = post.coords.from_theta(post.coords.to_theta(x[None]))[0]
+        sd = np.sqrt(np.diag(post.laplace_cov))[:post.n_theta]
+        assert np.max(np.abs(back - x) / sd) < ROUND_TRIP_TOL_SD
