@@ -40,6 +40,7 @@ from .._threads import single_blas
 from .._signals import deferred_interrupt
 from ..errors import InputError
 from ..io.chain import ChainFile
+from .coords import TEMPERATURE
 from .moves import describe_moves, make_moves
 
 #: run until the chain is this many autocorrelation times long
@@ -675,6 +676,6 @@ def default_walkers(post, moves="auto"):
     if moves != "auto":
         return 2 * post.ndim + 2
     coords = getattr(post, "coords", None)
-    if coords is not None and "temperature.dT" in coords.pos:
+    if coords is not None and TEMPERATURE in coords.pos:
         return SOURCE_WALKERS
     return DEFAULT_WALKERS
