@@ -256,12 +256,14 @@ class Atmosphere:
         return rho, math.sqrt(GAMMA * R_AIR * T)
 
 
-    def table(self, z_min=-500.0, z_max=25000.0, dz=5.0):
+    def table(self, z_min=-500.0, z_max=MAX_ALTITUDE, dz=5.0):
         """Tabulate density and speed of sound on a uniform grid of heights above the gun.
 
         The fast kernel interpolates this table linearly: with ``dz`` = 5 m the relative
         interpolation error is below 4e-8 (density scale height ~8.5 km); 25 m gave a 1e-6
-        bias, which moved a 155 mm trajectory by 2 mm.
+        bias, which moved a 155 mm trajectory by 2 mm. The table reaches the model's top
+        (:data:`MAX_ALTITUDE` above sea level, less one step): a fit refuses a track above it
+        (:func:`bayesdrag.estimate.start.check_heights`) rather than fly it in air held at the top.
 
         Returns
         -------

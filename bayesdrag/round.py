@@ -32,9 +32,29 @@ DEFAULT_POSITION_SD = 1.0
 #: plausible ranges checked when a round is built (SI / degrees as noted)
 MASS_MAX = 10000.0              # kg
 DIAMETER_RANGE = (0.004, 1.0)   # m
+#: plausible mass per cubic calibre m / d^3 [kg/m^3]: a hollow ping-pong ball has ~40, a solid
+#: steel sphere 4100, a bullet or a shell 10 000-15 000, a tungsten long rod of 50 calibres
+#: ~760 000; beyond these a mass is in another unit (tonnes, grams) or a typing mistake
+MASS_PER_CALIBRE3 = (20.0, 1.0e6)
 ELEVATION_RANGE_DEG = (-10.0, 90.0)  # open interval
 VELOCITY_MAX = 3000.0           # m/s
 ALTITUDE_RANGE = (-1000.0, 10000.0)  # m above sea level of the gun
+
+
+def _check_sectional_density(mass, d):
+    """Refuse a mass implausible for its diameter (:data:`MASS_PER_CALIBRE3`), with the likely
+    unit: a 42.6 kg shell typed as 0.0426 (tonnes) would fly like a feather and its fit would
+    run for minutes before saying nothing useful."""
+    lo, hi = MASS_PER_CALIBRE3
+    k = mass / d**3
+    if lo <= k <= hi:
+        return
+    sd = mass / d**2
+    hint = ("; it looks like tonnes (in kg: {:g})".format(mass * 1e3) if k < lo and lo <= 1e3 * k <= hi else
+            "; it looks like grams (in kg: {:g})".format(mass * 1e-3) if k > hi and lo <= 1e-3 * k <= hi else "")
+    what = "lighter than a hollow ball" if k < lo else "heavier than a solid tungsten rod"
+    raise ValueError(f"mass = {mass:g} kg is implausible for diameter {d:g} m (sectional density {sd:.3g} kg/m^2, "
+                     f"{what}; allowed {lo * d**3:.3g}-{hi * d**3:.3g} kg for this diameter){hint}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,6 +97,7 @@ class Projectile:
                 raise ValueError(f"diameter = {d:g} looks like millimetres; diameter is in metres "
                                  f"({d / 1000:g}); allowed [{lo:g}, {hi:g}] m")
             raise ValueError(f"diameter = {d:g} m is outside the plausible range [{lo:g}, {hi:g}] m")
+        _check_sectional_density(mass, d)
         object.__setattr__(self, "mass", mass)
         object.__setattr__(self, "diameter", d)
         if self.reference_drag_path is not None:

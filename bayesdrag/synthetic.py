@@ -20,7 +20,23 @@ def _launch_or_fail(rnd, what):
     L = rnd.launch
     if L.velocity is None or L.elevation_deg is None:
         raise InputError(f"{rnd.path}: {what} needs [launch] velocity and elevation")
+    if not L.elevation_deg > 0.0:
+        # the flight ends when z returns to the gun's height: fired level or down, at once
+        raise InputError(f"{rnd.path}: {what} needs [launch] elevation > 0 deg (got {L.elevation_deg:g}): the "
+                         f"simulated flight ends where it comes back to the gun's height, which a shell fired "
+                         f"level or downwards does at once")
     return L
+
+
+def _above_the_air(rnd, z, model):
+    """Refuse a simulated flight that rises above the atmosphere model (32 km above sea level)."""
+    from .atmosphere import MAX_ALTITUDE
+
+    top = float(np.max(z)) + rnd.atmosphere.gun_altitude if np.size(z) else 0.0
+    if top > MAX_ALTITUDE - 1.0:
+        raise InputError(f"{rnd.path}: the {model} flight of [launch] velocity {rnd.launch.velocity:g} m/s at "
+                         f"elevation {rnd.launch.elevation_deg:g} deg climbs above {MAX_ALTITUDE / 1000:.1f} km "
+                         f"above sea level, the top of the atmosphere model; lower the velocity or the elevation")
 
 
 def simulate_round(rnd, model="pointmass", dt=0.027, *, clock_offset=0.0, wind=(0.0, 0.0, 0.0),
@@ -85,7 +101,12 @@ def _pointmass(rnd, ref, L, dt, clock_offset, wind, max_time):
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ref, rnd.atmosphere,
                            wind=tuple(wind), coriolis=cor)
     s0 = initial_state(L.velocity, L.elevation_deg)
-    first = model.simulate((), s0, backend="scipy", stop_at_impact=True, dt=dt, max_time=max_time)
+    try:
+        first = model.simulate((), s0, backend="scipy", stop_at_impact=True, dt=dt, max_time=max_time)
+    except ValueError as exc:
+        if "atmosphere" not in str(exc):
+            raise
+        _above_the_air(rnd, [np.inf], "point-mass")
     if not first.success or first.t_impact is None:
         raise InputError(f"{rnd.path}: the simulated round does not land within {max_time:.0f} s "
                          f"({first.message}); check [launch] elevation and velocity")
@@ -108,11 +129,14 @@ def _sixdof(rnd, ref, L, dt, clock_offset, wind, max_time):
                                wind=tuple(wind), azimuth_deg=L.azimuth_deg, max_time=max_time)
     if not res.success:
         raise InputError(f"{rnd.path}: the 6-DOF simulation failed: {res.message}")
+    _above_the_air(rnd, res.position[:, 2], "6-DOF")   # the 6-DOF holds the air at its top: refuse
     t_imp = float(res.t[-1])
     t_rec = _sample_times(t_imp, dt, clock_offset)
+    # every requested time, the impact included: a second run's impact event may land a hair
+    # before the first's and drop the last sample (it did at QE 30: 2057 of 2058 rows)
     res = sixdof.simulate_6dof(shell, L.velocity, L.elevation_deg, t_out=t_rec + clock_offset,
                                atmosphere=rnd.atmosphere, wind=tuple(wind),
-                               azimuth_deg=L.azimuth_deg, max_time=max_time)
+                               azimuth_deg=L.azimuth_deg, max_time=max_time, stop_at_impact=False)
     return t_rec, res.position, res.velocity
 
 

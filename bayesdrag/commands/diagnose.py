@@ -40,6 +40,9 @@ def diagnose(track, rnd, options=None, **kwargs):
     if track.n < MIN_DIAGNOSIS_SAMPLES:
         raise InputError(f"{track.source or 'track'}: {track.n} samples are too few for a diagnosis "
                          f"(need >= {MIN_DIAGNOSIS_SAMPLES})")
+    from ..estimate.start import check_heights
+
+    check_heights(track, rnd)
     d = _analyse(track, rnd, channels=opts.channels, alpha=opts.alpha, material_cd_shift=opts.material_cd_shift,
                  material_end_sd=opts.material_end_sd)
     return DiagnosisResult(d, track, rnd)

@@ -29,6 +29,9 @@ JOBS = ("fit", "diagnose")
 NOISE_MODELS = ("auto", "white", "ar1")
 #: the Student-t likelihood's default degrees of freedom (heavy tails, finite variance)
 DEFAULT_NU = 4.0
+#: allowed Student-t degrees of freedom: the range the posterior samples with ``--nu sample``
+#: (below 1 the weights of every sample but the closest vanish: a bound of 0 and overflow)
+NU_RANGE = (1.0, 100.0)
 #: the smallest sampler step limit: the sampler's first convergence check comes after 100 steps,
 #: and a shorter chain has no autocorrelation time, r_hat or ESS to report (``--max-steps 1``
 #: used to finish with "tau max nan")
@@ -65,7 +68,8 @@ class FitOptions:
     likelihood : {"gaussian", "student-t"}
         Noise model; ``student-t`` is robust to gross outliers.
     nu : float or "sample"
-        Student-t degrees of freedom (default 4), or ``"sample"`` to sample them.
+        Student-t degrees of freedom in :data:`NU_RANGE` (default 4), or ``"sample"`` to sample
+        them.
     noise_model : {"auto", "white", "ar1"}
         ``white``: independent samples (Eq. 19); ``ar1``: white noise plus an AR(1) model-error
         process per channel, so residuals that model error has made correlated widen the
@@ -123,6 +127,10 @@ class FitOptions:
             bad = [c for c in ch if c not in CHANNELS]
             if bad or not ch:
                 _bad("channels", self.channels, f"use a non-empty subset of {', '.join(CHANNELS)}")
+            twice = sorted({c for c in ch if ch.count(c) > 1})
+            if twice:
+                # a channel named twice would be counted twice: its noise weight doubled
+                _bad("channels", ",".join(ch), f"name each channel once ({', '.join(twice)} is repeated)")
             object.__setattr__(self, "channels", ch)
         if self.likelihood not in LIKELIHOODS:
             _bad("likelihood", self.likelihood, f"use one of {', '.join(LIKELIHOODS)}")
@@ -154,8 +162,10 @@ class FitOptions:
                 nu = float(self.nu)
             except (TypeError, ValueError):
                 nu = float("nan")
-            if not (nu > 0 and math.isfinite(nu)):
-                _bad("nu", self.nu, "use a positive number or 'sample'")
+            lo, hi = NU_RANGE
+            if not (lo <= nu <= hi):
+                _bad("nu", self.nu, f"use Student-t degrees of freedom in [{lo:g}, {hi:g}] (1: Cauchy tails; "
+                                    f"{hi:g}: all but Gaussian) or 'sample'")
             object.__setattr__(self, "nu", nu)
         _int("window", self.window, 1)
         _int("overlap", self.overlap, 0)

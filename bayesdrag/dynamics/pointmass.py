@@ -47,6 +47,7 @@ from scipy.integrate import solve_ivp
 
 from ..atmosphere import G0, Atmosphere
 from ..drag import DragModel, MachGrid
+from ..errors import FitError
 from . import kernel as K
 from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT_VERTICAL_MACH_SAT,
                      SPIN_DECAY, coriolis_matrix, lift_parameter)
@@ -448,14 +449,24 @@ class PointMassModel:
         par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz = self.kernel_inputs(
             drag_params, overrides, atmospheres, state0)
         B = state0.shape[0]
+        if n_steps > MAX_KERNEL_STEPS:
+            raise FitError(f"the trajectory from t = {t_start:g} to {t_out[-1]:g} s needs {n_steps} RK4 steps of "
+                           f"{h:.3g} s (more than {MAX_KERNEL_STEPS}): the projectile's drag time scale "
+                           f"{self.drag_time_scale:.3g} s is implausible; check its mass and diameter")
         out = np.empty((B, t_out.size, 6))
         mach = np.empty((B, t_out.size))
-        nl = K.lanes_per_block(B, numba.get_num_threads())
-        run = K.integrate_batch_serial if B < K.LANE_WIDTH else K.integrate_batch
-        run(state0, float(t_start), h, n_steps, out_step, out_theta, par,
-                          cd_tabs.reshape(-1), cd_tabs.shape[1], cd_idx, grid.m0, grid.dm,
-                          atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx, z0, dz,
-                          nl, out, mach)
+        # a long batch runs as several kernel calls of whole trajectories (each its own, exactly
+        # as in one call): a Ctrl-C is then seen between two of them, within a second or so,
+        # instead of after minutes inside compiled code
+        per_call = max(1, CHUNK_LANE_STEPS // max(n_steps, 1))
+        for b0 in range(0, B, per_call if B * n_steps > CHUNK_LANE_STEPS else B):
+            b1 = min(B, b0 + (per_call if B * n_steps > CHUNK_LANE_STEPS else B))
+            nb = b1 - b0
+            run = K.integrate_batch_serial if nb < K.LANE_WIDTH else K.integrate_batch
+            run(state0[b0:b1], float(t_start), h, n_steps, out_step, out_theta, par[b0:b1],
+                cd_tabs.reshape(-1), cd_tabs.shape[1], cd_idx[b0:b1], grid.m0, grid.dm,
+                atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx[b0:b1], z0, dz,
+                K.lanes_per_block(nb, numba.get_num_threads()), out[b0:b1], mach[b0:b1])
         # a NaN or inf propagates to the last sample, so checking that row is enough
         ok = bool(np.all(np.isfinite(out[:, -1])))
         return Trajectory(t_out, out, mach, ok, "" if ok else "non-finite state: integration failed")
@@ -490,6 +501,15 @@ def atmosphere_table(atm):
     ``z0 + dz * i`` [m] and columns density [kg/m^3] and 1 / speed of sound [s/m] (read-only,
     memoised)."""
     return _atmosphere_table(atm)
+
+
+#: a batch of more than this many trajectory-steps (trajectories x RK4 steps, ~0.1-1 s of
+#: kernel time) is run as several kernel calls of whole trajectories (Ctrl-C between them);
+#: an ordinary fit's batch is 10-100 times smaller
+CHUNK_LANE_STEPS = 2_000_000
+#: most RK4 steps one trajectory may need: a plausible projectile over the longest flight needs
+#: a few hundred thousand (a 4 mm, 1.3 g ball over a minute); beyond, a mass or diameter is wrong
+MAX_KERNEL_STEPS = 20_000_000
 
 
 @lru_cache(maxsize=128)

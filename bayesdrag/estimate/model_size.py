@@ -73,7 +73,8 @@ def _ic_unknowns(track, rnd, chans, free_ic):
 def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=None):
     """Can this track determine the drag model asked for, or at least the smallest one?
 
-    Counted before any fitting work: the track's values (samples x channels) must outnumber
+    Counted before any fitting work: no channel may be constant (it says nothing), and the
+    track's values (samples x channels) must outnumber
     the unknowns: the initial-state values (:func:`_ic_unknowns`) plus the model's effective
     drag parameters (:data:`_MODEL_SIZE`: a penalised spline counts its penalty's null space,
     however many coefficients it has; explicit knots count every coefficient). The smallest
@@ -94,6 +95,12 @@ def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=Non
         when an explicitly chosen model is too large, naming the smallest that is not.
     """
     n, c = int(track.n), len(chans)
+    for ch in chans:
+        vals = np.asarray(track.channels[ch], float)
+        # y may be 0 throughout beside other channels (a flight in the plane of fire), not alone
+        if vals.size and np.ptp(vals) == 0.0 and (ch != "y" or len(chans) == 1):
+            raise InputError(f"{track.source or 'track'}: channel {ch} is constant ({vals[0]:g}); it carries no "
+                             f"information — drop the column or fix the track")
     ic = _ic_unknowns(track, rnd, chans, free_ic)
     table = rnd.reference_drag is not None
     small = ("reference-scale", "one factor on the firing table") if table else (
@@ -103,8 +110,8 @@ def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=Non
     if n < MIN_FIT_SAMPLES or n * c <= k_small:
         need = max(MIN_FIT_SAMPLES, k_small // c + 1)
         raise InputError(
-            f"{src}: {n} samples x {c} channel{'s' if c > 1 else ''} ({','.join(chans)}) are too few to determine Cd: even the "
-            f"smallest drag model, {small[1]}, has {k_small} unknowns with the {ic} initial-state values "
+            f"{src}: {n} samples x {c} channel{'s' if c > 1 else ''} ({','.join(chans)}) are too few to determine Cd: "
+            f"even the smallest drag model, {small[1]}, has {k_small} unknowns with the {ic} initial-state values "
             f"the data must give; it needs at least {need} samples of these channels (or more channels, or "
             f"--fix-ic to take the initial state from the round)")
     if knots is not None:

@@ -602,6 +602,26 @@ def gravity_ratio(kin, g=G0, pieces=6):
     return med, se
 
 
+def check_heights(track, rnd):
+    """Raise :class:`InputError` when the track's heights leave the round's atmosphere model
+    (the standard atmosphere covers -5 km to 32.2 km above sea level; a met profile its own
+    span): a flight there would be fitted in air held at the model's edge. Checked before any
+    fitting work; heights are ``z`` above the gun plus the gun's altitude."""
+    z = track.channels.get("z")
+    if z is None or not np.size(z):
+        return
+    atm = rnd.atmosphere
+    lo, hi = float(np.min(z)), float(np.max(z))
+    try:
+        atm.at_height(np.array([lo, hi]))
+    except ValueError as exc:
+        g = float(getattr(atm, "gun_altitude", 0.0))
+        raise InputError(f"{track.source or 'track'}: z spans {lo:.0f} to {hi:.0f} m above the gun "
+                         f"({(lo + g) / 1000:.1f} to {(hi + g) / 1000:.1f} km above sea level), outside the round's "
+                         f"atmosphere ({exc}); fit the part of the flight inside it, or check that z is in metres "
+                         f"above the gun") from None
+
+
 def check_gravity_units(kin, source="track", g=G0):
     """Raise :class:`InputError` when the track's path bends as if gravity were far from g in
     metres: the whole track is in another length unit (feet, yards, km, mm).
