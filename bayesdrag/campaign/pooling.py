@@ -249,7 +249,13 @@ class PooledResult:
                 for i, m in enumerate(self.mach)]
 
     def scatter_summary(self, band=BAND):
-        """``campaign.json`` ``scatter``: mean, q05, q95 (and median) of ``s``."""
+        """``campaign.json`` ``scatter``: mean, q05, q95 (and median) of ``s``. One round shows no
+        round-to-round scatter (its posterior is its prior): the values are then NaN (null in
+        campaign.json) and ``note`` says why."""
+        if len(self.names) < 2:
+            nan = float("nan")
+            return {"mean": nan, "q05": nan, "median": nan, "q95": nan,
+                    "note": "one round: no round-to-round scatter can be seen (the draws are the prior's)"}
         s = self.scatter_draws
         q = np.quantile(s, [band[0], 0.5, band[1]])
         return {"mean": float(s.mean()), "q05": float(q[0]), "median": float(q[1]), "q95": float(q[2])}

@@ -327,8 +327,9 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
     doc = campaign_json(pooled, inputs, camp.name, failed)
     write_campaign_report(into if into is not None else out, camp, inputs, pooled, doc)
     s = doc["scatter"]
-    echo(f"campaign: pooled {len(inputs)} of {len(camp.rounds)} rounds; round-to-round scatter of Cd "
-         f"{100 * s['median']:.2f} % (90 % interval {100 * s['q05']:.2f}-{100 * s['q95']:.2f} %); "
+    scatter = (f"round-to-round scatter of Cd {100 * s['median']:.2f} % (90 % interval {100 * s['q05']:.2f}-"
+               f"{100 * s['q95']:.2f} %)" if s.get("median") is not None else s.get("note", "no scatter"))
+    echo(f"campaign: pooled {len(inputs)} of {len(camp.rounds)} rounds; {scatter}; "
          f"wrote {Path(out) / 'campaign.json'}, campaign.html")
     return doc
 
