@@ -136,6 +136,7 @@ def _add_plan_parser(sub):
                         "drag, else a generic 155 mm curve)")
     p.add_argument("--seed", type=_seed, default=po.seed,
                    help="seed of the noisy realisation that places the fit's knots (default 0)")
+    _add_quiet(p)
 
 
 def _add_fit_options(p, batch=False):
@@ -199,6 +200,7 @@ def build_parser():
     s.add_argument("--seed", type=_seed, default=None, help="seed of the noise generator")
     s.add_argument("--clock-offset", type=_finite_float, default=so.clock_offset,
                    help="radar clock late by this many seconds (recorded = true - offset)")
+    _add_quiet(s)
 
     f = sub.add_parser("fit", help="estimate Cd(M) from a track (ML with Cramér-Rao bounds, then emcee posterior)")
     f.add_argument("track", help="radar track (CSV), or a campaign file (TOML) without ROUND")
@@ -207,7 +209,7 @@ def build_parser():
     _add_fit_options(f)
     f.add_argument("--resume", action="store_true",
                    help="continue the unfinished chain in OUTPUT/chain.partial.h5 (after a kill)")
-    f.add_argument("--quiet", action="store_true", help="no progress bar or status lines")
+    _add_quiet(f)
 
     b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
     b.add_argument("campaign", help="campaign file (TOML)")
@@ -220,7 +222,7 @@ def build_parser():
     _add_fit_options(b, batch=True)
     b.add_argument("--covariance", choices=("colored", "crb"), default="colored",
                    help="round covariance pooled: colored-residual corrected (default) or plain CRB")
-    b.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_quiet(b)
 
     g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
     g.add_argument("track", help="radar track (CSV)")
@@ -231,13 +233,33 @@ def build_parser():
                         "percent anywhere in the flown Mach range (default 0.1)")
     g.add_argument("--material-end-sd", type=_positive_float, default=None, metavar="N",
                    help="... or move the track's end by more than N noise sd (default 3)")
-    g.add_argument("--quiet", action="store_true", help="no notes or summary paragraph on stderr")
+    _add_quiet(g)
 
     _add_plan_parser(sub)
 
     d = sub.add_parser("demo", help="run the whole job on data shipped in the package")
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
+    _add_quiet(d)
     return p
+
+
+def _add_quiet(p):
+    """``-q`` / ``--quiet``, counted (as pip and logging levels): once, nothing on stdout and no
+    notes or progress on stderr, warnings and errors still there; twice, errors only."""
+    p.add_argument("-q", "--quiet", action="count", default=0,
+                   help="-q: nothing on stdout, no notes or progress; warnings and errors stay on stderr. "
+                        "-qq: errors only")
+
+
+def _stdout(args):
+    """``print`` for the command's stdout lines, or nothing with ``-q``."""
+    return print if not getattr(args, "quiet", 0) else (lambda *a, **k: None)
+
+
+def _batch_stdout(args, res):
+    """A campaign's summary line: as :func:`_stdout`, but ``-q`` still prints it when a round
+    failed (the run did not succeed; ``-qq`` leaves only the failures' lines on stderr)."""
+    return print if (not args.quiet or (res["failed"] and args.quiet < 2)) else (lambda *a, **k: None)
 
 
 def _version():
@@ -272,7 +294,8 @@ def cmd_simulate(args):
     if args.seed is not None and not args.noise:
         raise InputError("command line: --seed only makes sense with --noise")
     run_simulate(args.round, args.output, SimulateOptions(model=args.model, dt=args.dt, noise=args.noise,
-                                                          seed=args.seed, clock_offset=args.clock_offset))
+                                                          seed=args.seed, clock_offset=args.clock_offset),
+                 echo=_stdout(args))
     return 0
 
 
@@ -294,12 +317,13 @@ def cmd_fit(args):
         if not is_campaign_file(args.track):
             raise InputError(f"command line: fit needs TRACK ROUND, or a campaign file ({args.track} is not a "
                              f"TOML file with [campaign] and [[rounds]])")
-        res = run_campaign(args.track, args.output, jobs=("fit",), options=opts,
-                           executor="sequential", quiet=args.quiet, pool_seed=args.seed or 0)
-        return summarise(res)
+        res = run_campaign(args.track, args.output, jobs=("fit",), options=opts, executor="sequential",
+                           quiet=args.quiet > 0, echo=_stdout(args), pool_seed=args.seed or 0)
+        return summarise(res, echo=_batch_stdout(args, res))
     from .commands.fit import run_fit
 
-    run_fit(args.track, args.round, args.output, opts, resume=args.resume, quiet=args.quiet)
+    run_fit(args.track, args.round, args.output, opts, resume=args.resume, verbosity=args.quiet,
+            echo=_stdout(args))
     return 0
 
 
@@ -312,9 +336,9 @@ def cmd_batch(args):
                      covariance=args.covariance)
     workers = b.workers or max(1, min(os.cpu_count() or 1, 64))
     res = run_campaign(args.campaign, args.output, jobs=b.jobs, options=b.fit, executor="dask",
-                       scheduler=b.scheduler, workers=workers, covariance=b.covariance, quiet=args.quiet,
-                       pool_seed=args.seed or 0)
-    return summarise(res)
+                       scheduler=b.scheduler, workers=workers, covariance=b.covariance, quiet=args.quiet > 0,
+                       echo=_stdout(args), pool_seed=args.seed or 0)
+    return summarise(res, echo=_batch_stdout(args, res))
 
 
 def cmd_diagnose(args):
@@ -327,7 +351,8 @@ def cmd_diagnose(args):
         kw["material_cd_shift"] = args.material_cd / 100.0
     if args.material_end_sd is not None:
         kw["material_end_sd"] = args.material_end_sd
-    run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet)
+    run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet > 0,
+                 echo=_stdout(args))
     return 0
 
 
@@ -337,14 +362,14 @@ def cmd_plan(args):
 
     opts = PlanOptions(elevations=args.elevations, velocities=args.velocities, dt=args.dt, rounds=args.rounds,
                        scatter=args.scatter, target=args.target, lock_on=args.lock_on, loss=args.loss, seed=args.seed)
-    run_plan(args.round, args.output, opts, assumed_drag_path=args.assumed_drag)
+    run_plan(args.round, args.output, opts, assumed_drag_path=args.assumed_drag, echo=_stdout(args))
     return 0
 
 
 def cmd_demo(args):
     from .commands.demo import run_demo
 
-    run_demo(Path(args.output))
+    run_demo(Path(args.output), echo=_stdout(args), quiet=args.quiet > 0)
     return 0
 
 

@@ -34,7 +34,8 @@ def _echo_err(msg):
 
 
 @single_blas
-def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, progress=False, **kwargs):
+def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, progress=False, ml_progress=None,
+        **kwargs):
     """Estimate Cd(M) from a track.
 
     Parameters
@@ -53,6 +54,10 @@ def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, pr
         ``log(str)`` receives status lines of long work (the sampler's progress).
     progress : bool
         Show a progress bar on stderr while sampling.
+    ml_progress : callable, optional
+        ``ml_progress(step)`` receives the step the maximum-likelihood fit is at
+        (:class:`~bayesdrag.commands.runs.StageProgress` prints it when the fit is slow); its
+        ``done()`` is called at the end when it has one.
 
     Returns
     -------
@@ -79,14 +84,14 @@ def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, pr
                              f"track (it has {', '.join(track.names)})")
     if opts.scheme == 2:
         return _fit_scheme2(track, rnd, opts, chans, log, t_start)
-    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start)
+    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress)
 
 
-def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start):
+def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
     with_effects, with_note = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
                      likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
-                     with_effects=with_effects)
+                     with_effects=with_effects, progress=ml_progress)
     res = f1.ml
     if not res.success:
         raise FitError(f"{track.source or 'track'}: {res.message}")
@@ -101,7 +106,11 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     floored = model_error_floor(f1, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if dm.name != "spline":
+        if ml_progress is not None:
+            ml_progress("the flexible fit the rigid model is checked against")
         _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality)
+    if ml_progress is not None and hasattr(ml_progress, "done"):
+        ml_progress.done()
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
     if with_note is not None:
@@ -383,6 +392,20 @@ def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
     return cd_rows, quality
 
 
+def _why_not_clean(quality):
+    """The summary's reason a Scheme 1 fit is not a clean answer (its ``ml.quality``)."""
+    from ..estimate.quality import ACF_LIMIT, CHI2_LIMIT
+
+    chans = (quality.get("channels") or {}).values()
+    if any(c["chi2_per_sample"] > CHI2_LIMIT or (c["lag1"] > ACF_LIMIT and c["n"] > 20) for c in chans):
+        return "the model misses the track"
+    origin = (quality.get("launch") or {}).get("origin")
+    if origin:
+        return ("the track's clock is not the launch's" if origin["kind"] == "clock"
+                else "the track's origin is not at the gun")
+    return "a parameter sits at a bound"
+
+
 def summary_line(result):
     """The one-line outcome the command prints (converged, determined range, caveat)."""
     s = result.summary
@@ -393,7 +416,7 @@ def summary_line(result):
                 f"converged, Mach {lo:.2f}-{hi:.2f}")
     ml = s["ml"]
     det = ml["mach_range_determined"]
-    caveat = "" if ml["quality"]["ok"] else " -- NOT a clean answer: the model misses the track (warnings above)"
+    caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {_why_not_clean(ml['quality'])} (warnings above)"
     head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}"
             if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
     holes = [(a, b) for a, b in ml["quality"].get("undetermined", []) if det and det[0] < a and b < det[1]]
@@ -403,7 +426,7 @@ def summary_line(result):
 
 
 def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print, run=None,
-            also=None):
+            also=None, verbosity=None):
     """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
 
     Outputs: ``result.json``, ``report.html`` and figures; with sampling also
@@ -417,6 +440,12 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
 
     Parameters
     ----------
+    quiet : bool
+        Nothing on stderr (the batch collects warnings itself); ``echo`` still receives the
+        summary.
+    verbosity : int, optional
+        Overrides ``quiet``: 0 notes, progress and warnings on stderr; 1 (``-q``) warnings only;
+        2 (``-qq``) nothing. The command line passes ``echo`` a no-op from 1 on.
     run : OutputRun, optional
         An open run to write into (the demo's), instead of one of its own.
     also : callable, optional
@@ -430,12 +459,14 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     from ..io.chain import ChainFile
     from ..io.rounds import read_round
     from ..io.tracks import read_track
-    from .runs import output_run, throttled
+    from .runs import StageProgress, output_run, throttled
 
+    level = (2 if quiet else 0) if verbosity is None else int(verbosity)
+    talk, warn = level == 0, level <= 1
     opts = options if options is not None else FitOptions()
     track = thin_for_fit(read_track(track_path))
     rnd = read_round(round_path)
-    if not quiet:
+    if talk:
         for note in track.notes:
             _echo_err(f"bayesdrag: note: {note}")
     out = Path(out)
@@ -447,21 +478,24 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         if sampling and partial.exists() and not resume:
             raise InputError(f"{partial}: an unfinished chain from an earlier run is there; resume it (fit --resume) "
                              f"or delete the file to start afresh")
-        if resume and sampling and not partial.exists() and not quiet:
+        if resume and sampling and not partial.exists() and talk:
             _echo_err(f"bayesdrag: note: --resume: no unfinished chain in {out}; starting afresh")
-        show_bar = (not quiet) and sys.stderr.isatty()
-        log = None if (quiet or show_bar) else throttled(_echo_err)
-        if not quiet and track.n >= PROGRESS_SAMPLES:   # long work: say what is happening
+        show_bar = talk and sys.stderr.isatty()
+        log = None if (not talk or show_bar) else throttled(_echo_err)
+        if talk and track.n >= PROGRESS_SAMPLES:   # long work: say what is happening
             _echo_err(f"bayesdrag: fitting {track.n} samples: maximum likelihood"
                       + (", then the posterior (progress below)" if sampling else "") + " ...")
         chain = ChainFile(partial, inputs=run.inputs_digest) if sampling else None
-        result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar)
+        ml_progress = StageProgress(_echo_err) if talk else None
+        result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar,
+                     ml_progress=ml_progress)
         result.write_into(run, sources={"track": str(track_path), "round": str(round_path)})
         if also is not None:
             also(result, run.staging)
-    if not quiet:
+    if warn:
         for w in result.warnings:
             _echo_err(f"bayesdrag: warning: {w}")
+    if talk:
         for note in ((result.summary.get("ml") or {}).get("quality") or {}).get("notes") or ():
             _echo_err(f"bayesdrag: note: {note}")
     echo(summary_line(result))

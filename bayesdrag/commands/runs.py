@@ -11,10 +11,13 @@ import time
 from ..io.outputs import OutputRun
 from ..io.rounds import round_files
 
-__all__ = ["output_run", "track_round_inputs", "throttled"]
+__all__ = ["output_run", "track_round_inputs", "throttled", "StageProgress"]
 
 #: seconds between two progress lines on a stderr that is not a terminal
 PROGRESS_EVERY = 10.0
+#: a stage of work (the maximum-likelihood fit) reports its progress once it has run this long
+#: [s]: a quick fit stays silent, a slow one (minutes on a dense track) is not
+PROGRESS_AFTER = 3.0
 
 
 def track_round_inputs(track_path, round_path, rnd):
@@ -50,3 +53,40 @@ def throttled(fn, every=PROGRESS_EVERY):
             fn(msg)
 
     return call
+
+
+class StageProgress:
+    """Status lines of a long stage of work (the maximum-likelihood fit): ``progress(step)`` with
+    a short description of the step it is at prints ``"<what> (<elapsed> s): <step>"`` once the
+    stage has run :data:`PROGRESS_AFTER` seconds, then at most every ``every`` seconds, and the
+    last step again when it ends after having spoken (:meth:`done`).
+
+    Parameters
+    ----------
+    echo : callable
+        Receives the lines.
+    what : str
+        The stage's name.
+    clock : callable
+        Seconds (``time.monotonic``; a test passes its own).
+    """
+
+    def __init__(self, echo, what="bayesdrag: maximum likelihood", after=PROGRESS_AFTER, every=PROGRESS_EVERY,
+                 clock=time.monotonic):
+        self.echo, self.what, self.after, self.every, self.clock = echo, what, after, every, clock
+        self.t0 = clock()
+        self.last = None
+        self.step = None
+
+    def __call__(self, step):
+        self.step = step
+        now = self.clock()
+        if now - self.t0 < self.after or (self.last is not None and now - self.last < self.every):
+            return
+        self.last = now
+        self.echo(f"{self.what} ({now - self.t0:.0f} s): {step}")
+
+    def done(self):
+        """Say the stage ended (only when it said anything before)."""
+        if self.last is not None:
+            self.echo(f"{self.what} done in {self.clock() - self.t0:.0f} s")

@@ -18,10 +18,15 @@ import numpy as np
 
 from .problem import Prior
 
-__all__ = ["LAUNCH_CONFLICT_K", "launch_state_priors", "unseen_launch_priors", "checked_launch_priors"]
+__all__ = ["LAUNCH_CONFLICT_K", "ORIGIN_NOISE_K", "launch_state_priors", "unseen_launch_priors",
+           "checked_launch_priors", "origin_offset"]
 
 #: a launch prior that disagrees with the track by more than this many combined sd is dropped
 LAUNCH_CONFLICT_K = 4.0
+#: a first sample away from the muzzle counts only beyond this many single-sample noise sd
+ORIGIN_NOISE_K = 4.0
+#: relative uncertainty of the speed change a fit carries back to the muzzle (its Cd there)
+ORIGIN_EXTRAPOLATION = 0.05
 
 
 def launch_state_priors(L, P, heading=False, names=None):
@@ -76,9 +81,21 @@ def _prior_value_sd(prior, theta, cov, steps):
     return v, float(np.sqrt(max(g @ cov @ g, 0.0)))
 
 
-def checked_launch_priors(track, rnd, model, res, P, skip=()):
+def checked_launch_priors(track, rnd, model, res, P, skip=(), start=None, sigma=None):
     """The round's launch priors (except those named in ``skip``) that agree with a fit made
     without them.
+
+    The muzzle position is checked by :func:`origin_offset`: a first sample away from the muzzle
+    is either a late (or early) clock or a track whose frame is not at the gun, and the check
+    says which; it never fires on an offset the noise or the fit's own uncertainty could make,
+    and keeps the priors when it is unsure.
+
+    Parameters
+    ----------
+    start : DataStart, optional
+        The track's smoothed kinematics (the first sample's position as the data show it).
+    sigma : dict, optional
+        Noise sd per channel (the round's).
 
     Returns (priors to use, check dict for result.json)."""
     L = rnd.launch
@@ -111,37 +128,155 @@ def checked_launch_priors(track, rnd, model, res, P, skip=()):
     for p in cands:
         v, sd_fit = _prior_value_sd(p, res.theta, cov, np.r_[np.zeros(P), [0.01] * 3, [0.001] * 3])
         vals[p.name] = (v, sd_fit)
+    origin = origin_offset(track, rnd, model, res, P, vals, start, sigma)
     muzzle = [n for n in ("X0_muzzle", "Y0_muzzle", "Z0_muzzle") if n in vals]
-    r0 = math.sqrt(sum(vals[n][0] ** 2 for n in muzzle))
-    pos_conflict = any(abs(vals[n][0]) > LAUNCH_CONFLICT_K * math.hypot(L.position_sd, vals[n][1])
-                       for n in muzzle if vals[n][1] > 0 or True)
     used = []
     for p in cands:
         v, sd_fit = vals[p.name]
         sd = math.hypot(p.sd, sd_fit)
         z = (v - p.mean) / sd if sd > 0 else 0.0
-        if pos_conflict or abs(z) > LAUNCH_CONFLICT_K:
+        if p.name in muzzle and origin is None:
+            used.append(p)                # an offset the noise could make: the prior stays
+            check["applied"].append(p.name)
+            continue
+        if origin is not None or abs(z) > LAUNCH_CONFLICT_K:
             unit = {"launch_speed": "m/s", "elevation": "deg"}.get(p.name, "m")
             msg = (f"the round's {p.name.replace('_', ' ')} {p.mean:g} +- {p.sd:g} {unit} disagrees with the "
                    f"track ({v:.4g} {unit}, {z:+.1f} sd): left out of the fit")
-            if pos_conflict and p.name in muzzle:
-                speed = float(np.linalg.norm(res.state0[3:]))
-                msg = (f"the first sample is {r0:.1f} m from the muzzle at t = {t0:g} s: the track's time origin "
-                       f"is not the launch (it looks about {r0 / max(speed, 1.0):.2f} s late); launch priors "
-                       f"left out; shift t so that t = 0 is the launch to use them")
+            if origin is not None and p.name in muzzle:
+                msg = origin["message"]
             entry = {"prior": p.name, "round": p.mean, "track": v, "sd": sd, "z": z, "message": msg}
-            if pos_conflict and p.name not in muzzle:
+            if origin is not None and p.name not in muzzle:
                 # left out with the muzzle position (the launch values hold at the launch, which
-                # is not at t = 0): not a finding of its own, one line says it
-                entry["message"] = f"left out with the muzzle position (time origin): {msg}"
+                # is not where the track's origin puts it): not a finding of its own
+                entry["message"] = f"left out with the muzzle position ({origin['kind']} offset): {msg}"
                 entry["secondary"] = True
             check["conflicts"].append(entry)
         else:
             used.append(p)
             check["applied"].append(p.name)
-    # one message for the time origin is enough
-    if pos_conflict:
-        first = next(c for c in check["conflicts"] if c["prior"] in muzzle)
-        check["conflicts"] = [first] + [c for c in check["conflicts"] if c["prior"] not in muzzle]
-        check["time_origin_offset"] = r0 / max(float(np.linalg.norm(res.state0[3:])), 1.0)
+    if origin is not None:
+        # one message for the origin is enough
+        first = [c for c in check["conflicts"] if c["prior"] in muzzle][:1]
+        check["conflicts"] = first + [c for c in check["conflicts"] if c["prior"] not in muzzle]
+        check["origin"] = origin
+        if origin["kind"] == "clock":
+            check["time_origin_offset"] = origin["clock_offset"]
     return tuple(used), check
+
+
+def _position_noise(track, sigma):
+    """The noise sd [m] of one position sample: the round's where given, else what the track's
+    own high-frequency content shows; the largest over the position channels."""
+    from .noise import hf_noise_sd
+
+    t = np.asarray(track.t, float)
+    out = 0.0
+    for c in ("x", "y", "z"):
+        if c in track.channels:
+            out = max(out, float((sigma or {}).get(c, 0.0)) or hf_noise_sd(t, track.channels[c]))
+    return out
+
+
+def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
+    """What the first sample's distance from the muzzle at t = 0 says, or None when it says nothing.
+
+    An offset counts when the fit without launch priors puts the shell at t = 0 more than
+    :data:`LAUNCH_CONFLICT_K` combined sd (the round's ``position_sd`` and the fit's) from the
+    muzzle, *and* more than :data:`ORIGIN_NOISE_K` single-sample noise sd (one radar sample
+    pins a position no better than its noise, whatever the fit's bound says), *and* the track's
+    smoothed first sample is as far (the data see it, not only the fitted dynamics). Otherwise
+    the launch priors stay. What it is:
+
+    * **clock**: the offset lies along the flight path (its cross-path part within those
+      limits), unless the first sample already flies at the round's launch speed while the
+      fitted flight carried back to the muzzle would leave it faster than that (by more than
+      :data:`LAUNCH_CONFLICT_K` sd: the round's ``velocity_sd`` and
+      :data:`ORIGIN_EXTRAPOLATION` of the speed the extrapolation adds): the clock is then
+      late (early) by the along-path distance over the speed;
+    * **position**: otherwise: the track's frame is not at the gun (a radar not at the gun's
+      height, an x origin elsewhere). The Cd of such a fit is as good as its air: a height
+      offset puts the fitted flight in air of another density (``density_offset``, the largest
+      relative difference of density between the fitted heights and the heights above the muzzle).
+
+    Returns
+    -------
+    dict or None
+        ``kind`` (``clock`` or ``position``), ``offset`` [m] (3,), ``along`` and ``cross`` [m],
+        ``clock_offset`` [s] (clock), ``density_offset`` [-] (position), ``message``.
+    """
+    muzzle = [n for n in ("X0_muzzle", "Y0_muzzle", "Z0_muzzle") if n in vals]
+    if not muzzle or not np.all(np.isfinite(res.theta)):
+        return None
+    L = rnd.launch
+    off = np.array([vals.get(f"{a}0_muzzle", (0.0, 0.0))[0] for a in "XYZ"])
+    sd = np.array([vals.get(f"{a}0_muzzle", (0.0, 0.0))[1] for a in "XYZ"])
+    noise = _position_noise(track, sigma)
+    lim = np.maximum(LAUNCH_CONFLICT_K * np.hypot(L.position_sd, sd), ORIGIN_NOISE_K * noise)
+    seen = [a for a, n in enumerate("XYZ") if f"{n}0_muzzle" in vals and abs(off[a]) > lim[a]]
+    if not seen:
+        return None
+    if start is not None:
+        first = np.asarray(start.kinematics.position[0], float)
+        have = [a for a, c in enumerate("xyz") if c in track.channels]
+        if have and float(np.linalg.norm(first[have])) < ORIGIN_NOISE_K * noise:
+            return None                      # the data's own first sample sits at the muzzle
+    vel = np.asarray(res.state0[3:], float)
+    speed = max(float(np.linalg.norm(vel)), 1.0)
+    u = vel / speed
+    along = float(off @ u)
+    cross_v = off - along * u
+    cross = float(np.linalg.norm(cross_v))
+    cross_lim = float(np.linalg.norm(lim * (np.abs(u) < 0.999)))  # the limits across the path
+    dt = along / speed
+    kind = "clock"
+    if cross > max(cross_lim, ORIGIN_NOISE_K * noise):
+        kind = "position"
+    elif L.velocity is not None:
+        back = model.state_at(res.drag_params, res.state0, 0.0, -dt)
+        v_back = float(np.linalg.norm(back[3:])) if back is not None else math.inf
+        # the extrapolation is as good as the Cd it carries back: 5 % of the speed it adds
+        sd_v = math.hypot(L.velocity_sd, ORIGIN_EXTRAPOLATION * abs(v_back - speed)) if back is not None \
+            else L.velocity_sd
+        miss_clock = abs(v_back - L.velocity)
+        miss_here = abs(speed - L.velocity)
+        if miss_here <= LAUNCH_CONFLICT_K * sd_v < miss_clock:
+            kind = "position"          # the first sample flies at the launch speed: not late
+    r0 = float(np.linalg.norm(off))
+    where = ", ".join(f"{n} {v:+.1f} m" for n, v in zip("xyz", off))
+    out = {"kind": kind, "offset": [float(v) for v in off], "along": along, "cross": cross}
+    if kind == "clock":
+        late = "late" if dt >= 0 else "early"
+        out["clock_offset"] = dt
+        out["message"] = (f"the first sample is {r0:.1f} m from the muzzle at t = 0 s, along the flight path: the "
+                          f"track's clock looks {abs(dt):.3g} s {late} (a clock offset, not a position offset); launch "
+                          f"priors left out; shift t so that t = 0 is the launch to use them")
+    else:
+        heights = start.kinematics.z if start is not None else track.channels.get("z", np.zeros(1))
+        out["density_offset"] = _density_offset(rnd, heights, off[2])
+        rel = out["density_offset"]
+        dens = (f"; the fitted flight is {abs(off[2]):.0f} m {'above' if off[2] > 0 else 'below'} the heights above "
+                f"the muzzle, in air up to {100 * rel:.2g} % off in density, and Cd is uncertain by that"
+                if rel is not None and abs(off[2]) > lim[2] else "")
+        out["message"] = (f"the first sample is {r0:.1f} m from the muzzle at t = 0 s ({where}), not along the "
+                          f"flight path: the track's frame is not at the gun (a position offset, not a clock offset); "
+                          f"launch priors left out{dens}; put the origin at the muzzle (subtract the offset) or fix "
+                          f"the round's [launch] altitude")
+    return out
+
+
+def _density_offset(rnd, heights, dz):
+    """Largest relative density difference between the fitted flight's ``heights`` [m] and the
+    same heights moved by ``-dz`` (the heights above the muzzle)."""
+    from ..atmosphere import MAX_ALTITUDE, MIN_ALTITUDE
+
+    atm = rnd.atmosphere
+    lo = MIN_ALTITUDE - atm.gun_altitude + 1.0
+    hi = MAX_ALTITUDE - atm.gun_altitude - 1.0
+    z = np.clip(np.atleast_1d(np.asarray(heights, float)), lo, hi)
+    try:
+        a = atm.at_height(z).density
+        b = atm.at_height(np.clip(z - dz, lo, hi)).density
+    except ValueError:        # a met profile that does not reach the shifted heights
+        return None
+    return float(np.max(np.abs(b / a - 1.0)))

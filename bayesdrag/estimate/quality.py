@@ -9,7 +9,10 @@ Goodness of fit, per channel
     shows (:func:`bayesdrag.estimate.noise.noise_and_outliers`), never against the fit's own
     residual rms (which would make every fit perfect). Above :data:`CHI2_LIMIT` the residuals
     are far above the noise: the model misses the track. The lag-1 autocorrelation of the
-    residuals above :data:`ACF_LIMIT` says the misfit is structured (model error), not noise.
+    residuals above :data:`ACF_LIMIT` says the misfit is structured (model error), not noise,
+    when the residuals are not negligible (:data:`STRUCTURED_CHI2_MIN`: a noise-free track's
+    smooth 1e-5 m residuals are no misfit). Far below the stated noise
+    (:data:`SIGMA_HIGH_CHI2`) a note says the round's sigma looks too large.
 Bands
     ``band_sd`` of each ``cd`` row is the sd behind the ML band the result stands by: the
     Cramér-Rao sd when the residuals look like the noise, and the larger of it and the
@@ -54,6 +57,12 @@ from .noise import noise_and_outliers
 CHI2_LIMIT = 4.0
 #: lag-1 residual autocorrelation above which the residuals are structured (white: ~0 +- 2/sqrt(N))
 ACF_LIMIT = 0.5
+#: structured residuals count as model error only when they are this large (chi2 per sample):
+#: a noise-free track's residuals (1e-5 of the noise) are smooth, and say nothing of the model
+STRUCTURED_CHI2_MIN = 0.25
+#: a channel's residuals below this chi2 per sample (rms under a third of the round's sigma, on
+#: more than 20 samples) say the stated sigma is too large: a note
+SIGMA_HIGH_CHI2 = 0.1
 #: relative sd of Cd below which Cd counts as determined
 DETERMINED_REL_SD = 0.01
 #: a rigid model's curve further than this many flexible-band sd from the flexible fit's misses
@@ -213,6 +222,19 @@ def channel_fit(res, track, channels, sigma_given, noise=None):
     return out
 
 
+def sigma_notes(fit):
+    """A note when channels' residuals are far below the round's stated noise sd (a sigma 10x
+    too large, or a noise-free track): the bands, which assume the stated sigma, are too wide.
+    The converse, a sigma too small, is a misfit (``chi2_per_sample`` above :data:`CHI2_LIMIT`)."""
+    low = {c: f["rms"] / f["noise_sd"] for c, f in fit.items()
+           if f["noise_source"] == "round" and f["n"] > 20 and f["chi2_per_sample"] < SIGMA_HIGH_CHI2}
+    if not low:
+        return []
+    ratios = ", ".join(f"{c} {r:.2g}" for c, r in low.items())
+    return [f"the residual rms is far below the round's noise sd ({ratios} of it): the stated sigma looks too large "
+            f"(or the track is noise-free); the bands, which assume it, are wider than the data need"]
+
+
 def _clamped(drag_model, mach):
     """Rows beyond a spline's end knots (held flat there) or beyond a table's ends."""
     fr = getattr(drag_model, "knots", None)
@@ -262,7 +284,8 @@ def assess(fit1, rows, track, sigma_given=None):
     fit = channel_fit(res, track, chans, sigma_given or {})
     problems = []
     misfit = [c for c, f in fit.items() if f["chi2_per_sample"] > CHI2_LIMIT]
-    structured = [c for c, f in fit.items() if f["lag1"] > ACF_LIMIT and f["n"] > 20]
+    structured = [c for c, f in fit.items() if f["lag1"] > ACF_LIMIT and f["n"] > 20
+                  and f["chi2_per_sample"] > STRUCTURED_CHI2_MIN]
     for c in misfit:
         f = fit[c]
         problems.append(f"channel {c}: residual rms {f['rms']:.3g} against a noise sd of {f['noise_sd']:.3g} "
@@ -282,6 +305,7 @@ def assess(fit1, rows, track, sigma_given=None):
     band = np.maximum(crb, crbc) if honest_colored else crb
     size = getattr(fit1, "model_size", None) or {}
     notes = [size["note"]] if size.get("note") else []
+    notes += sigma_notes(fit)
     if size.get("short"):
         bend = unresolved_bend(mach, ml, res.mach, getattr(prob.model.drag, "knots", None)) * np.abs(ml)
         band = np.sqrt(band**2 + bend**2)
@@ -293,6 +317,11 @@ def assess(fit1, rows, track, sigma_given=None):
         notes.append(f"a short track ({size['samples']} samples, fewer than the {size['knot_rules']} spline "
                      f"coefficients a dense track would get): each band includes how far Cd may bend between "
                      f"samples (up to {_largest_gap(res.mach):.2f} Mach apart), which the data cannot show")
+    origin = (fit1.launch_check or {}).get("origin")
+    if origin and origin.get("density_offset"):
+        # a frame not at the gun's height: the air the fit flew in is not the air the shell
+        # flew in; Cd is uncertain by the density difference (as one sd)
+        band = np.sqrt(band**2 + (origin["density_offset"] * np.abs(ml))**2)
     dm = prob.model.drag
     clamped = _clamped(dm, mach)
     bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
@@ -301,7 +330,8 @@ def assess(fit1, rows, track, sigma_given=None):
     inside = (mach >= lo - 1e-4) & (mach <= hi + 1e-4)  # the grid is rounded to 1e-4
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(ml > 0, band / ml, np.inf)
-    det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band)
+    # a zero band is no bound at all (an information matrix the data leave singular there)
+    det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band) & (band > 0)
     for r, b, d in zip(rows, band, det):
         r["band_sd"] = float(b)
         r["determined"] = bool(d)
@@ -325,7 +355,7 @@ def assess(fit1, rows, track, sigma_given=None):
             problems.append(c["message"])
     undetermined = intervals(mach, ~det)
     quality = {
-        "ok": not (misfit or structured or bound_names or ic_bound),
+        "ok": not (misfit or structured or bound_names or ic_bound or origin),
         "channels": fit,
         "band": "colored" if honest_colored else "cramer-rao",
         "mach_range_data": [lo, hi],

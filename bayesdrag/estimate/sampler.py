@@ -13,10 +13,11 @@ Run (choices measured, see ``docs/bayes.md`` and ``benchmarks/fit.py --moves``)
       split ``r_hat < 1.01`` and bulk and tail ESS >= 400 for every parameter; or at
       ``max_steps`` (then ``converged=False`` with a message). Burn-in = ceil(3 max tau),
       thinning = max(1, floor(min tau / 2)).
-    * Diagnostics (:func:`split_rank_rhat`, :func:`ess`, :func:`summarize`) are numpy versions
-      of ArviZ's ``rhat``, ``ess`` and ``mcse`` (Vehtari et al. 2021): the same numbers (tests
-      compare them with ArviZ), without ArviZ, which only :mod:`bayesdrag.estimate.inference`
-      imports.
+    * Diagnostics (:func:`split_rank_rhat`, :func:`ess`, :func:`summarize`, in
+      :mod:`bayesdrag.estimate.chain_diagnostics`) are numpy versions of ArviZ's ``rhat``,
+      ``ess`` and ``mcse`` (Vehtari et al. 2021): the same numbers, without ArviZ.
+    * Progress: the bar's total (and the status lines) are the steps convergence needs by the
+      chain's current tau (:func:`steps_to_converge`), re-estimated at every check.
     * The chain is written as it runs to an HDF5 file (:class:`bayesdrag.io.chain.ChainFile`,
       flushed every ``check_every`` steps); a run restarted on the same file (``resume=True``)
       continues it from its last flushed step with the stored random state, so the continued
@@ -33,13 +34,12 @@ from dataclasses import dataclass, field
 
 import emcee
 import numpy as np
-from scipy.fft import next_fast_len
-from scipy.special import ndtri
 
 from .._threads import single_blas
 from .._signals import deferred_interrupt
 from ..errors import InputError
 from ..io.chain import ChainFile
+from .chain_diagnostics import ess, integrated_time, split_rank_rhat, summarize
 from .coords import TEMPERATURE
 from .moves import describe_moves, make_moves
 
@@ -138,211 +138,6 @@ class BayesResult:
 
 
 # --------------------------------------------------------------------------- diagnostics
-def integrated_time(chain, *, c=5):
-    """Walker-averaged integrated autocorrelation time per coordinate: emcee's estimator
-    (``emcee.autocorr.integrated_time(chain, c=5, tol=0)``: FFT autocorrelation per walker,
-    averaged over walkers, Sokal's automatic window), computed for all walkers and coordinates in
-    one FFT instead of one call per walker and coordinate (the sampler checks it every 25 steps).
-
-    Parameters
-    ----------
-    chain : (n_steps, n_walkers, n_dim) array
-    c : float, keyword-only
-        Sokal's window factor.
-
-    Returns
-    -------
-    (n_dim,) ndarray
-        tau [steps].
-    """
-    x = np.asarray(chain, dtype=float)
-    n = x.shape[0]
-    n2 = 1 << int(np.ceil(np.log2(max(n, 1))))
-    f = np.fft.rfft(x - x.mean(axis=0), n=2 * n2, axis=0)
-    acf = np.fft.irfft(f * np.conjugate(f), n=2 * n2, axis=0)[:n]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        acf = acf / acf[0]
-    acf = np.nan_to_num(acf).mean(axis=1)                       # (n, n_dim)
-    taus = 2.0 * np.cumsum(acf, axis=0) - 1.0
-    m = np.arange(n)[:, None] < c * taus
-    window = np.where(m.all(axis=0), n - 1, np.argmin(m, axis=0))
-    return taus[window, np.arange(taus.shape[1])]
-
-
-def _split(draws):
-    """(chains, S, K) -> (2 chains, S // 2, K): first and last halves as separate chains."""
-    h = draws.shape[1] // 2
-    return np.concatenate([draws[:, :h], draws[:, draws.shape[1] - h:]], axis=0)
-
-
-def average_ranks(a):
-    """Ranks 1..n of each column of ``a`` (n, K), ties given their average rank: the numbers of
-    ``scipy.stats.rankdata(a, axis=0, method="average")`` (a column holding NaN: all NaN).
-
-    One sort of the transposed, contiguous columns (a sort down a strided axis cost 5x more;
-    the draws of a chain hold many exact ties, one per rejected move)."""
-    a = np.asarray(a, float)
-    n, K = a.shape
-    rows = np.ascontiguousarray(a.T)                          # (K, n)
-    order = np.argsort(rows, axis=1)
-    s = np.take_along_axis(rows, order, axis=1)
-    pos = np.broadcast_to(np.arange(n), (K, n))
-    differs = s[:, 1:] != s[:, :-1]
-    start = np.maximum.accumulate(np.where(np.pad(differs, ((0, 0), (1, 0)), constant_values=True), pos, 0), axis=1)
-    last = np.where(np.pad(differs, ((0, 0), (0, 1)), constant_values=True), pos, n - 1)
-    end = np.minimum.accumulate(last[:, ::-1], axis=1)[:, ::-1]
-    ranks = np.empty((K, n))
-    np.put_along_axis(ranks, order, 0.5 * (start + end) + 1.0, axis=1)
-    ranks[np.isnan(rows).any(axis=1)] = np.nan
-    return ranks.T
-
-
-def _z_scale(x):
-    """Rank-normalised values (Blom's offset 3/8) per parameter of x (chains, draws, K)."""
-    n = x.shape[0] * x.shape[1]
-    r = average_ranks(x.reshape(n, -1)).reshape(x.shape)
-    return ndtri((r - 0.375) / (n + 0.25))
-
-
-def split_rank_rhat(draws):
-    """Rank-normalised split R-hat (Vehtari et al. 2021), max of bulk and folded, per parameter.
-
-    The same numbers as ``arviz.rhat`` (tests check the two agree), fast enough for the in-run
-    convergence checks.
-
-    Parameters
-    ----------
-    draws : (chains, draws, K) ndarray
-
-    Returns
-    -------
-    (K,) ndarray
-    """
-    x = _split(np.asarray(draws, float))
-    h = x.shape[1]
-
-    def rhat(y):
-        z = _z_scale(y)
-        B = h * z.mean(axis=1).var(axis=0, ddof=1)
-        Wv = z.var(axis=1, ddof=1).mean(axis=0)
-        return np.sqrt(((h - 1) / h * Wv + B / h) / Wv)
-
-    folded = np.abs(x - np.median(x.reshape(-1, x.shape[-1]), axis=0))
-    return np.maximum(rhat(x), rhat(folded))
-
-
-def _ess_chains(x):
-    """ESS of each parameter of x (chains, draws, K), chains as given: ArviZ's ``_ess``
-    (Geyer's initial positive then initial monotone sequence on the multi-chain
-    autocorrelation)."""
-    m, n, K = x.shape
-    xc = x - x.mean(axis=1, keepdims=True)
-    nfft = next_fast_len(2 * n, real=True)
-    f = np.fft.rfft(xc, n=nfft, axis=1)
-    acov = np.fft.irfft(f * np.conjugate(f), n=nfft, axis=1)[:, :n] / n    # (m, n, K)
-    mean_var = acov[:, 0].mean(axis=0) * n / (n - 1.0)
-    var_plus = mean_var * (n - 1.0) / n
-    if m > 1:
-        var_plus = var_plus + x.mean(axis=1).var(axis=0, ddof=1)
-    out = np.empty(K)
-    for k in range(K):
-        if np.ptp(x[..., k]) < np.finfo(float).resolution:
-            out[k] = m * n
-            continue
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rho = 1.0 - (mean_var[k] - acov[..., k].mean(axis=0)) / var_plus[k]
-        out[k] = _geyer_ess(rho, m * n)
-    return out
-
-
-def _geyer_ess(rho, size):
-    """ESS from the autocorrelations ``rho`` (n,) of ``size`` draws (ArviZ's ``_ess``)."""
-    n = rho.size
-    rt = np.zeros(n)
-    rt[0] = even = 1.0
-    rt[1] = odd = rho[1]
-    t = 1
-    while t < n - 3 and even + odd > 0.0:                      # initial positive sequence
-        even, odd = rho[t + 1], rho[t + 2]
-        if even + odd >= 0:
-            rt[t + 1], rt[t + 2] = even, odd
-        t += 2
-    max_t = t - 2
-    if even > 0:
-        rt[max_t + 1] = even
-    t = 1
-    while t <= max_t - 2:                                      # initial monotone sequence
-        if rt[t + 1] + rt[t + 2] > rt[t - 1] + rt[t]:
-            rt[t + 1] = rt[t + 2] = (rt[t - 1] + rt[t]) / 2.0
-        t += 2
-    tau = -1.0 + 2.0 * np.sum(rt[:max_t + 1]) + np.sum(rt[max_t + 1:max_t + 2])
-    tau = max(tau, 1 / np.log10(size))
-    return np.nan if np.isnan(rt).any() else size / tau
-
-
-def ess(draws, *, method="bulk"):
-    """Effective sample size per parameter, as ``arviz.ess(..., method=method)``.
-
-    Parameters
-    ----------
-    draws : (chains, draws, K) ndarray
-    method : {"bulk", "tail", "mean"}, keyword-only
-        ``bulk``: of the rank-normalised split chains; ``tail``: the smaller of the ESS of the
-        indicators of the 5 % and 95 % quantiles; ``mean``: of the split chains as they are.
-
-    Returns
-    -------
-    (K,) ndarray
-        ESS [draws]; NaN for parameters with non-finite draws or fewer than 4 draws per chain.
-    """
-    x = np.asarray(draws, float)
-    K = x.shape[-1]
-    if x.shape[1] < 4:
-        return np.full(K, np.nan)
-    if method == "bulk":
-        out = _ess_chains(_z_scale(_split(x)))
-    elif method == "mean":
-        out = _ess_chains(_split(x))
-    elif method == "tail":
-        q = np.quantile(x.reshape(-1, K), [0.05, 0.95], axis=0)
-        out = np.minimum(_ess_chains(_split((x <= q[0]).astype(float))),
-                         _ess_chains(_split((x <= q[1]).astype(float))))
-    else:
-        raise ValueError(f"method {method!r} not known (allowed: bulk, tail, mean)")
-    out[~np.all(np.isfinite(x), axis=(0, 1))] = np.nan
-    return out
-
-
-def summarize(draws, names):
-    """Convergence summary of draws: the columns of ``arviz.summary`` that bayesdrag reports.
-
-    Parameters
-    ----------
-    draws : (chains, draws, K) ndarray
-    names : sequence of str
-        K parameter names (the index).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Columns mean, sd, q05, q50, q95, mcse_mean (sd / sqrt(ESS of the mean)), ess_bulk,
-        ess_tail, r_hat (rank-normalised split R-hat).
-    """
-    import pandas as pd
-
-    x = np.asarray(draws, float)
-    flat = x.reshape(-1, x.shape[-1])
-    q = np.quantile(flat, [0.05, 0.5, 0.95], axis=0)
-    sd = flat.std(0, ddof=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mcse = sd / np.sqrt(ess(x, method="mean"))
-        rhat = split_rank_rhat(x) if x.shape[1] >= 4 else np.full(x.shape[-1], np.nan)
-    return pd.DataFrame({"mean": flat.mean(0), "sd": sd, "q05": q[0], "q50": q[1], "q95": q[2],
-                         "mcse_mean": mcse, "ess_bulk": ess(x, method="bulk"), "ess_tail": ess(x, method="tail"),
-                         "r_hat": rhat}, index=list(names))
-
-
-# --------------------------------------------------------------------------- the run
 @dataclass(frozen=True)
 class _Streams:
     """The random streams of one run: walkers' start, noise draws, emcee's generator."""
@@ -477,10 +272,13 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
     """The sampling loop with its convergence checks; returns (converged, message, tau,
     tau history)."""
     bar = None
+    target = min(max_steps, max(min_steps, done + check_every))
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=max_steps, initial=done, desc="mcmc", unit="step", leave=False)
+        # the bar's total is the steps convergence needs as the chain shows them (re-estimated at
+        # every check), not --max-steps: a run converging at 925 steps ends at 100 %
+        bar = tqdm(total=target, initial=done, desc="mcmc (to convergence)", unit="step", leave=False)
     old_tau = None
     tau = np.full(post.ndim, np.nan)
     tau_hist = []
@@ -505,7 +303,12 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
             tau_hist.append((done, tmax))
             stable = old_tau is not None and np.all(np.abs(tau - old_tau) < TAU_RTOL * old_tau)
             old_tau = tau
-            msg = f"mcmc: {done} steps, tau max {tmax:.1f}, acceptance {np.mean(sampler.acceptance_fraction):.2f}"
+            target = steps_to_converge(done, tmax, sampler.nwalkers, check_every, max_steps)
+            if bar is not None:
+                bar.total = target
+                bar.refresh()
+            msg = (f"mcmc: {done} of ~{target} steps (the convergence target: {TAU_FACTOR:g} tau and ESS "
+                   f">= {ESS_MIN:g}), tau max {tmax:.1f}, acceptance {np.mean(sampler.acceptance_fraction):.2f}")
             if done >= TAU_FACTOR * tmax and stable and np.isfinite(tmax):
                 draws, burn, _ = _retained(sampler, tau)
                 fast_r = float(np.max(split_rank_rhat(draws)))
@@ -517,6 +320,9 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
                     worst_r = fast_r
                     min_ess = _min_finite(np.concatenate([ess(draws, method="bulk"), ess(draws, method="tail")]))
                     if worst_r < RHAT_MAX and min_ess >= ESS_MIN:
+                        if bar is not None:
+                            bar.total = done
+                            bar.refresh()
                         if log:
                             log(msg)
                         return (True, f"converged: {done} steps >= {TAU_FACTOR:g} tau (max {tmax:.1f}), "
@@ -533,6 +339,16 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
     message = (f"not converged after {done} steps (max_steps): tau max {tau_txt} "
                f"needs {TAU_FACTOR:g} tau; the draws are reported but check the diagnostics")
     return False, message, tau, tuple(tau_hist)
+
+
+def steps_to_converge(done, tau_max, nwalkers, check_every, max_steps):
+    """The chain length [steps] convergence needs by the chain's current autocorrelation time:
+    :data:`TAU_FACTOR` tau, and an ESS of :data:`ESS_MIN` after the burn-in of 3 tau; at least
+    one more block than is done, at most ``max_steps``. The progress bar's total."""
+    if not np.isfinite(tau_max) or tau_max <= 0:
+        return int(min(max_steps, done + check_every))
+    need = max(TAU_FACTOR * tau_max, 3.0 * tau_max + ESS_MIN * tau_max / max(nwalkers, 1))
+    return int(min(max_steps, max(math.ceil(need), done + check_every)))
 
 
 def _min_finite(x):

@@ -62,7 +62,7 @@ from . import colored
 from .problem import OutputErrorProblem
 from .systematics import fit_with_sources
 from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
-from .start import DataStart, check_gravity_units, data_start
+from .start import DataStart, check_gravity_units, check_heights, data_start
 
 __all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "cd_grid", "cd_table",
            "determined_range", "coriolis_of"]
@@ -224,7 +224,8 @@ def build_drag_model(drag, reference, start, knots=None, penalise=True, span=Non
 
 @single_blas
 def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
-                penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white", with_effects=()):
+                penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white", with_effects=(),
+                progress=None):
     """Scheme 1 ML fit of one track.
 
     Parameters
@@ -257,6 +258,9 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     with_effects : sequence of str
         Effects of :mod:`bayesdrag.effects` fitted with Cd as nuisance parameters (checked by
         :func:`bayesdrag.estimate.systematics.plan_effects`).
+    progress : callable, optional
+        ``progress(step)`` receives a short description of each step as the fit reaches it
+        (the command prints them when the fit is slow).
 
     Returns
     -------
@@ -266,6 +270,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
     chans = tuple(channels) if channels is not None else track.names
     smaller = check_determinable(track, rnd, chans, free_ic, drag, knots)
+    check_heights(track, rnd)
     if smaller is not None:
         drag = smaller
     seen = track.with_channels(chans) if set(chans) != set(track.names) else track
@@ -293,30 +298,21 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     base_model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ReferenceScale(table),
                                 rnd.atmosphere, coriolis=coriolis_of(rnd))
     ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
+    say = progress if progress is not None else (lambda step: None)
+    say("the initial state and one scale of the drag read off the track")
     state, scale, span_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood,
                                         launch_state_priors(L, 1, names=unseen) if unseen else ())
     span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
                                                    max(start.mach_span[1], span_a[1]))
     size = {}
     dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
-    model = base_model.with_(drag=dm)
     P = dm.n_params
-    free = free_mask(P, P + 6, chans, free_ic, dm.name, span)
-    m = np.linspace(*dm.fit_range, 200)
-    theta0 = np.concatenate([dm.params_for(m, scale * start.curve(m)), state])
-    if not free_ic:
-        theta0[P:] = s0
     fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
-    pen = penalty(dm, base) if base is not None else None
-    # the smoothness rows are part of the problem from its start: they count as the
-    # pseudo-measurements they are when the problem checks that the data can determine it
-    pen0 = pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0] if pen is not None else ()
-    prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans, priors=fixed_pri + pen0)
-    if likelihood == "student-t":
-        # start from a fit whose noise sd is estimated (relaxation inflates it over the
-        # outliers instead of bending the curve to them), then reweight
-        prob.sigma_fixed = {}
+    prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * start.curve(m),
+                               state if free_ic else s0, free_mask(P, P + 6, chans, free_ic, dm.name, span), sig,
+                               chans, likelihood, fixed_pri)
     # stage B: the full curve without the checked launch priors, then check them against it
+    say(f"the whole curve ({P} drag coefficients)")
     res_b = prob.fit(fallback=True)
     if res_b.success or np.all(np.isfinite(res_b.theta)):
         prob.theta0 = res_b.theta.copy()
@@ -327,43 +323,43 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         span = wider
         cur = (dm, res_b.drag_params.copy())
         dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
-        model = base_model.with_(drag=dm)
         P = dm.n_params
-        free = free_mask(P, P + 6, chans, free_ic, dm.name, span)
-        m = np.linspace(*dm.fit_range, 200)
-        theta0 = np.concatenate([dm.params_for(m, np.clip(cur[0].cd(cur[1], m), 1e-3, None)), res_b.state0])
         fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
-        pen = penalty(dm, base) if base is not None else None
-        pen0 = pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0] if pen is not None else ()
-        prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans,
-                                  priors=fixed_pri + pen0)
-        if likelihood == "student-t":
-            prob.sigma_fixed = {}
+        prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
+                                   res_b.state0, free_mask(P, P + 6, chans, free_ic, dm.name, span), sig, chans,
+                                   likelihood, fixed_pri)
+        say(f"the whole curve over the flight's Mach span ({P} drag coefficients)")
         res_b = prob.fit(fallback=True)
         if np.all(np.isfinite(res_b.theta)):
             prob.theta0 = res_b.theta.copy()
-    used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen)
+    model = prob.model
+    say("checking the round's launch values against the track")
+    used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen, start=start, sigma=sig)
     used = fixed_pri + tuple(used)
     if unseen:
         check["applied"] = list(unseen) + check["applied"]
         check["unchecked"] = list(unseen)
     smoothing = rejected = None
     if pen is not None:
-        res, smoothing = fit_penalised(prob, used, P, pen)
+        res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
     else:
         prob.priors = tuple(used)
         res = prob.fit(fallback=True) if used else res_b
     white_ml = None
     if likelihood == "student-t":
+        say("reweighting outliers (Student-t)")
         res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
         noise = {"requested": noise_model, "model": dict(prob.noise_model),
                  "note": "a Student-t fit keeps white noise"} if noise_model != "white" else {}
     else:
         white = res
+        say("the noise model")
         res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
         if noise_model == "auto" and "ar1" in noise.get("model", {}).values():
             white_ml = white
     before = res
+    if with_effects or rnd.systematics.declared():
+        say("the declared systematic sources and effects")
     prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects)
     if pen is not None:
         res = drop_coefficient_correlations(res, P)
@@ -372,6 +368,29 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
                         f"firing table times one fitted factor (reference-scale)")
     return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
                       before if fitted_effects else None, size)
+
+
+def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chans, likelihood, fixed_pri):
+    """The problem of the whole curve (stage B): drag model ``dm`` started at ``cd_start(M)``
+    and the initial ``state``, with the launch priors ``fixed_pri`` and, for a penalised model,
+    the smoothness rows at the middle of the smoothing grid. The rows are part of the problem
+    from its start: they count as the pseudo-measurements they are when the problem checks that
+    the data can determine it. A Student-t fit starts with its noise sd estimated (relaxation
+    inflates it over the outliers instead of bending the curve to them), then reweights.
+
+    Returns
+    -------
+    (OutputErrorProblem, penalty or None)
+    """
+    m = np.linspace(*dm.fit_range, 200)
+    theta0 = np.concatenate([dm.params_for(m, cd_start(m)), state])
+    pen = penalty(dm, base) if base is not None else None
+    pen0 = pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0] if pen is not None else ()
+    prob = OutputErrorProblem(base_model.with_(drag=dm), track, theta0, free=free, sigma=sig, channels=chans,
+                              priors=tuple(fixed_pri) + pen0)
+    if likelihood == "student-t":
+        prob.sigma_fixed = {}
+    return prob, pen
 
 
 def choose_noise_model(prob, res, requested):

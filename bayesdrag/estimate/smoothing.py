@@ -62,7 +62,7 @@ def smoothness_priors(dm, base, sd):
     return penalty(dm, base)(sd)[0]
 
 
-def fit_penalised(prob, base_priors, P, penalty):
+def fit_penalised(prob, base_priors, P, penalty, progress=None):
     """Choose the penalty by the Laplace evidence and return the fit at the best one.
 
     Parameters
@@ -76,6 +76,8 @@ def fit_penalised(prob, base_priors, P, penalty):
         Number of drag coefficients.
     penalty : callable
         ``sd -> (priors, D, sds)`` (:func:`penalty`).
+    progress : callable, optional
+        ``progress(step)`` is told each smoothing the walk fits.
 
     Returns
     -------
@@ -96,6 +98,8 @@ def fit_penalised(prob, base_priors, P, penalty):
     def evaluate(i):
         if i in cache:
             return cache[i][0]
+        if progress is not None:
+            progress(f"choosing the smoothing by the evidence: fit {len(cache) + 1} (sd {grid[i]:.3g})")
         pen, D, sds = penalty(grid[i])
         prob.priors = tuple(base_priors) + pen
         prob.theta0 = state["theta"]

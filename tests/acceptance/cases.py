@@ -248,6 +248,10 @@ SIXDOF_NULL = [_c(200, "6dof", None, {}, 20.0, expect="lift"),
 SMALL = [EFFECT_CASES[i] for i in (1, 3, 6, 15, 18, 24)] + NULL_CASES[:4]
 
 
+#: the words of the Scheme 1 origin check's message (estimate/launch.py origin_offset)
+ORIGIN_WORDS = "from the muzzle at t = 0"
+
+
 def magnitude_ok(case, row):
     """Is the fitted magnitude within the acceptance tolerance? None when not applicable
     (no parameters, or a cross-matched effect with other parameters)."""
@@ -300,7 +304,11 @@ def run_case(case):
         true_row["shrink"] = joint["shrink_given_others"].get(case.effect, true_row["shrink"])
         true_row["remaining_gap_fraction"] = 1.0 - joint["shrink"]
     extra = [n for n in own if n not in case.accepted()]
+    # the Scheme 1 origin check (issue 26): a first sample away from the muzzle at t = 0 is
+    # reported in the notes; it must fire on the radar-clock cases and on nothing else
+    origin_alarm = any(ORIGIN_WORDS in n for n in s.get("notes") or [])
     return {"id": case.id, "truth": case.expect or case.effect or "none", "top": top,
+            "origin_alarm": origin_alarm,
             "verdict": verdict, "immaterial": immaterial, "named_immaterial": named_immaterial,
             "correct": (top in case.accepted() and bool(verdict or own_imm))
             if (case.effect or case.expect) else (not verdict),

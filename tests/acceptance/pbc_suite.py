@@ -151,6 +151,8 @@ CHANNELS = ("x", "y", "z", "v")
 #: words in a fit warning that say its residuals show model error (misfit)
 MISFIT_WORDS = ("autocorrelat", "misfit", "model error", "cannot follow", "does not follow", "chi2",
                 "far above the noise", "lack of fit")
+#: the words of the fit's origin check (a first sample away from the muzzle at t = 0)
+ORIGIN_WORDS = "from the muzzle at t = 0"
 #: words that say a fit noticed the time origin is not the launch
 TIME_WORDS = ("time origin", "t = 0", "t=0", "clock", "time offset", "launch time", "first sample",
               "time zero")
@@ -778,6 +780,10 @@ def run_fit_case(case, truth, outdir, drag=None, subprocess_mode=False):
             reasons.append(f"{len(row['bad_rows'])} rows off")
     if secs > TIME_LIMIT_S:
         reasons.append(f"{secs:.1f} s > {TIME_LIMIT_S:g} s")
+    # issue 26: the origin check never fires on a track whose t = 0 is the launch at the muzzle
+    row["origin_alarm"] = any(ORIGIN_WORDS in w for w in warns)
+    if row["origin_alarm"] and case.transform != "t0_first_sample":
+        reasons.append("false origin alarm")
     followable = truth["poly2_followable"]
     row["poly2_followable"] = followable if drag == "poly2-split" else None
     row["poly2_split_error"] = truth["poly2_split_error"]

@@ -30,6 +30,7 @@ def summarise(results):
     shr_noise = [r["shrink"] >= 0.9 or r["shrink"] + (r.get("shrink_sd") or 0.0) >= 0.9
                  for r in eff if r["shrink"] is not None]
     fa = sum(bool(r["verdict"]) for r in nul) / max(len(nul), 1)
+    clock = [r for r in results if r["truth"] == "radar_time"]
     extra = sum(bool(r.get("extra_effects")) for r in eff)
     return {"n_effect": len(eff), "n_null": len(nul), "top1_rate": top1,
             "magnitude_rate": sum(mags) / max(len(mags), 1), "n_magnitude": len(mags),
@@ -40,7 +41,11 @@ def summarise(results):
             # withheld effects the diagnosis found but judged immaterial (DESIGN.md): named under
             # "immaterial", not in the verdict; and null tracks with something immaterial listed
             "effect_named_immaterial": sum(bool(r.get("named_immaterial")) for r in eff),
-            "null_with_immaterial": sum(bool(r.get("immaterial")) for r in nul)}
+            "null_with_immaterial": sum(bool(r.get("immaterial")) for r in nul),
+            # issue 26: the fit's origin check on every track: found on the radar-clock cases,
+            # silent on every other
+            "radar_clock_origin_found": f"{sum(bool(r.get('origin_alarm')) for r in clock)}/{len(clock)}",
+            "false_origin_alarms": sum(bool(r.get("origin_alarm")) for r in results if r["truth"] != "radar_time")}
 
 
 def main(argv=None):

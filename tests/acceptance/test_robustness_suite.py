@@ -44,6 +44,8 @@ def _assert_recovers_cd(r):
     name = r["case"]
     assert r["exit"] == 0, f"{name}: exit {r['exit']}: {r['stderr_tail']}"
     assert r["converged"], f"{name}: ML fit not converged"
+    # issue 26: every suite track starts at the muzzle at t = 0: the origin check stays silent
+    assert "false origin alarm" not in r["fit_reasons"], f"{name}: {r['warnings']}"
     # the 10 s answer time is measured by the runner (run_robustness.py, its table in docs/ml.md), not
     # asserted here: a timed test fails on a shared CI machine (measured 10.3 and 12.3 s at load 5-7)
     assert r["covers_span"], (f"{name}: Cd reported over Mach {r['grid_span']}, not over the flown span "

@@ -19,6 +19,8 @@ TOP1_MIN, MAG_MIN, SHRINK_MIN, FA_MAX = 0.90, 1.0, 0.9, 0.05
 def test_small_suite_case(case):
     r = run_case(case)
     assert r["correct"], r
+    # issue 26: the fit's origin check fires on the radar-clock case and on nothing else
+    assert r["origin_alarm"] == (case.effect == "radar_time"), r
     if r["magnitude_ok"] is not None:
         assert r["magnitude_ok"], r
     if case.effect:
@@ -37,3 +39,5 @@ def test_full_suite_meets_the_acceptance():
     assert s["shrink_ge_0.9_within_noise_rate"] == 1.0, s
     assert s["cases_with_extra_effects"] == 0, s
     assert s["magnitude_rate"] >= 0.9, s
+    found, n_clock = (int(v) for v in s["radar_clock_origin_found"].split("/"))
+    assert s["false_origin_alarms"] == 0 and found == n_clock > 0, s

@@ -11,6 +11,7 @@ import re
 import shutil
 from importlib.resources import files
 
+import numpy as np
 import pytest
 
 from bayesdrag.cli import main
@@ -320,3 +321,147 @@ def test_catalogue_size():
     # issue 7: >= 25 kinds of bad track / round / option
     kinds = {n for n, _, _ in TRACK_CASES + ROUND_CASES + OPTION_CASES}
     assert len(kinds) >= 25
+
+
+# --- issue 26: what an attacker found -------------------------------------------------------
+# Each case ends either in exit 2 with one line before any fitting work (ATTACK_EXIT2, checked
+# by what the run did: no start read off the track, no maximum-likelihood step), or in an honest
+# answer (ATTACK_HONEST: no row marked determined is wrong, and the fits whose origin is off are
+# not clean).
+
+
+def _offset_track(col, offset):
+    def fn(header, rows):
+        k = header.split(",").index(col)
+        for r in rows:
+            r[k] = repr(float(r[k]) + offset)
+        return header, rows
+    return lambda d: _edit_track(d, fn)
+
+
+def _keep_rows(sel):
+    return lambda d: _edit_track(d, lambda h, r: (h, sel(r)))
+
+
+def _keep_columns(names):
+    def fn(header, rows):
+        cols = header.split(",")
+        idx = [cols.index(c) for c in names]
+        return ",".join(names), [[r[k] for k in idx] for r in rows]
+    return lambda d: _edit_track(d, fn)
+
+
+def _constant(col, value):
+    def fn(header, rows):
+        k = header.split(",").index(col)
+        for r in rows:
+            r[k] = value
+        return header, rows
+    return lambda d: _edit_track(d, fn)
+
+
+def _steps(*fns):
+    def run(d):
+        for f in fns:
+            f(d)
+    return run
+
+
+_EXTRAPOLATE = ('reference_drag = "cd.csv"\n', 'reference_drag = "cd.csv"\nreference_extrapolate = true\n')
+
+ATTACK_EXIT2 = [
+    ("attack-nu-tiny", _fit(extra=["--likelihood", "student-t", "--nu", "1e-300"]),
+     r"option nu = 1e-300 is not allowed; use Student-t degrees of freedom in \[1, 100\]"),
+    ("attack-duplicate-channels", _fit(extra=["--channels", "v,v,v,v,v,v,v,v,v"]),
+     r"channels = 'v,v,v,v,v,v,v,v,v' is not allowed; name each channel once \(v is repeated\)"),
+    ("attack-mass-in-tonnes", _fit(_sub("mass = 42.6", "mass = 0.0426")),
+     r"mass = 0.0426 kg is implausible for diameter 0.155 m .*looks like tonnes \(in kg: 42.6\)"),
+    ("attack-mass-1e-9", _fit(_sub("mass = 42.6", "mass = 1e-9")), r"mass = 1e-09 kg is implausible for diameter"),
+    ("attack-constant-v", _fit(_steps(_keep_columns(["t", "v"]), _constant("v", "800.0"))),
+     r"track\.csv: channel v is constant \(800\); it carries no information"),
+    ("attack-t-y-track-in-the-plane-of-fire", _fit(_keep_columns(["t", "y"])),
+     r"track\.csv: channel y is constant \(0\); it carries no information"),
+    ("attack-track-at-150-km", _fit(_offset_track("z", 150000.0)),
+     r"track\.csv: z spans .* outside the round's atmosphere"),
+    ("attack-three-samples-positions-only", _fit(_steps(_keep_columns(["t", "x", "z"]), _keep_rows(lambda r: r[:2]))),
+     r"track\.csv: 2 samples x 2 channels \(x,z\) are too few to determine Cd: even the smallest drag model"),
+    ("attack-simulate-into-space", _sim(lambda d: _round(d, GOOD_ROUND.replace(*_EXTRAPOLATE).replace(
+        "velocity = 818.0", "velocity = 2000.0").replace("elevation = 15.0", "elevation = 70.0"))),
+     r"climbs above 32.2 km above sea level, the top of the atmosphere model"),
+    ("attack-simulate-downwards", _sim(_sub("elevation = 15.0", "elevation = -5.0")),
+     r"simulate needs \[launch\] elevation > 0 deg \(got -5\)"),
+]
+
+
+@pytest.mark.parametrize("name, setup, match", _params(ATTACK_EXIT2))
+def test_attack_refused_before_any_fitting(name, setup, match, tmp_path, good, capsys, monkeypatch):
+    """Exit 2, one line, nothing written, and no fitting work done: neither the start read off
+    the track nor a single maximum-likelihood step ran (counted, not timed)."""
+    import bayesdrag.estimate.ml as ml
+    import bayesdrag.estimate.scheme1 as scheme1
+
+    calls = []
+    real_fit, real_start = ml.fit, scheme1.data_start
+    monkeypatch.setattr(ml, "fit", lambda *a, **k: (calls.append("ml.fit"), real_fit(*a, **k))[1])
+    monkeypatch.setattr(scheme1, "data_start", lambda *a, **k: (calls.append("data_start"), real_start(*a, **k))[1])
+    _check(*_run_case(tmp_path, good, capsys, monkeypatch, setup), match)
+    assert calls == [], f"fitting work ran before the refusal: {calls}"
+
+
+def _truth(d):
+    from bayesdrag.io.drag_tables import read_drag_table
+
+    return read_drag_table(d / "cd.csv")
+
+
+ATTACK_HONEST = [
+    # (id, setup, the fit must not call itself clean, a phrase the warnings or notes must hold)
+    ("attack-heights-offset-100m", _fit(_offset_track("z", 100.0)), True, "not at the gun"),
+    ("attack-heights-offset-1km", _fit(_offset_track("z", 1000.0)), True, "not at the gun"),
+    ("attack-x-offset-500m", _fit(_offset_track("x", 500.0)), True, "a position offset, not a clock offset"),
+    ("attack-last-20-samples", _fit(_keep_rows(lambda r: r[-20:])), False, None),
+    ("attack-t-y-track", _fit(_steps(_keep_columns(["t", "y"]), _offset_track("y", 0.0),
+                                     lambda d: _edit_track(d, lambda h, r: (h, [[a, repr(0.01 * i * i)] for i, (a, _)
+                                                                                 in enumerate(r)])))), False, None),
+    ("attack-noise-free-track", _fit(), False, "the stated sigma looks too large (or the track is noise-free)"),
+    ("attack-sigma-10x", _fit(_sub("sigma = {x = 1.0, y = 1.0, z = 1.0, v = 0.3}",
+                                   "sigma = {x = 10.0, y = 10.0, z = 10.0, v = 3.0}")),
+     False, "the stated sigma looks too large"),
+]
+
+
+@pytest.mark.parametrize("name, setup, not_clean, phrase", [pytest.param(*c, id=c[0]) for c in ATTACK_HONEST])
+def test_attack_answered_honestly(name, setup, not_clean, phrase, tmp_path, good, capsys, monkeypatch):
+    """A run that answers (exit 0) never marks a wrong Cd determined (more than 2 % and 3 band
+    sd off the table the track was flown with); where the track's origin is off the answer is
+    not clean; a noise-free track is no misfit, and a sigma 10x too large gets a note."""
+    import json
+
+    status, cap, _, _ = _run_case(tmp_path, good, capsys, monkeypatch, setup)
+    assert status == 0, cap.err
+    d = tmp_path / "case"
+    res = json.loads((d / "out" / "result.json").read_text())
+    ref = _truth(d)
+    wrong = [r for r in res["cd"] if r["determined"] and abs(r["ml"] - ref.value(r["mach"])) > max(
+        0.02 * ref.value(r["mach"]), 3.0 * r["band_sd"])]
+    assert not wrong, wrong[:3]
+    q = res["ml"]["quality"]
+    assert (not q["ok"]) if not_clean else q["ok"] or name in ("attack-last-20-samples", "attack-t-y-track"), q
+    if phrase is not None:
+        assert any(phrase in ln for ln in cap.err.splitlines()), cap.err
+
+
+def test_one_round_campaign_reports_no_scatter_it_cannot_see():
+    """A campaign of one round has no round-to-round scatter to show: campaign.json says so and
+    gives none, instead of its prior's 3 %."""
+    from bayesdrag.campaign.pooling import campaign_json, pool_rounds
+
+    m = np.linspace(0.9, 2.3, 15)
+    cd = 0.3 + 0.05 * (m - 1.5) ** 2
+    one = {"name": "r1", "mach": m.tolist(), "cd": cd.tolist(), "cov": np.diag((0.002 * cd) ** 2).tolist(),
+           "reference": None, "covariance": "colored", "mach_range": [0.9, 2.3], "drag_model": "spline"}
+    doc = campaign_json(pool_rounds([one], n_draws=200, n_steps=200), [one])
+    s = doc["scatter"]
+    assert s["median"] is None and s["q05"] is None and "one round" in s["note"], s
+    two = dict(one, name="r2", cd=(1.01 * cd).tolist())
+    assert campaign_json(pool_rounds([one, two], n_draws=200, n_steps=200), [one, two])["scatter"]["median"] > 0

@@ -135,7 +135,8 @@ def test_killed_batch_resumes_without_redoing_finished_rounds(tmp_path):
     stamp = {n: {f.name: f.stat().st_mtime_ns for f in (out / n).iterdir()} for n in done_at_kill}
     saved = {n: (out / n / "result.json").read_text() for n in done_at_kill}
 
-    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    # without --quiet: its summary line on stdout (-q prints nothing there on success)
+    res = subprocess.run([c for c in cmd if c != "--quiet"], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     assert f"{3 - len(done_at_kill)} jobs run, {len(done_at_kill)} skipped" in res.stdout
     for n in done_at_kill:  # not redone: same files, same modification times

@@ -223,7 +223,7 @@ def test_refit_of_a_finished_campaign_skips_its_rounds(small_campaign, capsys):
     path, _, out, _ = small_campaign
     before = {n: (out / n / "result.json").stat().st_mtime_ns for n in ("r1", "r2")}
     doc = (out / "campaign.json").read_text()
-    assert main(["fit", str(path), "-o", str(out), "--no-mcmc", "--quiet"]) == 0
+    assert main(["fit", str(path), "-o", str(out), "--no-mcmc"]) == 0
     assert "0 jobs run, 2 skipped" in capsys.readouterr().out
     assert before == {n: (out / n / "result.json").stat().st_mtime_ns for n in ("r1", "r2")}
     assert (out / "campaign.json").read_text() == doc  # pooling is seeded: identical outputs

@@ -187,7 +187,8 @@ def test_time_origin_at_the_first_radar_sample_is_reported(m101):
     res, prob = f1.ml, f1.problem
     assert res.converged
     first = f1.launch_check["conflicts"][0]
-    assert "time origin is not the launch" in first["message"]
+    assert "clock looks" in first["message"] and "a clock offset, not a position offset" in first["message"]
+    assert f1.launch_check["origin"]["kind"] == "clock"
     assert f1.launch_check["time_origin_offset"] == pytest.approx(0.5, abs=0.05)
     assert f1.launch_check["applied"] == []
 
