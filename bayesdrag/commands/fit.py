@@ -366,7 +366,7 @@ def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
 
 def summary_line(result):
     """The one-line outcome the command prints (converged, determined range, caveat)."""
-    s = result.summary
+    s = result.record
     if s["scheme"] == 2:
         m = s["ml"]
         lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]

@@ -37,8 +37,8 @@ def test_sample_ar_puts_the_ar_coefficients_in_the_posterior():
     track = add_noise(RadarTrack(tr.t, ch, {}), SIGMA, rng)
     rnd = Round(Projectile("155", 42.6, 0.155, None, None), Launch(15.0, 818.0), radar=Radar(dict(SIGMA)))
     res = fit(track, rnd, sample_ar=True, walkers=64, max_steps=400, seed=2)
-    assert res.summary["ml"]["noise"]["model"]["x"] == "ar1"
-    post = res.summary["posterior"]
+    assert res.record["ml"]["noise"]["model"]["x"] == "ar1"
+    post = res.record["posterior"]
     assert "log_1m_rho_x" in post["mean"] and "log_q_x" in post["mean"]
     # the sampled lag-one correlation of the x model error brackets the one put in (90 % interval
     # of rho = 1 - exp(log_1m_rho), widened by 0.05 for a short chain)
@@ -46,7 +46,7 @@ def test_sample_ar_puts_the_ar_coefficients_in_the_posterior():
     rho_hi = 1 - np.exp(post["q05"]["log_1m_rho_x"])
     assert rho_lo - 0.05 <= RHO_TRUE <= rho_hi + 0.05, (rho_lo, rho_hi)
     held = fit(track, rnd, walkers=64, max_steps=400, seed=2)
-    assert not any(k.startswith("log_1m_rho") for k in held.summary["posterior"]["mean"])
+    assert not any(k.startswith("log_1m_rho") for k in held.record["posterior"]["mean"])
 
 
 def test_sample_ar_must_be_a_bool():
