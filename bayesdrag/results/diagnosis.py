@@ -20,6 +20,8 @@ if TYPE_CHECKING:
 
 __all__ = ["DiagnosisResult", "load_diagnosis"]
 
+#: characters of an effect's parameters a summary row shows (the data frame has them all)
+SUMMARY_PARAMS_CHARS = 60
 #: the columns of :meth:`DiagnosisResult.to_dataframe` taken from each effect as they are
 EFFECT_COLUMNS = ("name", "significant", "material", "shrink", "delta_loglik", "delta_bic", "test_statistic",
                   "threshold", "cd_shift_max", "end_shift_sd")
@@ -32,9 +34,13 @@ def _params_text(e: dict[str, Any]) -> str:
     out = []
     for k, v in (e.get("params") or {}).items():
         s = sd.get(k)
-        unit = f" {units[k]}" if units.get(k) else ""
+        unit = f" {units[k]}" if units.get(k) and units[k] != "-" else ""
         out.append(f"{k} = {v:.4g}" + (f" ± {s:.2g}" if isinstance(s, (int, float)) else "") + unit)
     return ", ".join(out)
+
+
+def _short(text: str) -> str:
+    return text if len(text) <= SUMMARY_PARAMS_CHARS else text[:SUMMARY_PARAMS_CHARS - 3] + "..."
 
 
 class DiagnosisResult:
@@ -122,10 +128,10 @@ class DiagnosisResult:
                   ("candidates tested", str((s.get("tests") or {}).get("candidates", len(s["effects"])))))
         rows = tuple((e["name"], "yes" if e.get("significant") else "no",
                       "yes" if e["name"] in self.verdict else "no", f"{e.get('shrink', float('nan')):.3f}",
-                      f"{e.get('delta_loglik', float('nan')):.4g}", _params_text(e)) for e in s["effects"])
+                      f"{e.get('delta_loglik', float('nan')):.4g}", _short(_params_text(e))) for e in s["effects"])
         return Summary(title="bayesdrag diagnosis", header=header,
                        columns=("effect", "significant", "in verdict", "shrink", "delta loglik", "parameters"),
-                       rows=rows, notes=(self.paragraph,))
+                       rows=rows, notes=(self.paragraph,), align=("<", ">", ">", ">", ">", "<"))
 
     def __repr__(self) -> str:
         s = self.record

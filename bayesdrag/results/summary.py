@@ -4,9 +4,13 @@
 from __future__ import annotations
 
 import html
+import textwrap
 from dataclasses import dataclass
 
 __all__ = ["Summary"]
+
+#: the notes below the table wrap at this many characters, or at the table's width if wider
+TEXT_WIDTH = 100
 
 
 @dataclass(frozen=True)
@@ -24,6 +28,8 @@ class Summary:
         The table's cells, one tuple per row.
     notes : tuple of str
         Lines below the table.
+    align : tuple of str
+        ``"<"`` (left) or ``">"`` (right, the default) per column of the text table.
     """
 
     title: str
@@ -31,6 +37,7 @@ class Summary:
     columns: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
     notes: tuple[str, ...] = ()
+    align: tuple[str, ...] = ()
 
     def as_text(self) -> str:
         """The summary as fixed-width text."""
@@ -40,10 +47,13 @@ class Summary:
         if self.columns:
             cells = [self.columns] + list(self.rows)
             widths = [max(len(r[j]) for r in cells) for j in range(len(self.columns))]
-            fmt = "  ".join(f"{{:>{w}}}" for w in widths)
+            align = tuple(self.align) + (">",) * (len(widths) - len(self.align))
+            fmt = "  ".join(f"{{:{a}{w}}}" for a, w in zip(align, widths))
             rule = "-" * (sum(widths) + 2 * (len(widths) - 1))
-            lines += [rule, fmt.format(*self.columns), rule] + [fmt.format(*r) for r in self.rows] + [rule]
-        lines += list(self.notes)
+            lines += [rule, fmt.format(*self.columns).rstrip(), rule] + [fmt.format(*r).rstrip() for r in self.rows]
+            lines.append(rule)
+        width = max(TEXT_WIDTH, max((len(x) for x in lines), default=0))
+        lines += [textwrap.fill(n, width) for n in self.notes]
         return "\n".join(lines)
 
     def as_html(self) -> str:
