@@ -140,8 +140,29 @@ _API = {
 
 __all__ = sorted(_API) + ["__version__"]
 
+# what type checkers and editors see: the names of _API, typed where they are defined (the
+# package itself imports them on first use); tests/unit/test_typing.py keeps the two lists equal
+from typing import TYPE_CHECKING, Any  # noqa: E402  (here, beside the names it types)
 
-def __getattr__(name):
+if TYPE_CHECKING:
+    from .atmosphere import Atmosphere, MetProfile
+    from .commands.diagnose import diagnose
+    from .commands.fit import fit
+    from .commands.options import FitOptions, PlanOptions, SimulateOptions
+    from .commands.plan import plan
+    from .commands.simulate import simulate
+    from .drag import ReferenceTable
+    from .errors import FitError, InputError, MissingDataError
+    from .io.drag_tables import load_m101, read_drag_table
+    from .io.rounds import read_round, write_round
+    from .io.tracks import read_track, write_track
+    from .results import (CdTable, DiagnosisResult, FitResult, PlanResult, Summary, load_diagnosis, load_plan,
+                          load_result)
+    from .round import Launch, Projectile, Radar, Round
+    from .track import RadarTrack
+
+
+def __getattr__(name: str) -> Any:
     mod = _API.get(name)
     if mod is None:
         raise AttributeError(f"module 'bayesdrag' has no attribute {name!r}")
@@ -150,5 +171,5 @@ def __getattr__(name):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return __all__

@@ -108,6 +108,7 @@ class FitResult:
     warnings: tuple[str, ...]
     seconds: float
     folder: Path | None
+    _cache: dict[Any, Any]
 
     def __init__(self, record: dict[str, Any] | None = None, track: RadarTrack | None = None,
                  round: Round | None = None, options: Any = None, scheme1: Scheme1Fit | None = None,
@@ -217,11 +218,11 @@ class FitResult:
         if idata is None:
             raise MissingDataError(f"band(kind='posterior'): no posterior.nc in {self.folder}")
         p = ((1.0 - level) / 2.0, (1.0 + level) / 2.0)
-        cd = np.asarray(idata.posterior["cd"])
+        cd = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
         q = np.quantile(cd.reshape(-1, cd.shape[-1]), p, axis=0)
         if self.scheme == 1:
             return q[0], q[1]
-        mach = np.asarray(idata.constant_data["mach"], float)    # Scheme 2: per window, onto the grid
+        mach = np.asarray(idata["constant_data"]["mach"], dtype=np.float64)   # Scheme 2: per window, onto the grid
         order = np.argsort(mach)
         return (np.interp(self.cd.mach, mach[order], q[0][order]), np.interp(self.cd.mach, mach[order], q[1][order]))
 
@@ -300,7 +301,7 @@ class FitResult:
                 idata = self.to_inference_data() if self.sampled and self.scheme == 1 else None
                 if idata is None:
                     raise MissingDataError("cd_draws() needs the Scheme 1 posterior: fit with mcmc=True (the default)")
-                self._cache["cd_draws"] = np.asarray(idata.posterior["cd"])
+                self._cache["cd_draws"] = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
             else:
                 from ..estimate.sampler import cd_draws, widen_to_floor
 
