@@ -188,7 +188,9 @@ class FitResult:
         kind : {"total", "statistical", "posterior"}
             ``total``: ``ml ± z sd`` with ``sd`` each row's band sd (what the fit stands by);
             ``statistical``: ``ml ± z statistical_sd`` (the Cramér-Rao sd with every declared
-            source held); ``posterior``: the quantiles of the posterior Cd draws (after sampling).
+            source held); ``posterior``: the quantiles of the posterior Cd draws (after sampling;
+            Scheme 2: each window's quantiles of the draws ``posterior.nc`` holds, interpolated
+            onto the grid as its Cd is).
 
         Returns
         -------
