@@ -101,18 +101,44 @@ def _private_untyped(line, path):
     return False
 
 
+#: a user's script: every line type-checks except the marked one, which mypy must catch (the
+#: types flow from ``bayesdrag.fit`` through the result to its arrays)
+USER_SCRIPT = """
+import numpy as np
+import bayesdrag
+
+def widest(track: bayesdrag.RadarTrack, rnd: bayesdrag.Round) -> float:
+    res = bayesdrag.fit(track, rnd, mcmc=False)
+    lo, hi = res.band(0.9)
+    table: bayesdrag.CdTable = res.cd
+    text: str = str(res.summary())
+    back: bayesdrag.FitResult = bayesdrag.load_result("fit")
+    return float(np.max(hi - lo)) + len(text) + len(table) + back.scheme
+
+def wrong(track: bayesdrag.RadarTrack, rnd: bayesdrag.Round) -> None:
+    bayesdrag.fit(track, rnd).cd.mean_value  # MUST-FAIL
+"""
+
+
 @pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy not installed (pip install '.[test]')")
 def test_mypy_passes_on_the_public_surface(tmp_path):
+    script = tmp_path / "user_script.py"
+    script.write_text(USER_SCRIPT, encoding="utf-8")
+    must_fail = USER_SCRIPT.splitlines().index("    bayesdrag.fit(track, rnd).cd.mean_value  # MUST-FAIL") + 1
     r = subprocess.run([sys.executable, "-m", "mypy", "--disallow-untyped-defs", "--cache-dir", str(tmp_path / "cache"),
-                        "--no-error-summary", *PUBLIC_SURFACE], cwd=ROOT, capture_output=True, text=True,
+                        "--no-error-summary", *PUBLIC_SURFACE, str(script)], cwd=ROOT, capture_output=True, text=True,
                        timeout=MYPY_TIMEOUT)
-    errors = []
+    errors, caught = [], False
     for line in r.stdout.splitlines():
         m = re.match(r"(?P<path>[^:]+):(?P<line>\d+): error: .*\[(?P<code>[a-z-]+)\]$", line)
         if m is None:
+            continue
+        if m["path"] == str(script) and int(m["line"]) == must_fail and m["code"] == "attr-defined":
+            caught = True
             continue
         if m["code"] == "no-untyped-def" and _private_untyped(int(m["line"]), m["path"]):
             continue
         errors.append(line)
     assert r.returncode in (0, 1) and not r.stderr.strip(), r.stderr[-2000:]
     assert not errors, "\n".join(errors)
+    assert caught, "mypy did not see the result's types through bayesdrag.fit:\n" + r.stdout[-2000:]
