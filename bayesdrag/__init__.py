@@ -6,8 +6,17 @@ The public API (everything else is internal and may move):
 >>> track = bayesdrag.read_track("track.csv")                         # doctest: +SKIP
 >>> rnd = bayesdrag.read_round("round.toml")                          # doctest: +SKIP
 >>> res = bayesdrag.fit(track, rnd, mcmc=False)                       # doctest: +SKIP
->>> res.to_dict()["ml"]["quality"]["ok"]                              # doctest: +SKIP
+>>> print(res.summary())                                              # doctest: +SKIP
+>>> res.cd.to_dataframe()                                             # doctest: +SKIP
+>>> lo, hi = res.band(0.9)                                            # doctest: +SKIP
+>>> res.write("out")                                                  # doctest: +SKIP
+>>> bayesdrag.load_result("out") == res                               # doctest: +SKIP
 True
+
+The results (:class:`FitResult`, :class:`DiagnosisResult`, :class:`PlanResult`) are frozen values
+with a short ``repr``, a printable ``summary()``, tables as arrays or data frames, ``to_dict()``
+(the JSON file the command writes), figures (``plot_*``), ``write(DIR)``, and a ``load_*``
+function that reads a written folder back into an equal value.
 
 Names are imported on first use (PEP 562), so ``import bayesdrag`` is fast and a script that
 only reads a track does not load the compiled kernel.
@@ -109,23 +118,51 @@ _API = {
     # the work
     "fit": "bayesdrag.commands.fit",
     "simulate": "bayesdrag.commands.simulate",
-    "FitResult": "bayesdrag.results",
     "diagnose": "bayesdrag.commands.diagnose",
-    "DiagnosisResult": "bayesdrag.results",
-    "FitOptions": "bayesdrag.commands.options",
     "plan": "bayesdrag.commands.plan",
-    "PlanResult": "bayesdrag.commands.plan",
+    "FitOptions": "bayesdrag.commands.options",
     "PlanOptions": "bayesdrag.commands.options",
     "SimulateOptions": "bayesdrag.commands.options",
+    # results
+    "FitResult": "bayesdrag.results",
+    "CdTable": "bayesdrag.results",
+    "Summary": "bayesdrag.results",
+    "DiagnosisResult": "bayesdrag.results",
+    "PlanResult": "bayesdrag.results",
+    "load_result": "bayesdrag.results",
+    "load_diagnosis": "bayesdrag.results",
+    "load_plan": "bayesdrag.results",
     # errors
     "InputError": "bayesdrag.errors",
     "FitError": "bayesdrag.errors",
+    "MissingDataError": "bayesdrag.errors",
 }
 
 __all__ = sorted(_API) + ["__version__"]
 
+# what type checkers and editors see: the names of _API, typed where they are defined (the
+# package itself imports them on first use); tests/unit/test_typing.py keeps the two lists equal
+from typing import TYPE_CHECKING, Any  # noqa: E402  (here, beside the names it types)
 
-def __getattr__(name):
+if TYPE_CHECKING:
+    from .atmosphere import Atmosphere, MetProfile
+    from .commands.diagnose import diagnose
+    from .commands.fit import fit
+    from .commands.options import FitOptions, PlanOptions, SimulateOptions
+    from .commands.plan import plan
+    from .commands.simulate import simulate
+    from .drag import ReferenceTable
+    from .errors import FitError, InputError, MissingDataError
+    from .io.drag_tables import load_m101, read_drag_table
+    from .io.rounds import read_round, write_round
+    from .io.tracks import read_track, write_track
+    from .results import (CdTable, DiagnosisResult, FitResult, PlanResult, Summary, load_diagnosis, load_plan,
+                          load_result)
+    from .round import Launch, Projectile, Radar, Round
+    from .track import RadarTrack
+
+
+def __getattr__(name: str) -> Any:
     mod = _API.get(name)
     if mod is None:
         raise AttributeError(f"module 'bayesdrag' has no attribute {name!r}")
@@ -134,5 +171,5 @@ def __getattr__(name):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return __all__

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
@@ -19,7 +20,8 @@ from ..estimate.quality import assess, check_against_flexible, intervals
 from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1, model_error_floor
 from ..estimate.scheme2 import fit_scheme2, windows_table
 from ..results import PARTIAL, FitResult
-from ..track import thin_for_fit
+from ..round import Round
+from ..track import RadarTrack, thin_for_fit
 from .options import FitOptions
 
 __all__ = ["fit", "run_fit", "summary_line"]
@@ -34,7 +36,9 @@ def _echo_err(msg):
 
 
 @single_blas
-def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, progress=False, **kwargs):
+def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, chain_path: Any = None,
+        resume: bool = False, log: Callable[[str], None] | None = None, progress: bool = False,
+        **kwargs: Any) -> FitResult:
     """Estimate Cd(M) from a track.
 
     Parameters
@@ -366,7 +370,7 @@ def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
 
 def summary_line(result):
     """The one-line outcome the command prints (converged, determined range, caveat)."""
-    s = result.summary
+    s = result.record
     if s["scheme"] == 2:
         m = s["ml"]
         lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]

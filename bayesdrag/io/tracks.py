@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import io
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -137,7 +138,7 @@ def _track_header_check(path, line, names):
                          f"{', '.join(CHANNELS)}; header has {', '.join(names)}")
 
 
-def read_track(path):
+def read_track(path: str | os.PathLike[str]) -> RadarTrack:
     """Read and validate a radar track CSV.
 
     Parameters
@@ -202,7 +203,8 @@ def read_track(path):
     return RadarTrack(t, channels, extra, str(path), notes)
 
 
-def write_track(path, track, comment=None, extra=True):
+def write_track(path: str | os.PathLike[str], track: RadarTrack, comment: str | None = None,
+                extra: bool = True) -> None:
     """Write a track as CSV: ``t`` then the present channels (then extra columns).
 
     Precision: t with 6 decimals (1 us), x, y, z, v with 4 decimals (0.1 mm, 0.1 mm/s), extra
