@@ -105,13 +105,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     floored = model_error_floor(f1, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if dm.name != "spline":
-        # a rigid model's band holds no shape error: check its curve against the flexible fit
-        ff = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not opts.fix_ic,
-                         likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start)
-        if ff.success:
-            rows_f = cd_table(ff.ml, ff.drag_model, grid, rnd.reference_drag)
-            assess(ff, rows_f, track, rnd.radar.sigma)
-            check_against_flexible(rows, rows_f, quality, dm.name)
+        _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality)
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
     if with_note is not None:
@@ -135,6 +129,31 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
+
+
+def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
+    """A rigid model's band holds no shape error: check its curve against the flexible fit of
+    the same track (:func:`check_against_flexible`). The check never refuses a track the rigid
+    model fits: when the flexible fit cannot be made (a track too short for it) or does not
+    converge, ``quality.rigid_check`` and a note say so and the rows stand as fitted."""
+    try:
+        ff = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not opts.fix_ic,
+                         likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start)
+    except (InputError, FitError) as exc:
+        ff, why = None, str(exc)
+    else:
+        why = None if ff.success else ff.message
+        if why is None and ff.drag_model.name != "spline":
+            why = "the track is too short for it"
+    if why is not None:
+        quality["rigid_check"] = {"against": "spline", "skipped": why}
+        quality.setdefault("notes", []).append(
+            f"the {f1.drag_model.name} curve could not be checked against the flexible fit of the same track "
+            f"({why}): its band holds the noise only, not its shape error")
+        return
+    rows_f = cd_table(ff.ml, ff.drag_model, grid, rnd.reference_drag)
+    assess(ff, rows_f, track, rnd.radar.sigma)
+    check_against_flexible(rows, rows_f, quality, f1.drag_model.name)
 
 
 def _with_effects(track, rnd, opts, log):
@@ -207,7 +226,7 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
                "warnings": list(res.warnings),
                "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None,
                "likelihood": opts.likelihood, "rejected_samples": f1.rejected, "smoothing": smoothing,
-               "noise": f1.noise, "quality": quality},
+               "model_size": dict(f1.model_size) or None, "noise": f1.noise, "quality": quality},
         "cd": rows,
     }
 
@@ -447,6 +466,8 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     if not quiet:
         for w in result.warnings:
             _echo_err(f"bayesdrag: warning: {w}")
+        for note in ((result.summary.get("ml") or {}).get("quality") or {}).get("notes") or ():
+            _echo_err(f"bayesdrag: note: {note}")
     echo(summary_line(result))
     if result.posterior is not None:
         b = result.posterior

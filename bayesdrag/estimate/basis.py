@@ -15,7 +15,10 @@ Knots (:func:`adaptive_knots`)
     start is smeared over a steep rise, every interval within :data:`RISE_MARGIN` Mach of a
     refined one is kept at most 0.02 Mach wide, so the sharper true rise still fits. Measured: a
     cubic spline on such knots follows the G1, G2, G5, G6, G7, G8, GI, GS, RA4 and M101 tables
-    to 0.05-0.3 % (``tests/unit/test_basis.py``).
+    to 0.05-0.3 % (``tests/unit/test_start.py``). A short track, with fewer samples than these
+    rules want coefficients, gets :func:`sparse_knots` instead: at most one coefficient per
+    sample (:func:`coefficient_budget`), and no knot between two samples the data cannot tell
+    apart.
 Penalty (:func:`smoothness_rows`)
     A Gaussian pseudo-prior on the second derivative of the *relative* correction
     ``s = Cd / base`` (base: the table, or the start curve without one), from divided second
@@ -59,6 +62,8 @@ RISE_SPACING = 0.01
 #: often weakest (a rise at the launch Mach, seen only in the first seconds), leaving the
 #: correction free to wander with the initial state
 MAX_FLEX = 30.0
+#: fewest coefficients of a short track's spline (:func:`coefficient_budget`)
+MIN_COEFFICIENTS = 5
 #: dense evaluation step for the knot refinement [Mach]
 _EVAL_STEP = 0.0025
 
@@ -129,7 +134,6 @@ def adaptive_knots(mach_min, mach_max, shapes, tol=KNOT_TOL, coarse=COARSE, fine
         Largest and smallest knot spacing [Mach].
     regions : sequence of (float, float, float)
         ``(a, b, h)``: Mach intervals given spacing ``h`` from the start (a drag rise).
-
     Returns
     -------
     (K,) ndarray
@@ -179,6 +183,71 @@ def adaptive_knots(mach_min, mach_max, shapes, tol=KNOT_TOL, coarse=COARSE, fine
             j = i if width[i] > width[i + 1] else i + 1
             mids.append(0.5 * (knots[j] + knots[j + 1]))
         new = np.unique(np.concatenate([knots, _snap(mids, fine)]))
+        if new.size == knots.size:
+            break
+        knots = new
+    return knots
+
+
+def coefficient_budget(n_samples):
+    """Most spline coefficients a track of ``n_samples`` samples is given: one per sample (the
+    penalty decides the rest; :data:`MIN_COEFFICIENTS` at least, a cubic on two intervals)."""
+    return max(MIN_COEFFICIENTS, int(n_samples))
+
+
+def sparse_knots(mach_min, mach_max, shapes, max_coefficients, sample_mach, tol=KNOT_TOL, regions=(), fine=FINE):
+    """Knots of a short track, whose samples are too few for :func:`adaptive_knots`' rules.
+
+    At most ``max_coefficients`` coefficients (:func:`coefficient_budget`). The knots start
+    evenly spread, :data:`COARSE` apart or using half the budget; then the interval whose
+    shapes are followed worst (a least-squares misfit above ``tol``; a drag rise's region
+    counts as needing its spacing) is halved, one at a time, while the budget lasts and both
+    halves still hold a sample: a velocity change between two samples is the integral of the
+    drag over the Mach they span, and no knot between them can be told apart by the data.
+
+    Parameters
+    ----------
+    mach_min, mach_max : float
+        Span [Mach]; the ends are rounded outwards to the ``fine`` grid.
+    shapes : sequence of callables
+        As :func:`adaptive_knots`.
+    max_coefficients : int
+    sample_mach : (N,) array
+        Mach of the track's samples.
+    tol, regions, fine
+        As :func:`adaptive_knots`.
+
+    Returns
+    -------
+    (K,) ndarray
+        Increasing knots on multiples of ``fine``, ends included; ``K + 2 <= max_coefficients``.
+    """
+    lo = math.floor(mach_min / fine + 1e-9) * fine
+    hi = math.ceil(mach_max / fine - 1e-9) * fine
+    if hi - lo < 3 * fine:
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 1.5 * fine, mid + 1.5 * fine
+    span = hi - lo
+    pts = np.sort(np.asarray(sample_mach, float)[np.isfinite(sample_mach)])
+    n_max = max(1, max_coefficients - 3)            # intervals the budget allows
+    n = max(1, min(n_max // 2, int(math.ceil(span / COARSE - 1e-9))))   # half the budget left to refine
+    knots = np.unique(np.concatenate([[lo, hi], _snap(np.linspace(lo, hi, n + 1), fine)]))
+    mach = np.linspace(lo, hi, max(int(span / _EVAL_STEP) + 1, 50))
+    targets = [np.clip(np.asarray(f(mach), float), 1e-3, None) for f in shapes]
+    while knots.size + 2 < max_coefficients:
+        worst = _lsq_rel_error(knots, mach, targets)
+        w = np.diff(knots)
+        mid = _snap(0.5 * (knots[:-1] + knots[1:]), fine)
+        need = worst > tol
+        for a, b, h in regions:
+            need |= (mid >= a) & (mid <= b) & (w > 2.0 * h)
+        left = np.searchsorted(pts, mid) - np.searchsorted(pts, knots[:-1])
+        right = np.searchsorted(pts, knots[1:], side="right") - np.searchsorted(pts, mid, side="right")
+        need &= (left > 0) & (right > 0) & (w >= 2.0 * fine - 1e-9)
+        if not need.any():
+            break
+        i = int(np.argmax(np.where(need, worst + w, -np.inf)))
+        new = np.unique(np.append(knots, mid[i]))
         if new.size == knots.size:
             break
         knots = new

@@ -141,10 +141,6 @@ class OutputErrorProblem:
             self.weights = np.asarray(weights, dtype=float)
             if self.weights.shape != self.z.shape or np.any(self.weights < 0) or np.any(self.weights > 1):
                 raise ValueError(f"weights must be (N, C) = {self.z.shape} in [0, 1]")
-        n_free = int(self.free.sum())
-        if self.z.shape[0] * len(self.channels) <= n_free:
-            raise InputError(f"{track.source}: {self.z.shape[0]} samples x {len(self.channels)} channels "
-                             f"are too few for {n_free} free parameters")
         for j, c in enumerate(self.channels):
             if np.ptp(self.z[:, j]) == 0.0 and c != "y":
                 raise InputError(f"{track.source}: channel {c} is constant ({self.z[0, j]}); "
@@ -161,8 +157,24 @@ class OutputErrorProblem:
         self.upper = np.concatenate([ub, big, [e.upper for e in self.extras]])
         self.steps = np.concatenate([np.maximum(1e-6, 1e-5 * np.abs(self.theta0[:self.P]) + 1e-7),
                                      IC_STEPS, [e.step for e in self.extras]])
+        n_free = self.effective_free()
+        if self.z.shape[0] * len(self.channels) <= n_free:
+            raise InputError(f"{track.source}: {self.z.shape[0]} samples x {len(self.channels)} channels "
+                             f"are too few for {n_free} free parameters")
 
     # ----------------------------------------------------------------------------------------
+    def effective_free(self):
+        """Free parameters the data must determine: the free count less the independent
+        constraints the priors put on them (a prior is a pseudo-measurement: a penalised
+        spline's smoothness rows leave only the penalty's null space, a straight-line
+        correction, to the data however many coefficients it has)."""
+        n_free = int(self.free.sum())
+        if not self.priors or self.z.shape[0] * len(self.channels) > n_free:
+            return n_free        # enough samples either way: the rank is not needed
+        J = self.prior_terms(self.theta0)[1]
+        J = J[:, np.all(np.isfinite(J), axis=0)] if J.size else J
+        return n_free - (int(np.linalg.matrix_rank(J)) if J.size else 0)
+
     def set_noise_model(self, model):
         """Set channels' noise models (dict channel -> ``white`` or ``ar1``); others unchanged."""
         for c, m in model.items():

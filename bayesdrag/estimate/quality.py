@@ -21,6 +21,15 @@ Where Cd is determined
     lies inside the Mach span the data cover, the drag model is not clamped there (beyond its
     end knots the spline is held flat), and no coefficient acting there sits at its bound.
     ``undetermined`` lists the Mach intervals of the grid where it is not.
+Short tracks
+    A track of a few samples (8-24: a Doppler report every 100 m, a sparse tracking radar) sees
+    the drag only as its integral between consecutive samples; how Cd bends between them is
+    not in the data, and the smoothness penalty's band, which assumes the curve is as smooth
+    as the penalty, does not hold it. On a short track (fewer samples than the knot rules want
+    coefficients, ``ml.model_size.short``) each row's ``band_sd`` therefore includes
+    :func:`unresolved_bend`: half the error a curve known only at points the local sample gap
+    apart in Mach can have, bounded by the bends the standard drag curves have at that Mach
+    (steep in the transonic rise, gentle above Mach 1.6).
 Rigid models
     ``poly2``, ``poly2-split`` and ``reference-scale`` cannot follow every curve, and their
     Cramér-Rao band holds only the noise, not their shape error; on a coarse or noisy track the
@@ -51,6 +60,96 @@ DETERMINED_REL_SD = 0.01
 RIGID_K = 3.0
 #: a coefficient within this fraction of its bound range of a bound sits at it
 BOUND_FRACTION = 1e-6
+
+
+#: Mach nodes and coefficients ``A`` of the bend bound: a drag curve known only at Mach points
+#: ``g`` apart is interpolated (cubic, in ln Cd) to within ``A(M) g^2``. Measured on the ten
+#: standard curves (G1, G2, G5, G6, G7, G8, GI, GS, RA4 and M101) for g = 0.05-0.6, every phase
+#: of the points: each coefficient is the largest error / g^2 over the tables between its two
+#: neighbouring nodes, and a row takes the larger of the two nodes around it
+#: (tests/unit/test_short_tracks.py checks the bound against the tables)
+BEND_MACH = (0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0, 2.2, 2.4, 2.6,
+             2.8)
+BEND_A = (0.9, 1.4, 3.9, 4.4, 12.3, 29.0, 29.0, 28.1, 5.9, 3.0, 1.31, 0.9, 0.64, 0.4, 0.37, 0.3, 0.22, 0.125, 0.115,
+          0.078, 0.046)
+#: largest bend [ln Cd] between two samples: a whole drag rise (the standard curves rise by at
+#: most a factor 2.3 across one, ln 2.3 = 0.83)
+BEND_CAP = 0.85
+
+
+def bend_coefficient(mach):
+    """``A(M)`` of :data:`BEND_A` at each Mach: the larger of the two neighbouring nodes
+    (held beyond the ends)."""
+    m = np.atleast_1d(np.asarray(mach, float))
+    nodes, a = np.asarray(BEND_MACH), np.asarray(BEND_A)
+    i = np.clip(np.searchsorted(nodes, m, side="right") - 1, 0, nodes.size - 1)
+    j = np.clip(i + 1, 0, nodes.size - 1)
+    out = np.maximum(a[i], a[j])
+    out[m <= nodes[0]] = a[0]
+    out[m >= nodes[-1]] = a[-1]
+    return out
+
+
+def _gap(points, m):
+    """Width of the interval of sorted ``points`` that holds each ``m`` (the nearest one
+    beyond their range)."""
+    i = np.clip(np.searchsorted(points, m, side="right"), 1, points.size - 1)
+    return points[i] - points[i - 1]
+
+
+def unresolved_bend(mach, cd, sample_mach, knots=None):
+    """The sd [relative to Cd] of what a short track cannot resolve at each ``mach``.
+
+    The data hold only the drag's integral between consecutive samples; the fit resolves
+    Cd(M) no finer than the wider of that gap and its knot interval (within which the model
+    imposes its own shape: a cubic, or the table's). Two things are unseen over that width
+    ``g``: how the true curve bends, at most ``A(M) g^2`` (:data:`BEND_A`, a whole drag rise at
+    most, :data:`BEND_CAP`), and how the fitted curve itself bends within ``g`` of the row (its
+    largest departure from a straight line in ln Cd there: wiggles the data cannot confirm). The
+    error is at most their sum.
+
+    Parameters
+    ----------
+    mach, cd : (K,) array
+        Rows' Mach numbers (increasing) and the fitted Cd there (> 0).
+    sample_mach : (N,) array
+        Mach of the fitted flight at the samples (any order; an ascent and a descent through
+        the same Mach both count).
+    knots : (J,) array, optional
+        The spline's knots.
+
+    Returns
+    -------
+    (K,) ndarray
+        ``expm1(bound) / 2``: the bound taken as two sd.
+    """
+    m = np.asarray(mach, float)
+    lc = np.log(np.clip(np.asarray(cd, float), 1e-6, None))
+    s = np.unique(np.asarray(sample_mach, float)[np.isfinite(sample_mach)])
+    if s.size < 2:
+        return np.full(m.size, math.expm1(BEND_CAP) / 2.0)
+    i = np.clip(np.searchsorted(s, m, side="right"), 1, s.size - 1)
+    gaps = np.diff(s)
+    # a spline's value at M depends on the neighbouring intervals too: the widest of the three
+    gap = np.maximum.reduce([gaps[i - 1], gaps[np.maximum(i - 2, 0)], gaps[np.minimum(i, gaps.size - 1)]])
+    if knots is not None and len(knots) > 1:
+        gap = np.maximum(gap, _gap(np.unique(np.asarray(knots, float)), m))
+    # ... and the curve may bend anywhere within that reach
+    reach = m[:, None] + gap[:, None] * np.linspace(-1.0, 1.0, 21)[None, :]
+    coef = bend_coefficient(reach.ravel()).reshape(reach.shape).max(axis=1)
+    truth = np.minimum(coef * gap**2, BEND_CAP)
+    own = np.array([_wiggle(m, lc, x - g, x + g) for x, g in zip(m, gap)])
+    return np.expm1(truth + own) / 2.0
+
+
+def _wiggle(m, lc, lo, hi):
+    """Largest departure of ``lc(m)`` from its least-squares straight line over [lo, hi]."""
+    sel = (m >= lo - 1e-12) & (m <= hi + 1e-12)
+    if sel.sum() < 3:
+        return 0.0
+    x, y = m[sel], lc[sel]
+    p = np.polyfit(x - x.mean(), y, 1)
+    return float(np.max(np.abs(y - np.polyval(p, x - x.mean()))))
 
 
 def lag1(r):
@@ -181,6 +280,19 @@ def assess(fit1, rows, track, sigma_given=None):
     crb = np.array([r["crb_sd"] for r in rows], float)
     crbc = np.array([r.get("crb_sd_colored", r["crb_sd"]) for r in rows], float)
     band = np.maximum(crb, crbc) if honest_colored else crb
+    size = getattr(fit1, "model_size", None) or {}
+    notes = [size["note"]] if size.get("note") else []
+    if size.get("short"):
+        bend = unresolved_bend(mach, ml, res.mach, getattr(prob.model.drag, "knots", None)) * np.abs(ml)
+        band = np.sqrt(band**2 + bend**2)
+        worst = max(f["chi2_per_sample"] for f in fit.values())
+        if worst > CHI2_LIMIT:
+            # a short track leaves too few residuals to estimate the misfit's correlation (the
+            # colored band): the whole band is scaled by the misfit's size instead (Birge ratio)
+            band = band * math.sqrt(worst)
+        notes.append(f"a short track ({size['samples']} samples, fewer than the {size['knot_rules']} spline "
+                     f"coefficients a dense track would get): each band includes how far Cd may bend between "
+                     f"samples (up to {_largest_gap(res.mach):.2f} Mach apart), which the data cannot show")
     dm = prob.model.drag
     clamped = _clamped(dm, mach)
     bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
@@ -224,8 +336,14 @@ def assess(fit1, rows, track, sigma_given=None):
         "launch": lc or None,
         "start": ({"mach_span": list(start.mach_span), "notes": list(start.notes)} if start is not None else None),
         "problems": problems,
+        "notes": notes,
     }
     return quality
+
+
+def _largest_gap(sample_mach):
+    s = np.unique(np.asarray(sample_mach, float)[np.isfinite(sample_mach)])
+    return float(np.max(np.diff(s))) if s.size > 1 else 0.0
 
 
 def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):

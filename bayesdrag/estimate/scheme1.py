@@ -15,7 +15,10 @@ How a fit is set up and run (each choice with its reason):
   penalty is on the second derivative of the relative correction ``Cd / base`` (base: the table,
   or the start curve), its weight chosen by maximising the Laplace-approximated marginal
   likelihood (the evidence) over :data:`SMOOTHING_GRID`, and allowed more freedom where the base
-  itself bends. Why not knots added one by one by BIC: BIC's ``log N`` per knot (~9 for a
+  itself bends. A short track (8-24 samples) gets at most one coefficient per sample, and a
+  track too short even for the penalty's straight-line correction gets one factor on the table
+  or is refused, naming the smallest model (:mod:`bayesdrag.estimate.model_size`). Why not knots
+  added one by one by BIC: BIC's ``log N`` per knot (~9 for a
   1500-sample track) refuses corrections of a few Cramér-Rao sd, so the representation error
   stays several bounds wide where Cd bends; the penalised spline follows the bend and its bounds
   include the smoothing (the curvature of the penalised cost is the posterior sd under the
@@ -52,8 +55,8 @@ from ..drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default_
 from ..dynamics.pointmass import PointMassModel
 from ..dynamics.trajectory import initial_state
 from ..errors import FitError, InputError
-from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, rise_regions
 from .launch import checked_launch_priors, launch_state_priors, unseen_launch_priors
+from .model_size import check_determinable, default_knots, free_mask
 from .ml import MLResult
 from . import colored
 from .problem import OutputErrorProblem
@@ -72,8 +75,6 @@ ROBUST_NU = 4.0
 ROBUST_ITERATIONS = 6
 #: a sample more than this many noise scales off the robust curve is listed as rejected
 REJECT_K = 5.0
-#: the knots follow the start's shape to no finer than this many times its own noise
-KNOT_NOISE_FACTOR = 2.0
 #: the Mach span of the drag model extends the data's by this much at each end (the fitted
 #: trajectory may reach a little beyond the smoothed speed's extremes)
 SPAN_MARGIN = 0.02
@@ -120,6 +121,10 @@ class Scheme1Fit:
         initial state and before the sources.
     ml_without_effects : MLResult or None
         The fit before the effects were added (the report shows Cd with and without them).
+    model_size : dict
+        How the drag model's size followed the data (:func:`default_knots`): ``samples``,
+        ``coefficients``, ``knot_rules``, ``short``; a short track's bands include the bends
+        its samples cannot resolve (:func:`bayesdrag.estimate.quality.unresolved_bend`).
     """
 
     ml: MLResult
@@ -134,6 +139,7 @@ class Scheme1Fit:
     white_ml: MLResult | None = None
     effects: tuple = ()
     ml_without_effects: MLResult | None = None
+    model_size: dict = field(default_factory=dict)
 
     @property
     def drag_model(self):
@@ -161,7 +167,7 @@ def model_span(span):
     return max(lo - SPAN_MARGIN, 0.05), hi + SPAN_MARGIN
 
 
-def build_drag_model(drag, reference, start, knots=None, penalise=True, span=None):
+def build_drag_model(drag, reference, start, knots=None, penalise=True, span=None, info=None):
     """The drag model of a Scheme 1 fit and the base curve its smoothness penalty is relative to.
 
     Parameters
@@ -178,6 +184,9 @@ def build_drag_model(drag, reference, start, knots=None, penalise=True, span=Non
         of the unpenalised model, kept to show why the default is penalised).
     span : (float, float), optional
         Mach span of the data (default: the start's).
+    info : dict, optional
+        Receives the record of the model's size (:func:`default_knots`; also for the other
+        models: whether the track is short).
 
     Returns
     -------
@@ -186,49 +195,31 @@ def build_drag_model(drag, reference, start, knots=None, penalise=True, span=Non
     curvature) and the data's smoothed shape (where the drag bends).
     """
     lo, hi = model_span(start.mach_span if span is None else span)
+    k, record = default_knots(reference, start, lo, hi)
+    if info is not None:
+        info.clear()
+        info.update(record)
     if drag != "spline":
         try:
-            return make_drag_model(drag, reference=reference, mach_range=(lo, hi)), None
+            dm = make_drag_model(drag, reference=reference, mach_range=(lo, hi))
         except ValueError as exc:
             raise InputError(str(exc)) from None
+        if info is not None:
+            info["coefficients"] = dm.n_params
+        return dm, None
     if knots is not None or not penalise:
         try:
             k = default_spline_knots(lo, hi) if knots is None else tuple(float(v) for v in knots)
-            return Spline(tuple(k)), None
+            dm = Spline(tuple(k))
         except ValueError as exc:
             raise InputError(str(exc)) from None
+        if info is not None:
+            info["coefficients"] = dm.n_params
+        return dm, None
     shape = start.shape_curve
-    # the knots follow the shape to KNOT_TOL, but not into wiggles the start's noise left
-    tol = max(KNOT_TOL, KNOT_NOISE_FACTOR * start.shape_noise)
     if reference is not None:
-        ratio = lambda m: shape(m) / reference.value(m)  # noqa: E731
-        regions = [(a, b, NEAR_FINE) for a, b in rise_regions(lo, hi, reference.value)]
-        k = adaptive_knots(lo, hi, [ratio], tol=tol, regions=regions)
-        dm = TableSpline(reference, tuple(k))
-        base = (reference.value, shape)
-    else:
-        regions = [(a, b, RISE_SPACING) for a, b in rise_regions(lo, hi, shape)]
-        k = adaptive_knots(lo, hi, [shape], tol=tol, regions=regions)
-        dm = Spline(tuple(k))
-        base = (None, shape)
-    return dm, base
-
-
-def _free_mask(P, n, chans, free_ic, drag_name, span):
-    free = np.ones(n, bool)
-    if not free_ic:
-        free[P:P + 6] = False
-    if "y" not in chans:
-        free[P + 1] = free[P + 4] = False
-    if not any(c in chans for c in ("x", "y", "z")):
-        free[P:P + 3] = False
-    if drag_name == "poly2-split":
-        lo, hi = span
-        if hi < 1.0:
-            free[3:6] = False
-        if lo >= 1.0:
-            free[0:3] = False
-    return free
+        return TableSpline(reference, tuple(k)), (reference.value, shape)
+    return Spline(tuple(k)), (None, shape)
 
 
 @single_blas
@@ -274,6 +265,9 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     if likelihood not in ("gaussian", "student-t"):
         raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
     chans = tuple(channels) if channels is not None else track.names
+    smaller = check_determinable(track, rnd, chans, free_ic, drag, knots)
+    if smaller is not None:
+        drag = smaller
     seen = track.with_channels(chans) if set(chans) != set(track.names) else track
     if start is None:
         start = data_start(seen, rnd)
@@ -298,29 +292,30 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     table = ReferenceTable(tuple(start.mach), tuple(start.cd), source="start curve from the track")
     base_model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ReferenceScale(table),
                                 rnd.atmosphere, coriolis=coriolis_of(rnd))
-    ic_free = _free_mask(0, 6, chans, free_ic, "", (0, 0))
+    ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
     state, scale, span_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood,
                                         launch_state_priors(L, 1, names=unseen) if unseen else ())
     span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
                                                    max(start.mach_span[1], span_a[1]))
-    dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span)
+    size = {}
+    dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
     model = base_model.with_(drag=dm)
     P = dm.n_params
-    free = _free_mask(P, P + 6, chans, free_ic, dm.name, span)
+    free = free_mask(P, P + 6, chans, free_ic, dm.name, span)
     m = np.linspace(*dm.fit_range, 200)
     theta0 = np.concatenate([dm.params_for(m, scale * start.curve(m)), state])
     if not free_ic:
         theta0[P:] = s0
     fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
-    prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans, priors=fixed_pri)
+    pen = penalty(dm, base) if base is not None else None
+    # the smoothness rows are part of the problem from its start: they count as the
+    # pseudo-measurements they are when the problem checks that the data can determine it
+    pen0 = pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0] if pen is not None else ()
+    prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans, priors=fixed_pri + pen0)
     if likelihood == "student-t":
         # start from a fit whose noise sd is estimated (relaxation inflates it over the
         # outliers instead of bending the curve to them), then reweight
         prob.sigma_fixed = {}
-    pen = None
-    if base is not None:
-        pen = penalty(dm, base)
-        prob.priors = fixed_pri + pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0]
     # stage B: the full curve without the checked launch priors, then check them against it
     res_b = prob.fit(fallback=True)
     if res_b.success or np.all(np.isfinite(res_b.theta)):
@@ -331,19 +326,19 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         # were low): rebuild the model over the flight's span and refit from this curve
         span = wider
         cur = (dm, res_b.drag_params.copy())
-        dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span)
+        dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
         model = base_model.with_(drag=dm)
         P = dm.n_params
-        free = _free_mask(P, P + 6, chans, free_ic, dm.name, span)
+        free = free_mask(P, P + 6, chans, free_ic, dm.name, span)
         m = np.linspace(*dm.fit_range, 200)
         theta0 = np.concatenate([dm.params_for(m, np.clip(cur[0].cd(cur[1], m), 1e-3, None)), res_b.state0])
         fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
-        prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans, priors=fixed_pri)
+        pen = penalty(dm, base) if base is not None else None
+        pen0 = pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0] if pen is not None else ()
+        prob = OutputErrorProblem(model, track, theta0, free=free, sigma=sig, channels=chans,
+                                  priors=fixed_pri + pen0)
         if likelihood == "student-t":
             prob.sigma_fixed = {}
-        pen = penalty(dm, base) if base is not None else None
-        if pen is not None:
-            prob.priors = fixed_pri + pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0]
         res_b = prob.fit(fallback=True)
         if np.all(np.isfinite(res_b.theta)):
             prob.theta0 = res_b.theta.copy()
@@ -372,8 +367,11 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects)
     if pen is not None:
         res = drop_coefficient_correlations(res, P)
+    if smaller is not None:
+        size["note"] = (f"{track.n} samples x {len(chans)} channels are too few for the default spline: Cd is the "
+                        f"firing table times one fitted factor (reference-scale)")
     return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
-                      before if fitted_effects else None)
+                      before if fitted_effects else None, size)
 
 
 def choose_noise_model(prob, res, requested):

@@ -128,6 +128,9 @@ class DataStart:
         The per-sample values behind the curve.
     kinematics : Kinematics
     notes : tuple of str
+    track_mach : (N,) ndarray or None
+        Mach at each sample, in time order, from the smoothed speed (where the track's samples
+        lie in Mach: how finely it can resolve Cd(M); :mod:`bayesdrag.estimate.basis`).
     """
 
     mach_span: tuple
@@ -140,6 +143,16 @@ class DataStart:
     samples_cd: np.ndarray
     kinematics: Kinematics
     notes: tuple = field(default=())
+    track_mach: np.ndarray | None = None
+
+    @property
+    def mach_step(self):
+        """Median |Delta M| between consecutive samples (0 without :attr:`track_mach`)."""
+        if self.track_mach is None or self.track_mach.size < 2:
+            return 0.0
+        steps = np.abs(np.diff(self.track_mach))
+        steps = steps[np.isfinite(steps)]
+        return float(np.median(steps)) if steps.size else 0.0
 
     def curve(self, mach):
         """Start Cd at ``mach`` (held constant beyond the grid)."""
@@ -372,8 +385,10 @@ def start_curve(mach, cd, dm=START_BIN):
     lo = math.floor(mach.min() / dm) * dm
     hi = math.ceil(mach.max() / dm) * dm
     edges = np.arange(lo, hi + 0.5 * dm, dm)
-    if edges.size < 2:
-        edges = np.array([lo, lo + dm])
+    if edges.size < 3:
+        # a track that flies within one bin (a short piece of a slow flight): two bins, so the
+        # curve is a table of at least two rows
+        edges = np.array([lo, lo + dm, lo + 2 * dm])
     idx = np.clip(np.digitize(mach, edges) - 1, 0, edges.size - 2)
     cnt = np.bincount(idx, minlength=edges.size - 1)
     tot = np.bincount(idx, weights=cd, minlength=edges.size - 1)
@@ -516,6 +531,7 @@ def data_start(track, rnd):
     """
     kin = smooth_kinematics(track, elevation_deg=rnd.launch.elevation_deg, sigma=rnd.radar.sigma)
     mach, cd = drag_samples(kin, rnd.projectile.mass, rnd.projectile.diameter, rnd.atmosphere)
+    track_mach = mach.copy()
     grid, curve = start_curve(mach, cd)
     # the track's ends, where a smoothed derivative is least certain and a fast-decelerating
     # shell's speed is biased most, are read by the model itself (a constant-Cd window fit):
@@ -549,7 +565,7 @@ def data_start(track, rnd):
         state0 = state_w
     fin = np.isfinite(mach)
     span = (float(mach[fin].min()), float(mach[fin].max()))
-    return DataStart(span, grid, curve, shape, noise, state0, mach, cd, kin, kin.notes)
+    return DataStart(span, grid, curve, shape, noise, state0, mach, cd, kin, kin.notes, track_mach=track_mach)
 
 
 def gravity_ratio(kin, g=G0, pieces=6):

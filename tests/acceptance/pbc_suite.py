@@ -226,6 +226,8 @@ class Case:
     expect: str = "answer"              # "answer" | "answer_or_exit2" | "exit2_units" | "time_conflict"
     drag: str | None = None             # None = fit's default; "poly2-split"
     note: str = ""
+    samples: int | None = None          # short tracks: keep only the first this many samples
+    range_step: float | None = None     # ... taken every this many m downrange (a Doppler report)
 
     @property
     def withheld(self):
@@ -292,7 +294,30 @@ WIND_CASES = [
     _c("w105-g7-wind", "G7", 15.0, 0.105, 600.0, 20.0, 0.05, 1.0, 43, ref="none", wind=(5.0, -5.0)),
 ]
 
-ALL_CASES = CASES + WIND_CASES
+#: short tracks (8-24 samples): a Doppler report every 100 yd, a chronograph radar's handful of
+#: points, a sparse tracking radar sampling a shell every 1-2 s; speed only (``t, v``) and
+#: ``x, z, v``. Judged like the rest of the suite.
+VO = ("v",)             # Doppler speed only
+XZV = ("x", "z", "v")
+YD100 = 91.44           # 100 yd [m]
+SHORT_CASES = [
+    _c("sb65-g7-16xv", "G7", 0.00797, 0.0067, 950.0, 1.2, 0.01, 0.3, 201, v_sd=0.05, channels=XV,
+       range_step=YD100, samples=16, note="a 6.5 mm bullet's Doppler report every 100 yd (Warner-like)"),
+    _c("sb65-g7-8v", "G7", 0.00797, 0.0067, 950.0, 1.2, 0.01, 0.3, 202, v_sd=0.05, channels=VO, ref="none",
+       range_step=2 * YD100, samples=8, note="speed every 200 yd, no table"),
+    _c("sb95-g1-12v", "G1", 0.0095, 0.00782, 830.0, 2.0, 0.1, 0.3, 203, v_sd=0.1, channels=VO, samples=12,
+       note="a chronograph radar: 12 speeds 0.1 s apart"),
+    _c("sb42-g7-24xzv", "G7", 0.042, 0.0127, 880.0, 3.0, 0.1, 0.3, 204, channels=XZV, ref="scaled:1.10",
+       samples=24),
+    _c("sm81-g2-12xzv", "G2", 4.2, 0.081, 250.0, 45.0, 1.0, 2.0, 205, channels=XZV, ref="none", samples=12),
+    _c("sm120-g1-8v", "G1", 13.0, 0.120, 300.0, 50.0, 2.0, 2.0, 206, channels=VO, samples=8),
+    _c("ss155-m101-24xzv", "M101", 42.6, 0.155, 818.0, 30.0, 2.0, 2.0, 207, channels=XZV, samples=24),
+    _c("ss105-g7-16v", "G7", 15.0, 0.105, 600.0, 20.0, 1.0, 1.0, 208, channels=VO, ref="none", samples=16),
+    _c("ss130-g1-12xzv", "G1", 33.4, 0.130, 810.0, 8.0, 1.5, 1.0, 209, channels=XZV, ref="other:G7",
+       samples=12),
+]
+
+ALL_CASES = CASES + WIND_CASES + SHORT_CASES
 
 #: projectile classes for random cases: (label, mass [kg], diameter [m], v0 range [m/s], QE range
 #: [deg], tables that suit the shape, dt choices [s], noise choices [m])
@@ -352,6 +377,40 @@ def random_cases(n, seed=0):
                       note=f"random case {i} of seed {seed} ({label})"))
     return out
 
+def random_short_cases(n, seed=0):
+    """``n`` random short tracks (8, 12, 16 or 24 samples), reproducible from ``seed``: the
+    classes of :func:`random_cases`; speed only (``t, v``) or ``x, z, v``; bullets reported every
+    50-200 m downrange or every 0.05-0.2 s, the others sampled every 0.5-2 s; the reference and
+    the launch velocity drawn as there."""
+    rng = np.random.default_rng(10_000 + seed)
+    out = []
+    for i in range(n):
+        label, (m0, m1), (d0, d1), (v0a, v0b), (q0, q1), tabs, dts, noises = _CLASSES[rng.integers(len(_CLASSES))]
+        u = rng.uniform()
+        mass, diam = m0 + u * (m1 - m0), d0 + u * (d1 - d0)
+        v0 = float(rng.uniform(v0a, v0b))
+        qe = float(rng.uniform(q0, q1))
+        tab = str(rng.choice(tabs))
+        if tab == "M101" and not (340.0 * 0.6 < v0 < 340.0 * 2.5):
+            tab = "G7"
+        pos = float(rng.choice(noises))
+        n_s = int(rng.choice([8, 12, 16, 24]))
+        channels = VO if rng.uniform() < 0.5 else XZV
+        small = label in ("bullet", "subsonic")
+        step = float(rng.choice([50.0, 100.0, 200.0])) if small and rng.uniform() < 0.5 else None
+        dt = float(rng.choice([0.05, 0.1, 0.2])) if small else float(rng.choice([0.5, 1.0, 1.5, 2.0]))
+        ref_draw = rng.uniform()
+        ref = ("none" if ref_draw < 0.35 else "right" if ref_draw < 0.7 else
+               "other:" + str(rng.choice([t for t in ("G1", "G7", "G2", "G5", "G6", "G8") if t != tab]))
+               if ref_draw < 0.85 else "scaled:1.10")
+        vel_factor = float(rng.choice([1.0, 1.0, 1.0, 0.97, 1.03]))
+        out.append(_c(f"q{seed}-{i:02d}-{label}-{tab.lower()}-{n_s}{''.join(channels)}", tab, round(mass, 5),
+                      round(diam, 5), round(v0, 1), round(qe, 2), dt, pos, 2000 * seed + 500 + i,
+                      channels=channels, ref=ref, vel_factor=vel_factor, samples=n_s, range_step=step,
+                      note=f"random short case {i} of seed {seed} ({label})"))
+    return out
+
+
 #: fast subset for the default test run: a flat bullet, a positions-only mortar at QE 60, a
 #: partial 130 mm track, the 155 mm shell with the round's velocity 15 % low, a 30 mm late lock-on
 FAST = ("b26-g7-flat", "m81-g2-pos60", "s130-g1-part", "s155-m101-v85", "p30-g6-late")
@@ -394,10 +453,10 @@ def case_by_name(name):
     for c in ALL_CASES + ISSUE_CASES:
         if c.name == name:
             return c
-    if name.startswith("r") and name.count("-") >= 2:  # a random case: r<seed>-<i>-...
+    if name[:1] in ("r", "q") and name.count("-") >= 2:  # a random case: r<seed>-<i>-... (q: short)
         try:
             seed, i = int(name[1:].split("-")[0]), int(name.split("-")[1])
-            c = random_cases(i + 1, seed)[i]
+            c = (random_cases if name[0] == "r" else random_short_cases)(i + 1, seed)[i]
             if c.name == name:
                 return c
         except (ValueError, IndexError):
@@ -472,6 +531,11 @@ def generate(case, folder):
         t = t[t >= case.lock_on - 1e-9]
     if case.loss is not None:
         t = t[t <= case.loss + 1e-9]
+    if case.range_step is not None:  # a Doppler report: the times at which x passes each step
+        marks = np.arange(0.0, float(o["x"][-1]), case.range_step)
+        t = np.interp(marks, o["x"], o["t"])
+    if case.samples is not None:
+        t = t[:case.samples]
     S = spl(t)
     if case.wind is None:
         air = S[:, 3]
@@ -764,6 +828,9 @@ def run_diagnose_case(case, truth, outdir, subprocess_mode=False):
         diag = json.loads((out / "diagnosis.json").read_text())
     expect = diagnose_expectation(case)
     ok = diag is not None and judge_verdict(expect, diag)
+    if case.samples is not None and diag is None:
+        # a short track below the diagnosis' minimum: one clear line naming it is the answer
+        ok = clear_exit2(rc, se) and "too few for a diagnosis" in se
     return {"diag_exit": rc, "diag_time_s": round(secs, 2), "diag_expect": expect,
             "diag_verdict": None if diag is None else diag.get("verdict"), "diag_pass": ok,
             "diag_stderr_tail": se.strip().splitlines()[-1] if (rc != 0 and se.strip()) else ""}

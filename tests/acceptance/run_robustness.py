@@ -7,6 +7,7 @@ counts; optionally the issue's own failure list. Cases and rules: ``pbc_suite.py
     python tests/acceptance/run_robustness.py --only b26-g7-flat,s155-m101 --poly2-split
     python tests/acceptance/run_robustness.py --issue-cases       # also the issue's failure list
     python tests/acceptance/run_robustness.py --fast              # the default-test subset
+    python tests/acceptance/run_robustness.py --random-short 40   # random short tracks (8-24 samples)
 
 Exit status 0 when the acceptance holds, 1 otherwise. ``--json FILE`` writes every row.
 """
@@ -91,6 +92,8 @@ def main(argv=None):
     ap.add_argument("--issue-cases", action="store_true", help="also run the issue's own failure list")
     ap.add_argument("--random", type=int, default=0, metavar="N",
                     help="run N random cases (pbc_suite.random_cases) instead of the fixed suite")
+    ap.add_argument("--random-short", type=int, default=0, metavar="N",
+                    help="run N random short tracks of 8-24 samples (pbc_suite.random_short_cases)")
     ap.add_argument("--random-seed", type=int, default=0, help="seed of the random cases (default 0)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--out", default=None, help="folder for the generated tracks and fit outputs "
@@ -106,7 +109,8 @@ def main(argv=None):
         S.PBC_OPTIONS.update(exact_atmosphere=False, match_density=False)
     folder = Path(a.out or Path(tempfile.gettempdir()) / "bayesdrag-robustness")
     folder.mkdir(parents=True, exist_ok=True)
-    cases = S.random_cases(a.random, a.random_seed) if a.random else S.ALL_CASES
+    cases = (S.random_cases(a.random, a.random_seed) if a.random else
+             S.random_short_cases(a.random_short, a.random_seed) if a.random_short else S.ALL_CASES)
     issue = list(S.ISSUE_CASES) if a.issue_cases else []
     if a.fast:
         cases = [c for c in cases if c.name in S.FAST]

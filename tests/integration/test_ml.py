@@ -9,6 +9,7 @@ from bayesdrag.cli import main
 from bayesdrag.drag import ReferenceTable, make_drag_model
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
+from bayesdrag.errors import InputError
 from bayesdrag.estimate.problem import OutputErrorProblem
 from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
 from bayesdrag.synthetic import add_noise
@@ -111,8 +112,13 @@ def test_poly2_misfit_reported(noisy_track, round_):
 
 
 def test_too_few_samples(noisy_track, round_):
-    with pytest.raises(Exception, match="too few"):
-        fit_scheme1(noisy_track.subset(slice(0, 3)), round_, drag="spline", channels=("v",))
+    """Two speeds cannot determine even one factor on the table and the launch state: refused
+    naming the smallest model; three can, and the too-large default spline gives way to that
+    factor (issue 26: the model's size follows the data)."""
+    with pytest.raises(InputError, match="are too few to determine Cd: even the smallest drag model"):
+        fit_scheme1(noisy_track.subset(slice(0, 2)), round_, drag="spline", channels=("v",))
+    f1 = fit_scheme1(noisy_track.subset(slice(0, 3)), round_, drag="spline", channels=("v",))
+    assert f1.drag_model.name == "reference-scale" and "too few for the default spline" in f1.model_size["note"]
 
 
 def test_cli_fit_writes_result(noisy_track, round_, tmp_path, capsys):

@@ -71,3 +71,83 @@ def test_diagnose_finds_thin_air(bullet):
     eff = {e["name"]: e for e in d.summary["effects"]}["density"]
     assert DENSITY_RATIO_RANGE[0] < eff["params"]["ratio"] < DENSITY_RATIO_RANGE[1]
     assert "drag_scale" in eff["confounded_with"]
+
+
+def _diagnosed_round(bullet, tmp_path):
+    """``round.toml`` with the density ratio ``bayesdrag diagnose`` finds on the track (the air
+    the diagnosis finds), written next to a copy of the published table."""
+    import dataclasses
+    import json
+
+    from bayesdrag.cli import main
+    from bayesdrag.io.rounds import write_round
+
+    d = WARNER / bullet
+    assert main(["diagnose", str(d / "track.csv"), str(d / "round.toml"), "-o", str(tmp_path / "diag")]) == 0
+    effects = {e["name"]: e for e in json.loads((tmp_path / "diag" / "diagnosis.json").read_text())["effects"]}
+    ratio = float(effects["density"]["params"]["ratio"])
+    assert DENSITY_RATIO_RANGE[0] < ratio < DENSITY_RATIO_RANGE[1]
+    rnd = read_round(d / "round.toml")
+    thin = dataclasses.replace(rnd, atmosphere=dataclasses.replace(rnd.atmosphere, density_ratio=ratio))
+    path = tmp_path / "round_diagnosed.toml"
+    write_round(path, thin, comment=f"{bullet}: density ratio {ratio:.4f} from bayesdrag diagnose")
+    return path
+
+
+def _published_errors(result, bullet, key="ml"):
+    """Relative error [%] of the result's ``key`` column against the published Cd at every
+    published Mach inside the result's Cd grid."""
+    ref = read_round(WARNER / bullet / "round.toml").reference_drag
+    mach = np.array([r["mach"] for r in result["cd"]])
+    cd = np.array([r[key] for r in result["cd"]])
+    pub = [(m, c) for m, c in zip(ref.mach, ref.cd_values) if mach[0] <= m <= mach[-1]]
+    return {m: 100.0 * (float(np.interp(m, mach, cd)) / c - 1.0) for m, c in pub}
+
+
+def _fit_cli(track, rnd, out, *extra):
+    import json
+
+    from bayesdrag.cli import main
+
+    rc = main(["fit", str(track), str(rnd), "-o", str(out), *extra])
+    assert rc == 0, f"bayesdrag fit exit {rc}"
+    return json.loads((out / "result.json").read_text())
+
+
+@pytest.mark.parametrize("bullet", ["338_flatline", "65_flatline"])
+def test_default_fit_command_matches_published(bullet, tmp_path):
+    """Issue 26: ``bayesdrag fit`` with the default drag model (no knots, no model chosen by hand)
+    fits each 16-sample Warner report in the air the diagnosis finds, within 1.5 % of the
+    published Cd at every published Mach the data cover (the maximum-likelihood fit; the sampled
+    posterior is the slow test below)."""
+    rnd = _diagnosed_round(bullet, tmp_path)
+    res = _fit_cli(WARNER / bullet / "track.csv", rnd, tmp_path / "fit", "--no-mcmc")
+    assert res["drag_model"] == "spline" and res["ml"]["converged"]
+    err = _published_errors(res, bullet)
+    assert len(err) >= 3, err
+    assert max(abs(e) for e in err.values()) < CD_RTOL_PERCENT, err
+    # the model's size followed the 16 samples: no more coefficients than samples
+    assert res["ml"]["model_size"]["coefficients"] <= res["ml"]["model_size"]["samples"] == 16
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("bullet", ["338_flatline", "65_flatline"])
+def test_default_fit_command_with_posterior_matches_published(bullet, tmp_path):
+    """The same with every default, the posterior included: its mean within 1.5 % too."""
+    rnd = _diagnosed_round(bullet, tmp_path)
+    res = _fit_cli(WARNER / bullet / "track.csv", rnd, tmp_path / "fit", "--seed", "1")
+    for key in ("ml", "mean"):
+        err = _published_errors(res, bullet, key)
+        assert max(abs(e) for e in err.values()) < CD_RTOL_PERCENT, (key, err)
+
+
+@pytest.mark.parametrize("drag", ["reference-scale", "poly2"])
+def test_rigid_models_are_not_refused_by_their_flexible_check(drag, tmp_path):
+    """Issue 26: the flexible cross-check of a rigid model used to refuse the 16-sample 6.5 mm
+    report ("16 samples x 2 channels are too few for 36 free parameters") although the rigid
+    model fits it; now the check runs and reports, and never refuses."""
+    d = WARNER / "65_flatline"
+    res = _fit_cli(d / "track.csv", d / "round_density.toml", tmp_path / drag, "--no-mcmc", "--drag", drag)
+    assert res["drag_model"] == drag and res["ml"]["converged"]
+    check = res["ml"]["quality"]["rigid_check"]
+    assert check["against"] == "spline" and "skipped" not in check, check

@@ -1,0 +1,159 @@
+"""How large a drag model a track can determine: counted before any fitting work, and the knots
+of the default spline sized to the data.
+
+A fit has as many unknowns as its free initial-state values plus the drag model's effective
+parameters, and a track holds samples x channels values. A penalised spline's effective size is
+not its coefficient count: its smoothness penalty is a pseudo-measurement on every curvature, so
+the data must determine only its null space, a straight-line correction
+(:func:`check_determinable`; :class:`bayesdrag.estimate.problem.OutputErrorProblem` counts the
+same way). A track too short for the default spline but long enough for one factor on the firing
+table is fitted with that factor (and says so); one too short for even that is refused, naming
+the smallest model and the samples it needs.
+
+Knots (:func:`default_knots`) follow where the data's shape and the table bend
+(:func:`bayesdrag.estimate.basis.adaptive_knots`); a *short* track, with fewer samples than
+those rules want coefficients, gets at most one coefficient per sample and no knot between two
+samples the data cannot tell apart (:func:`bayesdrag.estimate.basis.sparse_knots`), and its bands
+include how far Cd may bend between its samples (:func:`bayesdrag.estimate.quality.unresolved_bend`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, coefficient_budget, rise_regions, sparse_knots
+from .launch import unseen_launch_priors
+
+__all__ = ["MIN_FIT_SAMPLES", "check_determinable", "default_knots", "free_mask"]
+
+#: the knots follow the start's shape to no finer than this many times its own noise
+KNOT_NOISE_FACTOR = 2.0
+
+
+def free_mask(P, n, chans, free_ic, drag_name, span):
+    """Which of ``n`` parameters (``P`` drag coefficients, then the initial state) a Scheme 1 fit
+    estimates: the initial state unless ``free_ic`` is False, no cross-range state without a
+    ``y`` channel, no position without a position channel, and ``poly2-split``'s coefficients
+    only on the sides of Mach 1 the data's Mach ``span`` reaches."""
+    free = np.ones(n, bool)
+    if not free_ic:
+        free[P:P + 6] = False
+    if "y" not in chans:
+        free[P + 1] = free[P + 4] = False
+    if not any(c in chans for c in ("x", "y", "z")):
+        free[P:P + 3] = False
+    if drag_name == "poly2-split":
+        lo, hi = span
+        if hi < 1.0:
+            free[3:6] = False
+        if lo >= 1.0:
+            free[0:3] = False
+    return free
+
+
+#: fewest samples a fit accepts: positions must bend (three points) for the drag to show
+MIN_FIT_SAMPLES = 3
+#: effective drag parameters of each model at its smallest: the penalised spline's penalty
+#: leaves a straight-line correction (its null space) to the data; ``poly2-split`` has 3 on a
+#: flight on one side of Mach 1 (6 across it: the problem itself then counts them)
+_MODEL_SIZE = {"reference-scale": 1, "spline": 2, "poly2": 3, "poly2-split": 3}
+
+
+def _ic_unknowns(track, rnd, chans, free_ic):
+    """Initial-state values the data must determine: the free ones less those the unseen
+    launch priors pin (no z: the muzzle height and the elevation are priors)."""
+    free = free_mask(0, 6, chans, free_ic, "", (0.0, 0.0))
+    pinned = set(unseen_launch_priors(track, rnd, chans))
+    n = int(free.sum())
+    n -= int("X0_muzzle" in pinned and free[0]) + int("Z0_muzzle" in pinned and free[2])
+    n -= int("elevation" in pinned and bool(free[3] or free[5]))
+    return max(n, 0)
+
+
+def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=None):
+    """Can this track determine the drag model asked for, or at least the smallest one?
+
+    Counted before any fitting work: the track's values (samples x channels) must outnumber
+    the unknowns: the initial-state values (:func:`_ic_unknowns`) plus the model's effective
+    drag parameters (:data:`_MODEL_SIZE`: a penalised spline counts its penalty's null space,
+    however many coefficients it has; explicit knots count every coefficient). The smallest
+    model is one factor on the firing table (``reference-scale``), or without a table the
+    penalised spline at its stiffest (a straight-line correction of the drag curve read off the
+    track).
+
+    Returns
+    -------
+    str or None
+        ``"reference-scale"`` when the default spline is too large for the track but the
+        table's one factor is not (the fit then uses it and says so), else None.
+
+    Raises
+    ------
+    InputError
+        When even the smallest model is not determined, naming it and the samples it needs; or
+        when an explicitly chosen model is too large, naming the smallest that is not.
+    """
+    n, c = int(track.n), len(chans)
+    ic = _ic_unknowns(track, rnd, chans, free_ic)
+    table = rnd.reference_drag is not None
+    small = ("reference-scale", "one factor on the firing table") if table else (
+        "spline", "the default spline at its stiffest: a straight-line correction of the drag curve read off the track")
+    k_small = _MODEL_SIZE[small[0]] + ic
+    src = track.source or "track"
+    if n < MIN_FIT_SAMPLES or n * c <= k_small:
+        need = max(MIN_FIT_SAMPLES, k_small // c + 1)
+        raise InputError(
+            f"{src}: {n} samples x {c} channel{'s' if c > 1 else ''} ({','.join(chans)}) are too few to determine Cd: even the "
+            f"smallest drag model, {small[1]}, has {k_small} unknowns with the {ic} initial-state values "
+            f"the data must give; it needs at least {need} samples of these channels (or more channels, or "
+            f"--fix-ic to take the initial state from the round)")
+    if knots is not None:
+        k_req = len(tuple(knots)) + 2 + ic
+    else:
+        k_req = _MODEL_SIZE.get(drag, 0) + ic
+    if n * c > k_req:
+        return None
+    if drag == "spline" and knots is None and table:
+        return "reference-scale"
+    what = f"--drag {drag}" + (f" with {len(tuple(knots))} knots" if knots is not None else "")
+    raise InputError(
+        f"{src}: {n} samples x {c} channel{'s' if c > 1 else ''} are too few for {what} ({k_req} unknowns with "
+        f"the {ic} initial-state values); the smallest model this track determines is {small[1]}"
+        + (" (--drag reference-scale)" if table else " (the default --drag spline)"))
+
+
+def default_knots(reference, start, lo, hi):
+    """Knots of the default (penalised) spline over [lo, hi] and the record of the model's size.
+
+    The knots follow where the start's shape (and the table) bend
+    (:func:`bayesdrag.estimate.basis.adaptive_knots`), to :data:`KNOT_TOL` but not into wiggles
+    the start's noise left. A short track, with fewer samples than those rules want
+    coefficients, gets at most one coefficient per sample, and no knot between two samples
+    that the data cannot tell apart (:func:`bayesdrag.estimate.basis.sparse_knots`): the
+    model's size follows the data.
+
+    Returns
+    -------
+    (knots, dict)
+        The dict (``ml.model_size`` of result.json): ``samples``, ``coefficients``,
+        ``knot_rules`` (coefficients the rules alone want), ``short`` (bool) and, for a short
+        track, ``mach_step`` (median Mach step between samples).
+    """
+    shape = start.shape_curve
+    tol = max(KNOT_TOL, KNOT_NOISE_FACTOR * start.shape_noise)
+    if reference is not None:
+        shapes = [lambda m: shape(m) / reference.value(m)]
+        regions = [(a, b, NEAR_FINE) for a, b in rise_regions(lo, hi, reference.value)]
+    else:
+        shapes = [shape]
+        regions = [(a, b, RISE_SPACING) for a, b in rise_regions(lo, hi, shape)]
+    k = adaptive_knots(lo, hi, shapes, tol=tol, regions=regions)
+    n = int(start.kinematics.t.size)
+    budget = coefficient_budget(n)
+    record = {"samples": n, "knot_rules": int(k.size + 2), "short": bool(k.size + 2 > n)}
+    if k.size + 2 > budget:
+        k = sparse_knots(lo, hi, shapes, budget, start.track_mach, tol=tol, regions=regions)
+    if record["short"]:
+        record["mach_step"] = float(start.mach_step)
+    record["coefficients"] = int(k.size + 2)
+    return k, record
