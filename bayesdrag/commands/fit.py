@@ -466,7 +466,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     if not quiet:
         for w in result.warnings:
             _echo_err(f"bayesdrag: warning: {w}")
-        for note in ((result.summary.get("ml") or {}).get("quality") or {}).get("notes") or ():
+        for note in ((result.record.get("ml") or {}).get("quality") or {}).get("notes") or ():
             _echo_err(f"bayesdrag: note: {note}")
     echo(summary_line(result))
     if result.posterior is not None:
