@@ -13,7 +13,7 @@ import os
 import stat
 import tempfile
 
-__all__ = ["checked_folder", "user_cache_dir"]
+__all__ = ["checked_folder", "user_cache_dir", "user_key"]
 
 
 def checked_folder(path, create=True):
@@ -61,3 +61,35 @@ def user_cache_dir(sub=None):
             return None, why
         reason = reason or why
     return None, reason
+
+
+def user_key(name="commit.key", _retry=True):
+    """A secret of this user (32 random bytes), kept in the private folder (file 0600, created on
+    first use), or None when there is no private folder or the file is not a private file of
+    this user. Signs what bayesdrag leaves in folders others may write (commit plans)."""
+    import secrets
+
+    folder, _ = user_cache_dir()
+    if folder is None:
+        return None
+    path = os.path.join(folder, name)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except FileNotFoundError:
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+        except FileExistsError:             # another process made it meanwhile
+            return user_key(name, False) if _retry else None
+        except OSError:
+            return None
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(secrets.token_bytes(32))
+        return user_key(name, False)
+    except OSError:
+        return None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid() or st.st_mode & 0o077:
+            return None
+        key = fh.read(65)
+    return key if len(key) == 32 else None

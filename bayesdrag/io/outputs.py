@@ -55,6 +55,7 @@ import contextlib
 import errno
 import fcntl
 import hashlib
+import hmac
 import json
 import os
 import re
@@ -65,10 +66,12 @@ import time
 from fnmatch import fnmatch
 from pathlib import Path
 
+from .._user_cache import user_key
 from ..errors import InputError, OutputError
 
 __all__ = ["OutputRun", "atomic_write", "write_json", "write_bytes", "write_figure", "ensure_output_dir",
-           "read_json", "sha256_file", "describe_inputs", "ensure_space", "is_disk_full", "DiskFullError", "MANIFEST",
+           "read_json", "sha256_file", "describe_inputs", "ensure_space", "is_disk_full", "space_problem",
+           "DiskFullError", "DISK_FULL", "file_size_limit", "ensure_file_size", "MANIFEST",
            "SUPERSEDED", "LOCK_NAME", "KNOWN_OUTPUTS", "MANIFEST_FORMAT"]
 
 #: the manifest of the run whose outputs are in ``DIR``
@@ -147,21 +150,29 @@ def atomic_write(path, write_fn):
     if os.path.lexists(path) and not path.is_symlink() and not stat.S_ISREG(os.lstat(path).st_mode):
         raise InputError(f"{path}: output path exists and is not a regular file (a device or pipe); "
                          f"give the name of a file to write")
+    if os.path.lexists(path) and not path.is_symlink() and not os.lstat(path).st_mode & 0o222:
+        raise InputError(f"{path}: the output file is read-only; bayesdrag does not replace it: remove it or "
+                         f"give another name")
     _remove_stale_parts(path)
     tmp = _tmp_name(path)
     try:
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
-    except PermissionError as exc:
-        raise InputError(f"{path.parent}: the output folder is not writable ({exc.strerror})") from None
+    except OSError as exc:
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise InputError(f"{path.parent}: the output folder is not writable ({exc.strerror})") from None
+        if exc.errno == errno.ENAMETOOLONG:
+            raise InputError(f"{path}: the name is too long ({exc.strerror}); give a shorter one") from None
+        raise
     try:
         write_fn(str(tmp))
         os.replace(tmp, path)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
-        if isinstance(exc, Exception) and is_disk_full(exc, path.parent):
-            raise DiskFullError(f"{path.parent}: the disk is full (No space left on device) while writing "
-                              f"{path.name}; nothing was written: free some space and run again") from None
+        why = space_problem(exc, path.parent) if isinstance(exc, Exception) else None
+        if why is not None:
+            raise DiskFullError(f"{path.parent}: {why} while writing {path.name}; nothing was written: free some "
+                                f"space and run again", reason=why) from None
         raise
 
 
@@ -244,27 +255,60 @@ def describe_inputs(inputs):
 
 # ============================================================================ disk full
 class DiskFullError(OutputError):
-    """No space left on the output folder's disk (or its quota): one line, exit status 1."""
+    """No room for what a run writes: the disk is full, the quota exceeded, or a file would pass
+    the largest size allowed (``ulimit -f``, the file system's). One line, exit status 1.
+
+    Attributes
+    ----------
+    reason : str
+        What ran out, as the one-line message of the run says it (``"the disk is full (No
+        space left on device)"``, ...).
+    """
+
+    def __init__(self, message, reason=None):
+        super().__init__(message)
+        self.reason = reason or DISK_FULL
 
 
-def is_disk_full(exc, folder=None):
-    """True when ``exc`` is (or wraps) "no space left on device" or "quota exceeded": an
-    ``OSError`` with that errno, a library error quoting it (HDF5, netCDF), or any error while
-    ``folder``'s file system has less than :data:`MIN_FREE_BYTES` left."""
+#: what a full disk is called in messages
+DISK_FULL = "the disk is full (No space left on device)"
+_REASONS = {errno.ENOSPC: DISK_FULL,
+            errno.EDQUOT: "the disk quota is exceeded (Disk quota exceeded)",
+            errno.EFBIG: "a file would pass the largest size allowed (File too large: the file size limit, "
+                         "ulimit -f, or the file system's)"}
+_REASON_TEXT = (("No space left on device", errno.ENOSPC), ("errno = 28", errno.ENOSPC),
+                ("Disk quota exceeded", errno.EDQUOT), ("errno = 122", errno.EDQUOT),
+                ("File too large", errno.EFBIG), ("errno = 27", errno.EFBIG))
+
+
+def space_problem(exc, folder=None):
+    """What ran out when ``exc`` was raised (one of the reasons of :class:`DiskFullError`), or
+    None: an ``OSError`` with ``ENOSPC``, ``EDQUOT`` or ``EFBIG``, a library error quoting one
+    (HDF5, netCDF), a :class:`DiskFullError`, or any error while ``folder``'s file system has
+    less than :data:`MIN_FREE_BYTES` left."""
     seen = set()
     e = exc
     while e is not None and id(e) not in seen:
         seen.add(id(e))
-        if isinstance(e, OSError) and e.errno in _DISK_FULL:
-            return True
+        if isinstance(e, DiskFullError):
+            return e.reason
+        if isinstance(e, OSError) and e.errno in _REASONS:
+            return _REASONS[e.errno]
         text = str(e)
-        if "No space left on device" in text or "errno = 28" in text or "Disk quota exceeded" in text:
-            return True
+        for needle, code in _REASON_TEXT:
+            if needle in text:
+                return _REASONS[code]
         e = e.__cause__ or e.__context__
     if folder is not None:
         free = free_bytes(folder)
-        return free is not None and free < MIN_FREE_BYTES
-    return False
+        if free is not None and free < MIN_FREE_BYTES:
+            return DISK_FULL
+    return None
+
+
+def is_disk_full(exc, folder=None):
+    """True when ``exc`` is (or wraps) running out of room (:func:`space_problem`)."""
+    return space_problem(exc, folder) is not None
 
 
 def free_bytes(folder):
@@ -276,13 +320,39 @@ def free_bytes(folder):
     return s.f_bavail * s.f_frsize
 
 
+def file_size_limit():
+    """The largest file this process may write [bytes] (``RLIMIT_FSIZE``), or None."""
+    import resource
+
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
 def ensure_space(folder, nbytes, what):
-    """Raise :class:`~bayesdrag.errors.OutputError` when ``folder``'s file system has less than
-    ``nbytes`` plus :data:`MIN_FREE_BYTES` free, before a writer starts what it could not finish."""
+    """Raise :class:`DiskFullError` when ``folder``'s file system has less than ``nbytes`` plus
+    :data:`MIN_FREE_BYTES` free, before a writer starts what it could not finish; and when one
+    file of ``nbytes`` would pass the file size limit of the process (:func:`ensure_file_size`)."""
     free = free_bytes(folder)
     if free is not None and free < nbytes + MIN_FREE_BYTES:
         raise DiskFullError(f"{folder}: the disk is full ({free} bytes free, {int(nbytes)} needed) while "
                             f"writing {what}")
+    ensure_file_size(os.path.join(folder, what), nbytes)
+
+
+def ensure_file_size(path, nbytes):
+    """Raise :class:`DiskFullError` when the file ``path`` (its size now, 0 when missing) would
+    grow by ``nbytes`` past the file size limit of this process (``ulimit -f``): the write would
+    fail with ``EFBIG``, which crashed HDF5 (a segfault) instead of failing."""
+    limit = file_size_limit()
+    if limit is None:
+        return
+    try:
+        size = os.path.getsize(path)
+    except OSError:
+        size = 0
+    if size + nbytes > limit:
+        raise DiskFullError(f"{path}: the file would pass the file size limit of {limit} bytes (ulimit -f) with "
+                            f"{int(size + nbytes)} bytes", reason=_REASONS[errno.EFBIG])
 
 
 # ============================================================================ the run
@@ -330,7 +400,10 @@ class OutputRun:
     """
 
     def __init__(self, directory, command, *, inputs=None, options=None, echo=None):
+        if not os.fspath(directory).strip():
+            raise InputError("output folder: the name is empty; give a folder (. for the current one)")
         self.folder = Path(directory)
+        self._real = None
         self.command = str(command)
         self.inputs = describe_inputs(inputs)
         self.options = options
@@ -355,6 +428,21 @@ class OutputRun:
         _safe_rel(name), _safe_rel(as_name)
         self._adopted[str(as_name)] = str(name)
 
+    def subfolder(self, name, what):
+        """``DIR/name`` (``name`` a plain name, ``what`` says what it holds in a message), made
+        here when missing; refused (:class:`~bayesdrag.errors.InputError`, exit 2) when something
+        else is there: a symbolic link, a file, a folder of another user. Valid inside the
+        ``with`` block."""
+        _safe_rel(name)
+        path = self._real / name
+        if not os.path.lexists(path):
+            path.mkdir()
+        why = _not_own_folder(path)
+        if why:
+            raise InputError(f"{self.folder / name}: {what} {why}; bayesdrag makes these folders itself: "
+                             f"remove it")
+        return path
+
     # -------------------------------------------------------------------- enter / exit
     def __enter__(self):
         out = self.folder
@@ -366,13 +454,16 @@ class OutputRun:
         except OSError as exc:
             raise InputError(f"{out}: cannot create the output folder ({exc.strerror or exc}); "
                              f"choose another -o") from None
+        # resolved once: the user's own -o may pass symbolic links; inside DIR none is followed
+        self._real = Path(os.path.realpath(out))
         self._lock()
         try:
             self._recover()
+            self._check_where_outputs_go()
             free = free_bytes(out)
             if free is not None and free < MIN_FREE_BYTES:
                 raise DiskFullError(f"{out}: the disk is full ({free} bytes free); free some space and run again")
-            staging = out / f"{STAGING_PREFIX}{self.run_id}"
+            staging = self._real / f"{STAGING_PREFIX}{self.run_id}"
             try:
                 staging.mkdir()
             except OSError as exc:
@@ -383,6 +474,26 @@ class OutputRun:
             self._unlock()
             raise
         return self
+
+    def _check_where_outputs_go(self):
+        """Refuse, before any work, what a run would write through or move its files into:
+        a symbolic link or other non-file with an output's name, a ``superseded`` that is not a
+        folder of this user, and an input of this run named ``manifest.json`` in ``DIR``."""
+        for e in os.scandir(self._real):
+            named = any(fnmatch(e.name, p) for p in KNOWN_OUTPUTS)    # (the chain file checks itself)
+            if e.name == SUPERSEDED:
+                why = _not_own_folder(Path(e.path))
+                if why:
+                    raise InputError(f"{self.folder / SUPERSEDED}: {why}; bayesdrag makes this folder itself to keep "
+                                     f"earlier outputs: remove or rename it")
+            elif named and (e.is_symlink() or not e.is_file(follow_symlinks=False)):
+                kind = "a symbolic link" if e.is_symlink() else "not a regular file"
+                raise InputError(f"{self.folder / e.name}: {kind} where bayesdrag writes an output (it never writes "
+                                 f"through one); remove it")
+        for role, v in self.inputs.items():
+            if Path(v["path"]).parent == self._real and Path(v["path"]).name == MANIFEST:
+                raise InputError(f"{v['path']}: the {role} is named like the manifest bayesdrag writes into "
+                                 f"{self.folder}; rename it or write to another folder")
 
     def __exit__(self, et, ev, tb):
         try:
@@ -410,17 +521,17 @@ class OutputRun:
         return False
 
     def _raise_if_full(self, exc):
-        """Re-raise a full disk as one :class:`DiskFullError` saying what was kept."""
-        if isinstance(exc, DiskFullError) or (not isinstance(exc, (InputError, OutputError))
-                                              and is_disk_full(exc, self.folder)):
-            raise DiskFullError(self._full_message()) from None
+        """Re-raise running out of room as one :class:`DiskFullError` saying what was kept."""
+        if isinstance(exc, DiskFullError) or not isinstance(exc, (InputError, OutputError)):
+            why = space_problem(exc, self.folder)
+            if why is not None:
+                raise DiskFullError(self._full_message(why), reason=why) from None
 
-    def _full_message(self):
+    def _full_message(self, why=DISK_FULL):
         partial = self.folder / PARTIAL_CHAIN
         keep = (f"; the unfinished chain stays in {partial}: free some space and continue it with --resume"
                 if partial.exists() else ": free some space and run again")
-        return (f"{self.folder}: the disk is full (No space left on device); nothing of this run was kept and "
-                f"the earlier outputs are untouched{keep}")
+        return f"{self.folder}: {why}; nothing of this run was kept and the earlier outputs are untouched{keep}"
 
     # -------------------------------------------------------------------- lock
     def _lock(self):
@@ -428,7 +539,7 @@ class OutputRun:
         where the file system cannot lock a folder (some network file systems), on
         ``DIR/.bayesdrag.lock``."""
         try:
-            fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+            fd = os.open(self._real, os.O_RDONLY | os.O_DIRECTORY)
         except OSError as exc:
             raise InputError(f"{self.folder}: cannot open the output folder ({exc.strerror or exc})") from None
         try:
@@ -448,14 +559,14 @@ class OutputRun:
         """The pid in the newest staging folder's run id (the run holding the lock)."""
         pids = []
         with contextlib.suppress(OSError):
-            for e in os.scandir(self.folder):
+            for e in os.scandir(self._real):
                 m = re.match(rf"^{re.escape(STAGING_PREFIX)}(\d{{8}}T\d{{6}}Z)-(\d+)-", e.name)
                 if m:
                     pids.append((m.group(1), m.group(2)))
         return max(pids)[1] if pids else None
 
     def _lock_file(self):
-        path = self.folder / LOCK_NAME
+        path = self._real / LOCK_NAME
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
         except OSError as exc:
@@ -486,47 +597,106 @@ class OutputRun:
     # -------------------------------------------------------------------- recovery
     def _recover(self):
         """Complete the commit of a run killed during its swap; remove stagings of runs killed
-        before their commit point."""
-        for entry in sorted(os.scandir(self.folder), key=lambda e: e.name):
+        before their commit point.
+
+        Only a plan this user's bayesdrag wrote for this folder is carried out: a staging folder
+        and plan file of this user, signed with the user's key when there is one
+        (:func:`_plan_signature`), and moves of the shapes a commit makes (an earlier file to
+        ``superseded/<run>/``, a staged file into ``DIR``), each between regular files of this
+        user with no symbolic link on the way (:meth:`_execute`). Anything else is refused
+        before a file is moved: one line, exit status 2."""
+        for entry in sorted(os.scandir(self._real), key=lambda e: e.name):
             if not entry.name.startswith(STAGING_PREFIX) or not entry.is_dir(follow_symlinks=False):
                 continue
             plan = Path(entry.path) / PLAN
-            if plan.is_file():
+            owner = entry.stat(follow_symlinks=False).st_uid
+            if owner != os.getuid():
+                if os.path.lexists(plan):
+                    raise InputError(f"{plan}: an interrupted commit in a folder of another user (uid {owner}), "
+                                     f"never carried out; move {entry.name} out of {self.folder}")
+                continue
+            if os.path.lexists(plan):
                 try:
                     doc = read_json(plan, "commit plan")
-                    moves = self._plan_moves(doc)
-                except (InputError, ValueError, TypeError, KeyError) as exc:
-                    raise InputError(f"{plan}: an interrupted commit whose plan cannot be used ({exc}); "
-                                     f"move {entry.name} out of {self.folder}") from None
-                self._execute(moves)
+                    moves = self._plan_moves(doc, entry.name)
+                    self._check_signature(doc, entry)
+                    self._execute(moves)
+                except (InputError, ValueError, TypeError, KeyError, OSError) as exc:
+                    detail = str(exc).split(": ", 1)[-1] if isinstance(exc, InputError) else str(exc)
+                    raise InputError(f"{plan}: an interrupted commit whose plan cannot be used ({detail}); nothing "
+                                     f"was moved by it: move {entry.name} out of {self.folder}") from None
                 self._note(f"completed the interrupted commit of run {doc.get('run')} in {self.folder}")
             shutil.rmtree(entry.path, ignore_errors=True)
 
     @staticmethod
-    def _plan_moves(doc):
+    def _plan_moves(doc, staging):
+        """The moves of a plan, each checked to have a shape a commit makes: ``out`` from a name in
+        ``DIR`` to ``superseded/<run>/<the same name>``; ``in`` from ``<staging>/<name>`` (this
+        plan's staging folder) to the same name in ``DIR``, or from one name in ``DIR`` to
+        another (an adopted file: the finished chain)."""
         if not isinstance(doc, dict) or doc.get("format") != PLAN_FORMAT or not isinstance(doc.get("moves"), list):
             raise ValueError("not a commit plan of this version")
         moves = []
         for m in doc["moves"]:
             if not (isinstance(m, list) and len(m) == 3 and m[2] in ("in", "out")):
                 raise ValueError("malformed move")
-            moves.append((_safe_rel(m[0]), _safe_rel(m[1]), m[2]))
+            src, dst, kind = _safe_rel(m[0]), _safe_rel(m[1]), m[2]
+            if kind == "out":
+                ok = len(src) == 1 and len(dst) == 3 and dst[0] == SUPERSEDED and dst[2] == src[0]
+            else:
+                ok = len(dst) == 1 and ((len(src) == 2 and src[0] == staging and src[1] == dst[0])
+                                        or (len(src) == 1 and src[0] != dst[0]))
+            if not ok or any(p.startswith(STAGING_PREFIX) for p in dst) or (kind == "out" and src[0] == SUPERSEDED):
+                raise ValueError(f"a move a commit never makes: {m[0]!r} -> {m[1]!r}")
+            moves.append((src, dst, kind))
         return moves
+
+    def _check_signature(self, doc, entry):
+        key = user_key()
+        if key is None:
+            return                    # no private folder: the plan's shape and the files are checked
+        want = _plan_signature(key, self._real, entry.name, doc.get("run"), doc["moves"])
+        if not isinstance(doc.get("signature"), str) or not hmac.compare_digest(doc["signature"], want):
+            raise ValueError("not signed by this user's bayesdrag for this folder")
 
     def _execute(self, moves):
         """Do the renames of a plan; replaying a plan after a kill completes it. An ``out`` move
         (an earlier file to ``superseded/``) is done when its source exists and its target does
         not (the source's name is taken by the new file afterwards); an ``in`` move (a new file
-        into ``DIR``) whenever its source, which belongs to this run alone, still exists."""
+        into ``DIR``) whenever its source, which belongs to this run alone, still exists.
+
+        Every folder on the way is a real folder of this user (``superseded/`` and
+        ``superseded/<run>/`` are made here when missing), the source a regular file of this
+        user and the target absent or a regular file: a symbolic link planted anywhere is never
+        followed (refused with :class:`ValueError`)."""
         for src, dst, kind in moves:
-            s, d = self.folder.joinpath(*src), self.folder.joinpath(*dst)
-            if not os.path.lexists(s):
+            s, d = self._real.joinpath(*src), self._real.joinpath(*dst)
+            self._own_folders(src[:-1], create=False)
+            try:
+                st = os.lstat(s)
+            except FileNotFoundError:
                 continue
+            if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid():
+                raise ValueError(f"{'/'.join(src)} is not a regular file of this user")
             if kind == "in":
+                if os.path.lexists(d) and not stat.S_ISREG(os.lstat(d).st_mode):
+                    raise ValueError(f"{'/'.join(dst)} is not a regular file")
                 os.replace(s, d)
             elif not os.path.lexists(d):
-                d.parent.mkdir(parents=True, exist_ok=True)
+                self._own_folders(dst[:-1], create=True)
                 os.rename(s, d)
+
+    def _own_folders(self, parts, create):
+        """Check (and with ``create`` make) the folders ``DIR/parts[0]/parts[1]/...``: each a real
+        folder of this user, not a symbolic link."""
+        path = self._real
+        for p in parts:
+            path = path / p
+            if create and not os.path.lexists(path):
+                path.mkdir()
+            why = _not_own_folder(path)
+            if why:
+                raise ValueError(f"{path.relative_to(self._real).as_posix()}: {why}")
 
     def _note(self, msg):
         if self.echo is not None:
@@ -548,7 +718,7 @@ class OutputRun:
         return names
 
     def _commit(self):
-        out, staging = self.folder, self.staging
+        out, staging = self._real, self.staging
         staged = self._staged_files()
         new = {n: staging / n for n in staged}
         for as_name, name in self._adopted.items():
@@ -584,6 +754,11 @@ class OutputRun:
         # carried into the new one's also_current)
         stray = [n for n in new if os.path.lexists(out / n) and n not in {m[0] for m in moves}
                  and n not in self._adopted.values()]
+        clash = [n for n in stray if _is_input(out / n, inputs)]
+        if clash:
+            raise InputError(f"{self.folder / clash[0]}: an input of this run has the name of an output it writes "
+                             f"into {self.folder}; inputs are never moved: rename the input or write to another "
+                             f"folder")
         if stray:
             rid = self._superseded_id(f"unlisted-{self.run_id}", taken)
             moves += [(n, f"{SUPERSEDED}/{rid}/{n}") for n in stray]
@@ -597,9 +772,12 @@ class OutputRun:
         manifest_tmp = staging / MANIFEST
         manifest_tmp.write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
         moves.append((f"{stage_rel}/{MANIFEST}", MANIFEST, "in"))
+        plan_doc = {"format": PLAN_FORMAT, "run": self.run_id, "moves": [list(m) for m in moves]}
+        key = user_key()
+        if key is not None:
+            plan_doc["signature"] = _plan_signature(key, self._real, staging.name, self.run_id, plan_doc["moves"])
         plan_tmp = staging / f"{PLAN}.part"
-        plan_tmp.write_text(json.dumps({"format": PLAN_FORMAT, "run": self.run_id, "moves": [list(m) for m in moves]}),
-                            encoding="utf-8")
+        plan_tmp.write_text(json.dumps(plan_doc), encoding="utf-8")
         _fsync(plan_tmp)
         os.replace(plan_tmp, staging / PLAN)          # the commit point
         self._execute([(_safe_rel(a), _safe_rel(b), k) for a, b, k in moves])
@@ -610,7 +788,7 @@ class OutputRun:
     def _superseded_id(self, run, taken):
         base = run if isinstance(run, str) and _RUN_RE.match(run) else f"earlier-{self.run_id}"
         rid, k = base, 2
-        while rid in taken or os.path.lexists(self.folder / SUPERSEDED / rid):
+        while rid in taken or os.path.lexists(self._real / SUPERSEDED / rid):
             rid, k = f"{base}-{k}", k + 1
         taken.add(rid)
         return rid
@@ -618,7 +796,7 @@ class OutputRun:
     def _earlier_runs(self):
         """The runs whose files are current in ``DIR`` (from its manifest; a folder without one
         is one earlier run holding every known output name), and the manifest's own run id."""
-        out = self.folder
+        out = self._real
         path = out / MANIFEST
         doc = None
         if path.is_file() and not path.is_symlink():
@@ -649,8 +827,9 @@ def _checked_record(r):
     names = []
     for f in r["files"]:
         n = f.get("name") if isinstance(f, dict) else None
-        if not isinstance(n, str) or not _NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN:
-            return None
+        if (not isinstance(n, str) or not _NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN
+                or not any(fnmatch(n, p) for p in KNOWN_OUTPUTS)):
+            return None           # a manifest names only what bayesdrag writes: never a user's own file
         names.append(n)
     return dict(r, names=names)
 
@@ -668,6 +847,30 @@ def _same_inputs(a, b):
 
 def _is_input(path, inputs):
     return any(os.path.lexists(path) and p.exists() and os.path.samefile(path, p) for p in inputs)
+
+
+def _not_own_folder(path):
+    """Why ``path`` is not a real folder of this user (a phrase), or None."""
+    try:
+        st = os.lstat(path)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    if stat.S_ISLNK(st.st_mode):
+        return "is a symbolic link"
+    if not stat.S_ISDIR(st.st_mode):
+        return "is not a folder"
+    if st.st_uid != os.getuid():
+        return f"belongs to another user (uid {st.st_uid})"
+    return None
+
+
+def _plan_signature(key, folder, staging, run, moves):
+    """HMAC-SHA256 of a commit plan with the user's key, bound to the output folder (its device
+    and inode: a plan copied into another folder does not verify) and to its staging folder."""
+    st = os.stat(folder)
+    body = json.dumps({"folder": [st.st_dev, st.st_ino], "staging": staging, "run": run, "moves": moves},
+                      sort_keys=True)
+    return hmac.new(key, body.encode(), hashlib.sha256).hexdigest()
 
 
 def _fsync(path):
