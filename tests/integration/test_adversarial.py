@@ -205,6 +205,10 @@ def test_fit_campaign_on_a_planted_chain_reports_the_round_and_never_runs_it(cas
     _planted_chain(case / "out" / "a" / "chain.partial.h5", case / "PWNED")
     code, lines = _cli(["fit", "camp.toml", "-o", case / "out", "--quiet", *QUICK[:2]], capsys)
     assert not (case / "PWNED").exists()
+    assert code != 0 and any("an unfinished chain of an earlier run is there; continue it with --resume" in ln
+                             for ln in lines), lines          # not read unless asked
+    code, lines = _cli(["fit", "camp.toml", "-o", case / "out", "--quiet", "--resume", *QUICK[:2]], capsys)
+    assert not (case / "PWNED").exists()
     assert code != 0 and any("never loaded" in ln for ln in lines), lines
 
 
@@ -734,7 +738,8 @@ def test_batch_quiet_prints_no_dask_log_lines_and_never_runs_a_planted_chain(cas
     (case / "out" / "a").mkdir(parents=True)
     _planted_chain(case / "out" / "a" / "chain.partial.h5", case / "PWNED")
     r = subprocess.run([sys.executable, "-m", "bayesdrag", "batch", "camp.toml", "-o", "out", "--workers", "1",
-                        "--quiet", *QUICK[:2]], env=ENV, cwd=case, capture_output=True, text=True, timeout=600)
+                        "--quiet", "--resume", *QUICK[:2]], env=ENV, cwd=case, capture_output=True, text=True,
+                       timeout=600)
     assert not (case / "PWNED").exists()
     assert "INFO" not in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert r.returncode != 0 and "never loaded" in r.stdout + r.stderr
