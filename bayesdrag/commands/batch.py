@@ -28,6 +28,7 @@ Decisions written down:
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import sys
@@ -239,6 +240,22 @@ class _Sequential:
             yield round_task(**kw)
 
 
+@contextlib.contextmanager
+def _environment(**values):
+    """``os.environ`` with ``values`` set inside the block (child processes started there inherit
+    them), as it was after."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 class _Dask:
     """Dask executor: a LocalCluster (default) or a Client to ``scheduler``."""
 
@@ -265,9 +282,13 @@ class _Dask:
                 raise InputError(f"Dask scheduler {self.scheduler}: cannot connect "
                                  f"({' '.join(str(exc).split()) or type(exc).__name__})") from None
         else:
-            cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, env=dict(WORKER_ENV),
-                                   silence_logs=logging.CRITICAL)
+            # the worker processes configure distributed's logging when they import it, before the
+            # cluster's env= applies: their INFO lines ("Connection ... has been closed") are
+            # silenced by the environment they are spawned with
+            with _environment(DASK_LOGGING__DISTRIBUTED="error"):
+                cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, env=dict(WORKER_ENV),
+                                       silence_logs=logging.CRITICAL)
             client = Client(cluster)
         try:
             futures = [client.submit(round_task, **kw, key=f"round-{kw['name']}", pure=False) for kw in calls]
@@ -375,6 +396,8 @@ def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covarian
     doc = None
     if "fit" in jobs:
         doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo, into=run.staging)
+        if doc is not None:
+            failed = doc["failed"]           # with the rounds left out of the pooling
     return {"reports": reports, "failed": failed, "campaign": doc, "seconds": time.perf_counter() - t0}
 
 
@@ -394,9 +417,8 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
         if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
             try:
                 inputs.append(_pooling_doc(p))
-            except InputError as exc:
-                failed.append({"name": r.name, "job": "pool", "message": str(exc)})
-                print(f"bayesdrag: round {r.name} left out of the pooling: {exc}", file=sys.stderr)
+            except InputError as exc:   # reported with the failed rounds (summarise)
+                failed.append({"name": r.name, "job": "pool", "message": f"left out of the pooling: {exc}"})
     if not inputs:
         echo("campaign: no fitted round to pool")
         return None

@@ -50,7 +50,7 @@ from other track or round files, or copied from another folder made from other i
 The chain path must be a regular file (or absent): a symbolic link or a device planted at
 ``chain.partial.h5`` is refused before it is opened, so starting a chain never truncates another
 file. Before each block is appended the free disk space and the file size limit of the process
-(``ulimit -f``) are checked (:func:`bayesdrag.io.outputs.ensure_space`): running out stops the
+(``ulimit -f``) are checked (:func:`bayesdrag.io.space.ensure_space`): running out stops the
 run with one line and the blocks already written intact, instead of an HDF5 write failing
 half-way (which crashed h5py: a segfault for ``EFBIG``).
 """
@@ -67,7 +67,7 @@ import h5py
 import numpy as np
 
 from ..errors import InputError
-from .outputs import DiskFullError, ensure_file_size, ensure_space, space_problem
+from .space import DiskFullError, ensure_file_size, ensure_space, space_problem
 
 #: value of the ``format`` attribute written and accepted
 FORMAT = "bayesdrag-chain/2"

@@ -29,7 +29,14 @@ Decisions written down (and why):
   a run killed during the swap is completed by the next run on the folder
   (under the lock, before it does anything else), and a run killed before its commit point
   leaves only its staging folder, which the next run removes. A failed run never touches the
-  files already in ``DIR``.
+  files already in ``DIR``. The plan is signed and only plans of this user's bayesdrag, of the
+  shapes a commit makes, are carried out again (:mod:`bayesdrag.io.commit`).
+* **No symbolic link is followed inside DIR.** ``DIR`` is resolved once (the user's own ``-o``
+  may pass links above it); before any work, an output's name that is a link or not a regular
+  file, and a ``superseded`` that is not a real folder of the user, are refused (one line, exit
+  2), and every rename checks its folders again. Round folders of a campaign are made by
+  :meth:`OutputRun.subfolder`, which refuses anything else with their name. Someone who can
+  write ``DIR`` cannot make a run write, move or read outside it (docs/security.md).
 * **What is superseded.** Each manifest lists the runs whose files are current: the run that
   wrote it, and earlier runs of *other* commands on the *same inputs* (a ``diagnose`` beside a
   ``fit`` of the same track and round is consistent with it; ``batch`` runs both into one
@@ -42,10 +49,12 @@ Decisions written down (and why):
 * **Modes follow the umask.** Files are created as ``0666 & ~umask`` like any other program's
   (temporary files are not made with ``mkstemp``, whose 0600 hid outputs from Dask workers
   running under another user).
-* **A full disk is one line, exit 1, nothing lost.** An ``ENOSPC``/``EDQUOT`` while writing (or a
-  library error that wraps one) becomes :class:`~bayesdrag.errors.OutputError`; the staging
-  folder is removed and the earlier outputs are untouched. :func:`ensure_space` lets a writer
-  (the chain file) check before it starts a block it could not finish.
+* **A full disk is one line, exit 1, nothing lost.** An ``ENOSPC``, ``EDQUOT`` or ``EFBIG`` while
+  writing (or a library error that wraps one) becomes :class:`~bayesdrag.io.space.DiskFullError`;
+  the staging folder is removed and the earlier outputs are untouched
+  (:mod:`bayesdrag.io.space`, whose checks let a writer stop before a block it could not finish).
+* **Inputs are never moved.** A run whose output has the name of one of its inputs in ``DIR``
+  refuses (exit 2) rather than move the input aside.
 * **Nothing read here is evaluated.** Manifests and plans are JSON, read with a size bound, and
   every name in them is checked to be a plain file name inside ``DIR`` before it is used.
 """
@@ -55,7 +64,6 @@ import contextlib
 import errno
 import fcntl
 import hashlib
-import hmac
 import json
 import os
 import re
@@ -68,6 +76,10 @@ from pathlib import Path
 
 from .._user_cache import user_key
 from ..errors import InputError, OutputError
+from .commit import (NAME_RE, PLAN, PLAN_FORMAT, STAGING_PREFIX, SUPERSEDED, check_signature, execute,
+                     not_own_folder, plan_moves, safe_rel, signature)
+from .space import (DISK_FULL, MIN_FREE_BYTES, DiskFullError, ensure_file_size, ensure_space, file_size_limit,
+                    free_bytes, is_disk_full, space_problem)
 
 __all__ = ["OutputRun", "atomic_write", "write_json", "write_bytes", "write_figure", "ensure_output_dir",
            "read_json", "sha256_file", "describe_inputs", "ensure_space", "is_disk_full", "space_problem",
@@ -77,14 +89,8 @@ __all__ = ["OutputRun", "atomic_write", "write_json", "write_bytes", "write_figu
 #: the manifest of the run whose outputs are in ``DIR``
 MANIFEST = "manifest.json"
 MANIFEST_FORMAT = "bayesdrag-manifest/1"
-#: earlier runs' files, one folder per run
-SUPERSEDED = "superseded"
 #: the lock file (hidden; held with flock)
 LOCK_NAME = ".bayesdrag.lock"
-STAGING_PREFIX = ".staging-"
-#: the commit journal inside a staging folder (hidden: `bayesdrag plan` writes a `plan.json` output)
-PLAN = ".commit.json"
-PLAN_FORMAT = "bayesdrag-commit/1"
 #: what bayesdrag writes into an output folder (glob patterns): superseded in a folder that has
 #: no manifest (written by a version before manifests)
 KNOWN_OUTPUTS = ("manifest.json", "result.json", "posterior.nc", "chain.h5", "report.html", "summary.json",
@@ -97,11 +103,7 @@ KNOWN_OUTPUTS = ("manifest.json", "result.json", "posterior.nc", "chain.h5", "re
 PARTIAL_CHAIN = "chain.partial.h5"
 #: largest manifest or plan read back [bytes]
 MAX_JSON_BYTES = 8 << 20
-#: free space below which a run does not start [bytes]
-MIN_FREE_BYTES = 1 << 20
-_NAME_RE = re.compile(r"^\.?[A-Za-z0-9][A-Za-z0-9._-]{0,200}$")
 _RUN_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,100}$")
-_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 # ============================================================================ small writers
@@ -253,122 +255,9 @@ def describe_inputs(inputs):
     return out
 
 
-# ============================================================================ disk full
-class DiskFullError(OutputError):
-    """No room for what a run writes: the disk is full, the quota exceeded, or a file would pass
-    the largest size allowed (``ulimit -f``, the file system's). One line, exit status 1.
-
-    Attributes
-    ----------
-    reason : str
-        What ran out, as the one-line message of the run says it (``"the disk is full (No
-        space left on device)"``, ...).
-    """
-
-    def __init__(self, message, reason=None):
-        super().__init__(message)
-        self.reason = reason or DISK_FULL
-
-
-#: what a full disk is called in messages
-DISK_FULL = "the disk is full (No space left on device)"
-_REASONS = {errno.ENOSPC: DISK_FULL,
-            errno.EDQUOT: "the disk quota is exceeded (Disk quota exceeded)",
-            errno.EFBIG: "a file would pass the largest size allowed (File too large: the file size limit, "
-                         "ulimit -f, or the file system's)"}
-_REASON_TEXT = (("No space left on device", errno.ENOSPC), ("errno = 28", errno.ENOSPC),
-                ("Disk quota exceeded", errno.EDQUOT), ("errno = 122", errno.EDQUOT),
-                ("File too large", errno.EFBIG), ("errno = 27", errno.EFBIG))
-
-
-def space_problem(exc, folder=None):
-    """What ran out when ``exc`` was raised (one of the reasons of :class:`DiskFullError`), or
-    None: an ``OSError`` with ``ENOSPC``, ``EDQUOT`` or ``EFBIG``, a library error quoting one
-    (HDF5, netCDF), a :class:`DiskFullError`, or any error while ``folder``'s file system has
-    less than :data:`MIN_FREE_BYTES` left."""
-    seen = set()
-    e = exc
-    while e is not None and id(e) not in seen:
-        seen.add(id(e))
-        if isinstance(e, DiskFullError):
-            return e.reason
-        if isinstance(e, OSError) and e.errno in _REASONS:
-            return _REASONS[e.errno]
-        text = str(e)
-        for needle, code in _REASON_TEXT:
-            if needle in text:
-                return _REASONS[code]
-        e = e.__cause__ or e.__context__
-    if folder is not None:
-        free = free_bytes(folder)
-        if free is not None and free < MIN_FREE_BYTES:
-            return DISK_FULL
-    return None
-
-
-def is_disk_full(exc, folder=None):
-    """True when ``exc`` is (or wraps) running out of room (:func:`space_problem`)."""
-    return space_problem(exc, folder) is not None
-
-
-def free_bytes(folder):
-    """Bytes available to this user on ``folder``'s file system (None when unknown)."""
-    try:
-        s = os.statvfs(folder)
-    except OSError:
-        return None
-    return s.f_bavail * s.f_frsize
-
-
-def file_size_limit():
-    """The largest file this process may write [bytes] (``RLIMIT_FSIZE``), or None."""
-    import resource
-
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    return None if soft == resource.RLIM_INFINITY else int(soft)
-
-
-def ensure_space(folder, nbytes, what):
-    """Raise :class:`DiskFullError` when ``folder``'s file system has less than ``nbytes`` plus
-    :data:`MIN_FREE_BYTES` free, before a writer starts what it could not finish; and when one
-    file of ``nbytes`` would pass the file size limit of the process (:func:`ensure_file_size`)."""
-    free = free_bytes(folder)
-    if free is not None and free < nbytes + MIN_FREE_BYTES:
-        raise DiskFullError(f"{folder}: the disk is full ({free} bytes free, {int(nbytes)} needed) while "
-                            f"writing {what}")
-    ensure_file_size(os.path.join(folder, what), nbytes)
-
-
-def ensure_file_size(path, nbytes):
-    """Raise :class:`DiskFullError` when the file ``path`` (its size now, 0 when missing) would
-    grow by ``nbytes`` past the file size limit of this process (``ulimit -f``): the write would
-    fail with ``EFBIG``, which crashed HDF5 (a segfault) instead of failing."""
-    limit = file_size_limit()
-    if limit is None:
-        return
-    try:
-        size = os.path.getsize(path)
-    except OSError:
-        size = 0
-    if size + nbytes > limit:
-        raise DiskFullError(f"{path}: the file would pass the file size limit of {limit} bytes (ulimit -f) with "
-                            f"{int(size + nbytes)} bytes", reason=_REASONS[errno.EFBIG])
-
-
 # ============================================================================ the run
 def _new_run_id():
     return f"{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{os.getpid()}-{secrets.token_hex(2)}"
-
-
-def _safe_rel(rel):
-    """A relative path from a plan or manifest, checked to be plain names (no '..', no '/'
-    at the start): a tuple of its parts."""
-    if not isinstance(rel, str) or not rel or rel.startswith("/"):
-        raise ValueError(f"not a relative path: {rel!r}")
-    parts = tuple(rel.split("/"))
-    if not all(_NAME_RE.match(p) and p not in (".", "..") for p in parts):
-        raise ValueError(f"not a plain relative path: {rel!r}")
-    return parts
 
 
 class OutputRun:
@@ -425,7 +314,7 @@ class OutputRun:
     def adopt(self, name, as_name):
         """At commit, the file ``DIR/name`` (already written there, e.g. the finished chain)
         becomes the output ``DIR/as_name``."""
-        _safe_rel(name), _safe_rel(as_name)
+        safe_rel(name), safe_rel(as_name)
         self._adopted[str(as_name)] = str(name)
 
     def subfolder(self, name, what):
@@ -433,11 +322,11 @@ class OutputRun:
         here when missing; refused (:class:`~bayesdrag.errors.InputError`, exit 2) when something
         else is there: a symbolic link, a file, a folder of another user. Valid inside the
         ``with`` block."""
-        _safe_rel(name)
+        safe_rel(name)
         path = self._real / name
         if not os.path.lexists(path):
             path.mkdir()
-        why = _not_own_folder(path)
+        why = not_own_folder(path)
         if why:
             raise InputError(f"{self.folder / name}: {what} {why}; bayesdrag makes these folders itself: "
                              f"remove it")
@@ -482,7 +371,7 @@ class OutputRun:
         for e in os.scandir(self._real):
             named = any(fnmatch(e.name, p) for p in KNOWN_OUTPUTS)    # (the chain file checks itself)
             if e.name == SUPERSEDED:
-                why = _not_own_folder(Path(e.path))
+                why = not_own_folder(Path(e.path))
                 if why:
                     raise InputError(f"{self.folder / SUPERSEDED}: {why}; bayesdrag makes this folder itself to keep "
                                      f"earlier outputs: remove or rename it")
@@ -597,14 +486,10 @@ class OutputRun:
     # -------------------------------------------------------------------- recovery
     def _recover(self):
         """Complete the commit of a run killed during its swap; remove stagings of runs killed
-        before their commit point.
-
-        Only a plan this user's bayesdrag wrote for this folder is carried out: a staging folder
-        and plan file of this user, signed with the user's key when there is one
-        (:func:`_plan_signature`), and moves of the shapes a commit makes (an earlier file to
-        ``superseded/<run>/``, a staged file into ``DIR``), each between regular files of this
-        user with no symbolic link on the way (:meth:`_execute`). Anything else is refused
-        before a file is moved: one line, exit status 2."""
+        before their commit point. Only a plan this user's bayesdrag wrote for this folder is
+        carried out (:mod:`bayesdrag.io.commit`); anything else is refused before a file is
+        moved: one line, exit status 2. A staging folder of another user is left alone."""
+        key = None
         for entry in sorted(os.scandir(self._real), key=lambda e: e.name):
             if not entry.name.startswith(STAGING_PREFIX) or not entry.is_dir(follow_symlinks=False):
                 continue
@@ -618,85 +503,16 @@ class OutputRun:
             if os.path.lexists(plan):
                 try:
                     doc = read_json(plan, "commit plan")
-                    moves = self._plan_moves(doc, entry.name)
-                    self._check_signature(doc, entry)
-                    self._execute(moves)
+                    moves = plan_moves(doc, entry.name)
+                    key = key or user_key()
+                    check_signature(key, doc, self._real, entry.name)
+                    execute(self._real, moves)
                 except (InputError, ValueError, TypeError, KeyError, OSError) as exc:
                     detail = str(exc).split(": ", 1)[-1] if isinstance(exc, InputError) else str(exc)
                     raise InputError(f"{plan}: an interrupted commit whose plan cannot be used ({detail}); nothing "
                                      f"was moved by it: move {entry.name} out of {self.folder}") from None
                 self._note(f"completed the interrupted commit of run {doc.get('run')} in {self.folder}")
             shutil.rmtree(entry.path, ignore_errors=True)
-
-    @staticmethod
-    def _plan_moves(doc, staging):
-        """The moves of a plan, each checked to have a shape a commit makes: ``out`` from a name in
-        ``DIR`` to ``superseded/<run>/<the same name>``; ``in`` from ``<staging>/<name>`` (this
-        plan's staging folder) to the same name in ``DIR``, or from one name in ``DIR`` to
-        another (an adopted file: the finished chain)."""
-        if not isinstance(doc, dict) or doc.get("format") != PLAN_FORMAT or not isinstance(doc.get("moves"), list):
-            raise ValueError("not a commit plan of this version")
-        moves = []
-        for m in doc["moves"]:
-            if not (isinstance(m, list) and len(m) == 3 and m[2] in ("in", "out")):
-                raise ValueError("malformed move")
-            src, dst, kind = _safe_rel(m[0]), _safe_rel(m[1]), m[2]
-            if kind == "out":
-                ok = len(src) == 1 and len(dst) == 3 and dst[0] == SUPERSEDED and dst[2] == src[0]
-            else:
-                ok = len(dst) == 1 and ((len(src) == 2 and src[0] == staging and src[1] == dst[0])
-                                        or (len(src) == 1 and src[0] != dst[0]))
-            if not ok or any(p.startswith(STAGING_PREFIX) for p in dst) or (kind == "out" and src[0] == SUPERSEDED):
-                raise ValueError(f"a move a commit never makes: {m[0]!r} -> {m[1]!r}")
-            moves.append((src, dst, kind))
-        return moves
-
-    def _check_signature(self, doc, entry):
-        key = user_key()
-        if key is None:
-            return                    # no private folder: the plan's shape and the files are checked
-        want = _plan_signature(key, self._real, entry.name, doc.get("run"), doc["moves"])
-        if not isinstance(doc.get("signature"), str) or not hmac.compare_digest(doc["signature"], want):
-            raise ValueError("not signed by this user's bayesdrag for this folder")
-
-    def _execute(self, moves):
-        """Do the renames of a plan; replaying a plan after a kill completes it. An ``out`` move
-        (an earlier file to ``superseded/``) is done when its source exists and its target does
-        not (the source's name is taken by the new file afterwards); an ``in`` move (a new file
-        into ``DIR``) whenever its source, which belongs to this run alone, still exists.
-
-        Every folder on the way is a real folder of this user (``superseded/`` and
-        ``superseded/<run>/`` are made here when missing), the source a regular file of this
-        user and the target absent or a regular file: a symbolic link planted anywhere is never
-        followed (refused with :class:`ValueError`)."""
-        for src, dst, kind in moves:
-            s, d = self._real.joinpath(*src), self._real.joinpath(*dst)
-            self._own_folders(src[:-1], create=False)
-            try:
-                st = os.lstat(s)
-            except FileNotFoundError:
-                continue
-            if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid():
-                raise ValueError(f"{'/'.join(src)} is not a regular file of this user")
-            if kind == "in":
-                if os.path.lexists(d) and not stat.S_ISREG(os.lstat(d).st_mode):
-                    raise ValueError(f"{'/'.join(dst)} is not a regular file")
-                os.replace(s, d)
-            elif not os.path.lexists(d):
-                self._own_folders(dst[:-1], create=True)
-                os.rename(s, d)
-
-    def _own_folders(self, parts, create):
-        """Check (and with ``create`` make) the folders ``DIR/parts[0]/parts[1]/...``: each a real
-        folder of this user, not a symbolic link."""
-        path = self._real
-        for p in parts:
-            path = path / p
-            if create and not os.path.lexists(path):
-                path.mkdir()
-            why = _not_own_folder(path)
-            if why:
-                raise ValueError(f"{path.relative_to(self._real).as_posix()}: {why}")
 
     def _note(self, msg):
         if self.echo is not None:
@@ -712,7 +528,7 @@ class OutputRun:
         for e in sorted(os.scandir(self.staging), key=lambda e: e.name):
             if e.name.endswith(".part") or e.name == PLAN:
                 continue
-            if not e.is_file(follow_symlinks=False) or not _NAME_RE.match(e.name) or e.name.startswith("."):
+            if not e.is_file(follow_symlinks=False) or not NAME_RE.match(e.name) or e.name.startswith("."):
                 raise OutputError(f"{self.staging}: unexpected entry {e.name!r} in the staging folder")
             names.append(e.name)
         return names
@@ -775,12 +591,12 @@ class OutputRun:
         plan_doc = {"format": PLAN_FORMAT, "run": self.run_id, "moves": [list(m) for m in moves]}
         key = user_key()
         if key is not None:
-            plan_doc["signature"] = _plan_signature(key, self._real, staging.name, self.run_id, plan_doc["moves"])
+            plan_doc["signature"] = signature(key, self._real, staging.name, self.run_id, plan_doc["moves"])
         plan_tmp = staging / f"{PLAN}.part"
         plan_tmp.write_text(json.dumps(plan_doc), encoding="utf-8")
         _fsync(plan_tmp)
         os.replace(plan_tmp, staging / PLAN)          # the commit point
-        self._execute([(_safe_rel(a), _safe_rel(b), k) for a, b, k in moves])
+        execute(self._real, [(safe_rel(a), safe_rel(b), k) for a, b, k in moves])
         shutil.rmtree(staging, ignore_errors=True)
         self.staging = None
         self.manifest = doc
@@ -827,7 +643,7 @@ def _checked_record(r):
     names = []
     for f in r["files"]:
         n = f.get("name") if isinstance(f, dict) else None
-        if (not isinstance(n, str) or not _NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN
+        if (not isinstance(n, str) or not NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN
                 or not any(fnmatch(n, p) for p in KNOWN_OUTPUTS)):
             return None           # a manifest names only what bayesdrag writes: never a user's own file
         names.append(n)
@@ -847,30 +663,6 @@ def _same_inputs(a, b):
 
 def _is_input(path, inputs):
     return any(os.path.lexists(path) and p.exists() and os.path.samefile(path, p) for p in inputs)
-
-
-def _not_own_folder(path):
-    """Why ``path`` is not a real folder of this user (a phrase), or None."""
-    try:
-        st = os.lstat(path)
-    except OSError as exc:
-        return f"cannot be read ({exc.strerror or exc})"
-    if stat.S_ISLNK(st.st_mode):
-        return "is a symbolic link"
-    if not stat.S_ISDIR(st.st_mode):
-        return "is not a folder"
-    if st.st_uid != os.getuid():
-        return f"belongs to another user (uid {st.st_uid})"
-    return None
-
-
-def _plan_signature(key, folder, staging, run, moves):
-    """HMAC-SHA256 of a commit plan with the user's key, bound to the output folder (its device
-    and inode: a plan copied into another folder does not verify) and to its staging folder."""
-    st = os.stat(folder)
-    body = json.dumps({"folder": [st.st_dev, st.st_ino], "staging": staging, "run": run, "moves": moves},
-                      sort_keys=True)
-    return hmac.new(key, body.encode(), hashlib.sha256).hexdigest()
 
 
 def _fsync(path):
