@@ -181,8 +181,8 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
     inputs_root : path, optional
         The campaign's folder: the files the round file names must be inside it (None: any).
 
-    The track is read once without quoting it in a message before the jobs run: it is a file
-    the campaign points to, so an error never repeats its content (it goes into
+    The track is read once without quoting it in a message before the first job that runs: it is
+    a file the campaign points to, so an error never repeats its content (it goes into
     ``campaign.json``).
 
     Returns
@@ -198,11 +198,11 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
         out = _round_folder(outdir)
         if inputs_root is not None:
             check_confined(round_path, Path(inputs_root))
-        read_track(track, quote=False)
     except Exception as exc:  # noqa: BLE001 - reported, the batch goes on
         for job in jobs:
             report["jobs"][job] = {"status": "failed", "seconds": 0.0, "message": f"{type(exc).__name__}: {exc}"}
         return report
+    checked = False
     for job in jobs:
         t0, c0 = time.perf_counter(), time.process_time()
         try:
@@ -210,6 +210,9 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
             if job_done(out, job, fp):
                 report["jobs"][job] = {"status": "skipped", "seconds": 0.0, "message": "done in an earlier run"}
                 continue
+            if not checked:          # once, and only for a job that runs: a skipped round reads nothing
+                read_track(track, quote=False)
+                checked = True
             def marker(msg, fp=fp, t0=t0):
                 return {"fingerprint": fp, "seconds": round(time.perf_counter() - t0, 3), "message": msg}
 
