@@ -82,6 +82,7 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
             raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
                              f"track (it has {', '.join(track.names)})")
     if opts.scheme == 2:
+        opts.check_windows(track.n)       # a bound on the windows, before any is fitted
         return _fit_scheme2(track, rnd, opts, chans, log, t_start)
     return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start)
 
@@ -458,7 +459,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         if not quiet and track.n >= PROGRESS_SAMPLES:   # long work: say what is happening
             _echo_err(f"bayesdrag: fitting {track.n} samples: maximum likelihood"
                       + (", then the posterior (progress below)" if sampling else "") + " ...")
-        chain = ChainFile(partial, inputs=run.inputs_digest) if sampling else None
+        chain = ChainFile(partial, inputs=run.inputs_digest, max_steps=opts.max_steps) if sampling else None
         result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar)
         result.write_into(run, sources={"track": str(track_path), "round": str(round_path)})
         if also is not None:

@@ -289,6 +289,8 @@ def _checked_header(path, what, hline, header, required, allowed, header_check, 
     """The names of the header line, checked (:func:`_header`, then ``header_check``)."""
     try:
         names = _header(path, what, hline, header, required, allowed)
+        if header_check is not None:
+            header_check(path, hline, names)
     except InputError:
         if quote or _plain_names(header):
             raise
@@ -297,8 +299,6 @@ def _checked_header(path, what, hline, header, required, allowed, header_check, 
                          f"header naming {need}"
                          + (f" (allowed: {','.join(allowed)})" if allowed else "")
                          + "; the line is not shown") from None
-    if header_check is not None:
-        header_check(path, hline, names)
     return names
 
 

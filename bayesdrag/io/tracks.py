@@ -138,13 +138,16 @@ def _track_header_check(path, line, names):
                          f"{', '.join(CHANNELS)}; header has {', '.join(names)}")
 
 
-def read_track(path: str | os.PathLike[str]) -> RadarTrack:
+def read_track(path: str | os.PathLike[str], *, quote: bool = True) -> RadarTrack:
     """Read and validate a radar track CSV.
 
     Parameters
     ----------
     path : str or os.PathLike
         CSV with header ``t`` plus at least one of ``x, y, z, v``; SI units (s, m, m/s).
+    quote : bool
+        False for a track another file points to (a campaign's): a message never repeats the
+        file's content (:func:`bayesdrag.io.csv.read_table`).
 
     Returns
     -------
@@ -163,7 +166,7 @@ def read_track(path: str | os.PathLike[str]) -> RadarTrack:
         another unit is consistent here; the fit refuses it from the physics (its path bends as
         if gravity were 32.2 for feet). A ``v`` in ft/s alone (no positions) cannot be detected.
     """
-    path, names, data, line_no = read_table(path, "track", header_check=_track_header_check)
+    path, names, data, line_no = read_table(path, "track", header_check=_track_header_check, quote=quote)
     if data.shape[0] < 2:
         raise InputError(f"{path}: track has {data.shape[0]} data row; at least 2 are needed")
     cols = {n: np.ascontiguousarray(data[:, k]) for k, n in enumerate(names)}
