@@ -11,13 +11,17 @@ time, so it works whatever imported numpy first) and restores it afterwards.
 from __future__ import annotations
 
 import functools
+from typing import Any, Callable, TypeVar
+
+_F = TypeVar("_F", bound=Callable[..., Any])
 
 
-def single_blas(fn):
-    """Decorator: run ``fn`` with BLAS limited to one thread (restored on return)."""
+def single_blas(fn: _F) -> _F:
+    """Decorator: run ``fn`` with BLAS limited to one thread (restored on return). Typed to keep
+    ``fn``'s signature (``bayesdrag.fit`` is decorated)."""
 
     @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             from threadpoolctl import threadpool_limits
         except ImportError:  # pragma: no cover - a declared dependency
@@ -25,4 +29,4 @@ def single_blas(fn):
         with threadpool_limits(limits=1, user_api="blas"):
             return fn(*args, **kwargs)
 
-    return wrapper
+    return wrapper  # type: ignore[return-value]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import sys
 from pathlib import Path
@@ -208,7 +209,10 @@ def build_parser():
     f.add_argument("-o", "--output", required=True, help="output folder")
     _add_fit_options(f)
     f.add_argument("--resume", action="store_true",
-                   help="continue the unfinished chain in OUTPUT/chain.partial.h5 (after a kill)")
+                   help="continue the unfinished chain in OUTPUT/chain.partial.h5 (after a kill; never in a folder "
+                        "others can write)")
+    f.add_argument("--allow-outside-inputs", action="store_true",
+                   help="a campaign: read tracks, round files and tables outside the campaign file's folder")
     _add_quiet(f)
 
     b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
@@ -222,6 +226,11 @@ def build_parser():
     _add_fit_options(b, batch=True)
     b.add_argument("--covariance", choices=("colored", "crb"), default="colored",
                    help="round covariance pooled: colored-residual corrected (default) or plain CRB")
+    b.add_argument("--resume", action="store_true",
+                   help="continue the unfinished chains of rounds killed while sampling (never in a folder others "
+                        "can write); without it such a round fails")
+    b.add_argument("--allow-outside-inputs", action="store_true",
+                   help="read tracks, round files and tables outside the campaign file's folder")
     _add_quiet(b)
 
     g = sub.add_parser("diagnose", help="explain the gap between a track and the nominal simulation of its round")
@@ -318,7 +327,8 @@ def cmd_fit(args):
             raise InputError(f"command line: fit needs TRACK ROUND, or a campaign file ({args.track} is not a "
                              f"TOML file with [campaign] and [[rounds]])")
         res = run_campaign(args.track, args.output, jobs=("fit",), options=opts, executor="sequential",
-                           quiet=args.quiet > 0, echo=_stdout(args), pool_seed=args.seed or 0)
+                           quiet=args.quiet > 0, echo=_stdout(args), pool_seed=args.seed or 0, resume=args.resume,
+                           allow_outside=args.allow_outside_inputs)
         return summarise(res, echo=_batch_stdout(args, res))
     from .commands.fit import run_fit
 
@@ -337,7 +347,8 @@ def cmd_batch(args):
     workers = b.workers or max(1, min(os.cpu_count() or 1, 64))
     res = run_campaign(args.campaign, args.output, jobs=b.jobs, options=b.fit, executor="dask",
                        scheduler=b.scheduler, workers=workers, covariance=b.covariance, quiet=args.quiet > 0,
-                       echo=_stdout(args), pool_seed=args.seed or 0)
+                       echo=_stdout(args), pool_seed=args.seed or 0, resume=args.resume,
+                       allow_outside=args.allow_outside_inputs)
     return summarise(res, echo=_batch_stdout(args, res))
 
 
@@ -377,11 +388,89 @@ COMMANDS = {"simulate": cmd_simulate, "fit": cmd_fit, "batch": cmd_batch, "diagn
             "plan": cmd_plan, "demo": cmd_demo}
 
 
+#: errors of the file system that are the user's to fix (a name, a place): one line, exit 2
+_PATH_ERRNOS = {errno.ENAMETOOLONG: "the name is too long", errno.EROFS: "the file system is read-only",
+                errno.ELOOP: "too many symbolic links", errno.ENOTDIR: "a part of the path is not a folder",
+                errno.EACCES: "permission denied", errno.EPERM: "not permitted"}
+
+
+def _check_environment(args):
+    """What the command line and environment must satisfy before any work (exit 2)."""
+    out = getattr(args, "output", None)
+    if out is not None and not str(out).strip():
+        raise InputError("command line: -o is empty; give a folder or file name (. for the current folder)")
+    if os.environ.get("MPLBACKEND"):
+        try:
+            import matplotlib  # noqa: F401  (it checks MPLBACKEND when imported)
+        except ValueError:
+            raise InputError(f"environment: MPLBACKEND={os.environ['MPLBACKEND']!r} is not a matplotlib backend; "
+                             f"unset it (bayesdrag draws its figures without one) or use e.g. Agg") from None
+
+
+class _TolerantStdout:
+    """stdout for the run's messages: text the terminal cannot encode is escaped, and a stdout
+    that cannot be written (``> /dev/full``) does not turn a finished run into a failure (the
+    files are written; one note on stderr says the messages were lost). A closed pipe still
+    ends the run quietly (exit 141)."""
+
+    def __init__(self, stream):
+        self._stream, self.failed = stream, None
+
+    def write(self, text):
+        if self.failed is None:
+            try:
+                return self._stream.write(text)
+            except UnicodeEncodeError:
+                enc = getattr(self._stream, "encoding", None) or "ascii"
+                return self.write(text.encode(enc, "backslashreplace").decode(enc))
+            except BrokenPipeError:
+                raise
+            except OSError as exc:
+                self.failed = exc
+        return len(text)
+
+    def flush(self):
+        if self.failed is None:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                raise
+            except OSError as exc:
+                self.failed = exc
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _safe_stderr():
+    """Escape what stderr cannot encode (an ASCII-only terminal) instead of failing."""
+    with contextlib.suppress(AttributeError, ValueError, OSError):
+        sys.stderr.reconfigure(errors="backslashreplace")
+
+
 def main(argv=None):
     """Entry point of the ``bayesdrag`` command. Returns the exit status."""
+    _safe_stderr()
+    real_stdout = sys.stdout
+    sys.stdout = out = _TolerantStdout(real_stdout)
+    try:
+        code = _main(argv)
+        out.flush()
+    finally:
+        sys.stdout = real_stdout
+    if out.failed is not None:
+        with contextlib.suppress(OSError):          # nothing more for that stdout, also not at exit
+            os.dup2(os.open(os.devnull, os.O_WRONLY), real_stdout.fileno())
+        print(f"bayesdrag: note: the messages of this run could not be written to stdout "
+              f"({out.failed.strerror or out.failed}); its files are written", file=sys.stderr)
+    return code
+
+
+def _main(argv):
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
+        _check_environment(args)
         return COMMANDS[args.command](args)
     except InputError as exc:
         print(f"bayesdrag: error: {' '.join(str(exc).split())}", file=sys.stderr)
@@ -395,23 +484,35 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("bayesdrag: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:
+    except OSError as exc:
+        if isinstance(exc, BrokenPipeError) or exc.errno not in _PATH_ERRNOS:
+            return _unexpected(exc)
+        name = str(exc.filename if exc.filename is not None else "")
+        shown = name if len(name) <= 80 else f"{name[:40]}...{name[-30:]} ({len(name)} characters)"
+        print(f"bayesdrag: error: {shown}: {_PATH_ERRNOS[exc.errno]} ({exc.strerror}); choose another file or "
+              f"folder", file=sys.stderr)
+        return 2
+    except Exception as exc:  # internal failure: exit 1, traceback only on request
+        return _unexpected(exc)
+
+
+def _unexpected(exc):
+    if isinstance(exc, BrokenPipeError):
         # the reader of stdout went away (``bayesdrag ... | head``): the files are written; stop
         # quietly like other Unix tools, and keep Python from complaining again at exit
         with contextlib.suppress(OSError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
-    except Exception as exc:  # internal failure: exit 1, traceback only on request
-        from ._signals import caused_by_interrupt
+    from ._signals import caused_by_interrupt
 
-        if caused_by_interrupt(exc):  # Ctrl-C inside compiled code (numba wraps it)
-            print("bayesdrag: interrupted", file=sys.stderr)
-            return 130
-        if os.environ.get("BAYESDRAG_DEBUG"):
-            raise
-        print(f"bayesdrag: internal error: {type(exc).__name__}: {exc} "
-              f"(set BAYESDRAG_DEBUG=1 for a traceback)", file=sys.stderr)
-        return 1
+    if caused_by_interrupt(exc):  # Ctrl-C inside compiled code (numba wraps it)
+        print("bayesdrag: interrupted", file=sys.stderr)
+        return 130
+    if os.environ.get("BAYESDRAG_DEBUG"):
+        raise exc
+    print(f"bayesdrag: internal error: {type(exc).__name__}: {exc} "
+          f"(set BAYESDRAG_DEBUG=1 for a traceback)", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

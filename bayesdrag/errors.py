@@ -16,3 +16,9 @@ class FitError(RuntimeError):
 class OutputError(RuntimeError):
     """The output folder could not be written to the end (a full disk, a quota): nothing of
     the run was kept and the earlier outputs are untouched. One line, exit status 1."""
+
+
+class MissingDataError(LookupError):
+    """A result asked for something it does not hold: the posterior of a fit that did not
+    sample, or a figure that needs the fit's objects from a result read back from its folder.
+    The message says what is missing and how to get it."""

@@ -68,14 +68,14 @@ def replicate(k, rng, posterior, walkers=None):
                 systematics=Systematics(density=DENSITY_SD, temperature=TEMPERATURE_SD))
     kw = {"walkers": walkers, "max_steps": 3000} if (posterior and walkers) else {}
     res = fit(track, rnd, mcmc=posterior, seed=int(rng.integers(2**31)), **kw)
-    rows = res.summary["cd"]
+    rows = res.record["cd"]
     mach = np.array([r["mach"] for r in rows])
-    det = res.summary["ml"]["mach_range_determined"] or [mach.min(), mach.max()]
+    det = res.record["ml"]["mach_range_determined"] or [mach.min(), mach.max()]
     qs = np.linspace(0.1, 0.9, N_MACH)
     pick = [int(np.argmin(np.abs(mach - (det[0] + q * (det[1] - det[0]))))) for q in qs]
     out = {"shell": name, "ratio": ratio, "dT": dT, "ml": [], "post": []}
     if posterior:
-        m = res.summary["mcmc"]
+        m = res.record["mcmc"]
         out["mcmc"] = {"converged": bool(m.get("converged")), "steps": m.get("steps"),
                        "seconds": m.get("seconds"), "acceptance": m.get("acceptance"),
                        "message": m.get("message")}
@@ -85,7 +85,7 @@ def replicate(k, rng, posterior, walkers=None):
         out["ml"].append(bool(abs(r["ml"] - truth) <= 1.645 * r["crb_sd"]))
         if posterior:
             out["post"].append(bool(r["q05"] <= truth <= r["q95"]))
-    b = res.summary.get("uncertainty_budget")
+    b = res.record.get("uncertainty_budget")
     if b:
         out["share_density"] = float(np.median(np.array(b["by_source"]["density"]) / np.array(b["total_sd"])))
     return out

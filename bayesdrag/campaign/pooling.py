@@ -130,6 +130,50 @@ def pooling_input(res, drag_model, reference=None, covariance="colored", name=""
             "mach_range": [lo, hi], "covariance": covariance, "drag_model": drag_model.name}
 
 
+#: most Mach nodes a round's pooling input may hold (every 0.02 Mach up to Mach 10 is ~300)
+MAX_NODES = 1000
+
+
+def check_input(doc):
+    """Raise :class:`ValueError` saying why ``doc`` is not a pooling input as :func:`pooling_input`
+    writes it: ``name`` text; ``mach`` the campaign nodes of ``mach_range`` (:func:`mach_nodes`,
+    at most :data:`MAX_NODES`); ``cd`` positive and finite there; ``cov`` a finite symmetric
+    matrix whose relative covariance plus the floor is positive definite (what :func:`pool_rounds`
+    factorises); ``reference`` None or positive; ``covariance`` one of :data:`COVARIANCES`.
+    A round's file is read back from its folder, which someone may have edited: a crafted one
+    must leave the round out of the pooling, not stop the campaign."""
+    if not isinstance(doc, dict):
+        raise ValueError("not a JSON object")
+    try:
+        lo, hi = (float(v) for v in doc["mach_range"])
+        m = np.asarray(doc["mach"], dtype=float)
+        cd = np.asarray(doc["cd"], dtype=float)
+        cov = np.asarray(doc["cov"], dtype=float)
+        ref = None if doc.get("reference") is None else np.asarray(doc["reference"], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"missing or not numbers: {type(exc).__name__} {exc}") from None
+    if not isinstance(doc.get("name"), str) or doc.get("covariance") not in COVARIANCES \
+            or not isinstance(doc.get("drag_model"), str):
+        raise ValueError("name, covariance or drag_model missing or not of this version")
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi <= 10.0):
+        raise ValueError("mach_range is not an interval of Mach numbers in (0, 10]")
+    if m.ndim != 1 or not 1 <= m.size <= MAX_NODES or m.shape != mach_nodes(lo, hi).shape \
+            or not np.allclose(m, mach_nodes(lo, hi), rtol=0.0, atol=1e-6):
+        raise ValueError("mach is not the campaign's nodes of its mach_range")
+    n = m.size
+    if cd.shape != (n,) or not np.all(np.isfinite(cd)) or not np.all(cd > 0.0):
+        raise ValueError("cd is not a positive finite value at every node")
+    if cov.shape != (n, n) or not np.all(np.isfinite(cov)) or not np.allclose(cov, cov.T, rtol=1e-9,
+                                                                             atol=1e-12 * float(np.max(np.abs(cov)))):
+        raise ValueError("cov is not a finite symmetric matrix of the nodes")
+    if ref is not None and (ref.shape != (n,) or not np.all(np.isfinite(ref)) or not np.all(ref > 0.0)):
+        raise ValueError("reference is not a positive finite value at every node")
+    try:
+        np.linalg.cholesky(cov / np.outer(cd, cd) + REL_FLOOR ** 2 * np.eye(n))
+    except np.linalg.LinAlgError:
+        raise ValueError("cov is not a covariance (not positive semi-definite)") from None
+
+
 class _Stage2:
     """Precomputed pieces of the log-space model: per round the node indices, ``y``,
     ``C^-1``, ``log|C|``, ``C^-1 1`` and ``1' C^-1 1``."""

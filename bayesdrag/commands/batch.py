@@ -28,13 +28,17 @@ Decisions written down:
 """
 from __future__ import annotations
 
+import contextlib
 import os
+import stat
 import sys
 import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io.outputs import OutputRun, ensure_output_dir, read_json, sha256_file, write_json
+from ..io.csv import read_toml
+from ..io.outputs import OutputRun, read_json, sha256_file, write_json
+from ..io.tracks import read_track
 from .options import JOBS, FitOptions
 
 __all__ = ["run_campaign", "round_task", "pool_campaign", "summarise", "fingerprint", "job_done"]
@@ -78,12 +82,14 @@ def job_done(outdir, job, fp):
     return isinstance(doc, dict) and doc.get("fingerprint") == fp
 
 
-def run_fit_job(track, round_path, outdir, options, covariance="colored", marker=None):
+def run_fit_job(track, round_path, outdir, options, covariance="colored", marker=None, resume=False):
     """The ``fit`` job of one round: :func:`bayesdrag.commands.fit.run_fit` into ``outdir`` plus
     ``pooling.json`` (:func:`bayesdrag.campaign.pooling.pooling_input`, Scheme 1 only) and the
     done marker (``marker(message)`` gives its content), committed with the fit's outputs. A
-    round killed while sampling left its chain: it is continued (the sampler checks the chain
-    belongs to the same inputs, problem, walkers, moves and seed). Returns a message."""
+    round killed while sampling left its chain: with ``resume`` it is continued (the chain is
+    checked to belong to the same inputs, problem, walkers, moves and seed, and its stored
+    log posterior recomputed at sampled positions), without it the round fails saying so: a
+    chain file is only read when the user asks. Returns a message."""
     from ..campaign.pooling import pooling_input
     from .fit import run_fit
 
@@ -95,9 +101,13 @@ def run_fit_job(track, round_path, outdir, options, covariance="colored", marker
         if marker is not None:
             write_json(Path(folder) / "done.fit.json", marker(result.message))
 
-    resume = (Path(outdir) / "chain.partial.h5").exists()
-    result = run_fit(track, round_path, outdir, options, resume=resume, quiet=True, echo=lambda *a: None,
-                     also=also)
+    partial = Path(outdir) / "chain.partial.h5"
+    if partial.exists() and not resume and options.mcmc and options.scheme == 1:
+        raise InputError(f"{partial}: an unfinished chain of an earlier run is there; continue it with --resume "
+                         f"(after checking no one else could write {Path(outdir).parent}) or delete the file to "
+                         f"start afresh")
+    result = run_fit(track, round_path, outdir, options, resume=resume and partial.exists(), quiet=True,
+                     echo=lambda *a: None, also=also)
     return result.message
 
 
@@ -114,7 +124,45 @@ def run_diagnose_job(track, round_path, outdir, marker=None):
     return f"verdict {d.verdict or 'none'}"
 
 
-def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, covariance="colored"):
+def _referenced_files(round_path):
+    """The files a round file names (``[projectile] reference_drag``, ``[atmosphere] profile``),
+    resolved as :func:`bayesdrag.io.rounds.read_round` resolves them, from its TOML alone: nothing
+    they hold is read."""
+    doc = read_toml(round_path, "round file", "a round file holds [projectile], [launch], ...")
+    out = {}
+    for section, key in (("projectile", "reference_drag"), ("atmosphere", "profile")):
+        table = doc.get(section)
+        value = table.get(key) if isinstance(table, dict) else None
+        if isinstance(value, str) and value.strip():
+            out[f"[{section}] {key}"] = Path(os.path.normpath(Path(round_path).parent / value))
+    return out
+
+
+def check_confined(round_path, root):
+    """Refuse (:class:`~bayesdrag.errors.InputError`) a file the round file names that is outside
+    the campaign's folder ``root`` (resolved, links followed), before anything in it is read."""
+    for key, p in _referenced_files(round_path).items():
+        if not Path(os.path.realpath(p)).is_relative_to(root):
+            raise InputError(f"{round_path}: {key} names a file outside the campaign's folder {root}; a campaign "
+                             f"reads only files in its own folder: move the file there, or pass "
+                             f"--allow-outside-inputs")
+
+
+def _round_folder(outdir):
+    """``outdir`` made when missing; refused when something else is there (a link planted while
+    the batch ran: round folders are made by bayesdrag only)."""
+    p = Path(outdir)
+    if not os.path.lexists(p):
+        p.mkdir()
+    st = os.lstat(p)
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
+        kind = "a symbolic link" if stat.S_ISLNK(st.st_mode) else "not a folder of this user"
+        raise InputError(f"{p}: the round's folder is {kind}; bayesdrag makes round folders itself: remove it")
+    return p
+
+
+def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, covariance="colored", resume=False,
+               inputs_root=None):
     """Run the jobs of one round; never raises (a failure is returned).
 
     Parameters
@@ -128,6 +176,14 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
     options : FitOptions
     covariance : {"colored", "crb"}
         Stage-1 covariance kept for pooling.
+    resume : bool
+        Continue an unfinished chain in ``outdir`` (else its round fails, saying so).
+    inputs_root : path, optional
+        The campaign's folder: the files the round file names must be inside it (None: any).
+
+    The track is read once without quoting it in a message before the first job that runs: it is
+    a file the campaign points to, so an error never repeats its content (it goes into
+    ``campaign.json``).
 
     Returns
     -------
@@ -139,11 +195,14 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
     options = options if options is not None else FitOptions()
     report = {"name": name, "jobs": {}, "pid": os.getpid()}
     try:
-        out = ensure_output_dir(outdir)
+        out = _round_folder(outdir)
+        if inputs_root is not None:
+            check_confined(round_path, Path(inputs_root))
     except Exception as exc:  # noqa: BLE001 - reported, the batch goes on
         for job in jobs:
             report["jobs"][job] = {"status": "failed", "seconds": 0.0, "message": f"{type(exc).__name__}: {exc}"}
         return report
+    checked = False
     for job in jobs:
         t0, c0 = time.perf_counter(), time.process_time()
         try:
@@ -151,11 +210,14 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
             if job_done(out, job, fp):
                 report["jobs"][job] = {"status": "skipped", "seconds": 0.0, "message": "done in an earlier run"}
                 continue
+            if not checked:          # once, and only for a job that runs: a skipped round reads nothing
+                read_track(track, quote=False)
+                checked = True
             def marker(msg, fp=fp, t0=t0):
                 return {"fingerprint": fp, "seconds": round(time.perf_counter() - t0, 3), "message": msg}
 
             if job == "fit":
-                msg = run_fit_job(track, round_path, out, options, covariance, marker)
+                msg = run_fit_job(track, round_path, out, options, covariance, marker, resume)
             elif job == "diagnose":
                 msg = run_diagnose_job(track, round_path, out, marker)
             else:
@@ -181,6 +243,22 @@ class _Sequential:
             yield round_task(**kw)
 
 
+@contextlib.contextmanager
+def _environment(**values):
+    """``os.environ`` with ``values`` set inside the block (child processes started there inherit
+    them), as it was after."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 class _Dask:
     """Dask executor: a LocalCluster (default) or a Client to ``scheduler``."""
 
@@ -192,20 +270,28 @@ class _Dask:
 
         from distributed import Client, LocalCluster, as_completed
 
+        from .._numba_setup import ensure
+
         cluster = None
         # distributed logs every closed connection at INFO, also while the cluster shuts down
         # after we return; keep stderr for the progress bar and our one-line reports
         for name in ("distributed", "distributed.core", "distributed.worker", "distributed.nanny"):
             logging.getLogger(name).setLevel(logging.ERROR)
+        ensure()       # numba's settings in the environment the local workers inherit
         if self.scheduler:
             try:
                 client = Client(self.scheduler, timeout="20s")
-            except (OSError, TimeoutError) as exc:
-                raise InputError(f"Dask scheduler {self.scheduler}: cannot connect ({exc})") from None
+            except (OSError, TimeoutError, ValueError, TypeError) as exc:
+                raise InputError(f"Dask scheduler {self.scheduler}: cannot connect "
+                                 f"({' '.join(str(exc).split()) or type(exc).__name__})") from None
         else:
-            cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, env=dict(WORKER_ENV),
-                                   silence_logs=logging.CRITICAL)
+            # the worker processes configure distributed's logging when they import it, before the
+            # cluster's env= applies: their INFO lines ("Connection ... has been closed") are
+            # silenced by the environment they are spawned with
+            with _environment(DASK_LOGGING__DISTRIBUTED="error"):
+                cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, env=dict(WORKER_ENV),
+                                       silence_logs=logging.CRITICAL)
             client = Client(cluster)
         try:
             futures = [client.submit(round_task, **kw, key=f"round-{kw['name']}", pure=False) for kw in calls]
@@ -225,7 +311,8 @@ class _Dask:
 
 
 def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="dask", scheduler=None,
-                 workers=2, covariance="colored", quiet=False, echo=print, pool_seed=0):
+                 workers=2, covariance="colored", quiet=False, echo=print, pool_seed=0, resume=False,
+                 allow_outside=False):
     """Run every round of a campaign, then pool the fitted rounds.
 
     Parameters
@@ -249,6 +336,12 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
         Status lines (stdout).
     pool_seed : int
         Seed of the pooling sampler (reproducible campaign outputs).
+    resume : bool
+        Continue the unfinished chains of rounds killed while sampling (``--resume``); without
+        it a round with one fails, saying so.
+    allow_outside : bool
+        Read tracks, round files and the tables they name outside the campaign file's folder
+        (``--allow-outside-inputs``); by default they must be inside it.
 
     Returns
     -------
@@ -261,18 +354,25 @@ def run_campaign(campaign_path, output, jobs=("fit",), options=None, executor="d
     bad = [j for j in jobs if j not in JOBS]
     if bad or not jobs:
         raise InputError(f"jobs {','.join(jobs)!r} are not allowed; use a non-empty subset of {', '.join(JOBS)}")
-    camp = read_campaign(campaign_path)
+    camp = read_campaign(campaign_path, allow_outside=allow_outside)
     files = {"campaign": campaign_path}
     for r in camp.rounds:
         files.update({f"{r.name}/track": r.track, f"{r.name}/round": r.round})
+    root = None if allow_outside else camp.path.parent
+    if root is not None:
+        for r in camp.rounds:
+            check_confined(r.round, root)
     with OutputRun(output, "campaign", inputs=files, options=(options or FitOptions()).to_dict(),
                    echo=lambda m: print(m, file=sys.stderr)) as run:
+        for r in camp.rounds:
+            run.subfolder(r.name, f"the folder of round {r.name}")
         res = _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covariance, quiet, echo,
-                          pool_seed)
+                          pool_seed, resume, root)
     return res
 
 
-def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covariance, quiet, echo, pool_seed):
+def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covariance, quiet, echo, pool_seed,
+                resume=False, root=None):
     """The rounds of a campaign into ``run.folder/<name>/`` and the pooled campaign into the
     run's staging folder."""
     from tqdm import tqdm
@@ -280,7 +380,8 @@ def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covarian
     out = run.folder
     options = options if options is not None else FitOptions()
     calls = [dict(name=r.name, track=str(r.track), round_path=str(r.round), outdir=str(out / r.name),
-                  jobs=tuple(jobs), options=options, covariance=covariance) for r in camp.rounds]
+                  jobs=tuple(jobs), options=options, covariance=covariance, resume=resume,
+                  inputs_root=None if root is None else str(root)) for r in camp.rounds]
     ex = _Sequential() if executor == "sequential" else _Dask(scheduler, workers)
     t0 = time.perf_counter()
     reports = []
@@ -298,6 +399,8 @@ def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covarian
     doc = None
     if "fit" in jobs:
         doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo, into=run.staging)
+        if doc is not None:
+            failed = doc["failed"]           # with the rounds left out of the pooling
     return {"reports": reports, "failed": failed, "campaign": doc, "seconds": time.perf_counter() - t0}
 
 
@@ -317,9 +420,8 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
         if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
             try:
                 inputs.append(_pooling_doc(p))
-            except InputError as exc:
-                failed.append({"name": r.name, "job": "pool", "message": str(exc)})
-                print(f"bayesdrag: round {r.name} left out of the pooling: {exc}", file=sys.stderr)
+            except InputError as exc:   # reported with the failed rounds (summarise)
+                failed.append({"name": r.name, "job": "pool", "message": f"left out of the pooling: {exc}"})
     if not inputs:
         echo("campaign: no fitted round to pool")
         return None
@@ -335,22 +437,15 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
 
 
 def _pooling_doc(path):
-    """A round's ``pooling.json`` (bounded JSON, never evaluated), its arrays checked: ``mach``,
-    ``cd`` (n finite numbers), ``cov`` (n x n), ``mach_range``."""
-    import numpy as np
+    """A round's ``pooling.json`` (bounded JSON, never evaluated), checked by
+    :func:`bayesdrag.campaign.pooling.check_input`."""
+    from ..campaign.pooling import check_input
 
     doc = read_json(path, "pooling input", max_bytes=16 << 20)
     try:
-        m = np.asarray(doc["mach"], float)
-        cd = np.asarray(doc["cd"], float)
-        cov = np.asarray(doc["cov"], float)
-        lo, hi = (float(v) for v in doc["mach_range"])
-        ok = (m.ndim == 1 and m.size >= 1 and cd.shape == m.shape and cov.shape == (m.size, m.size)
-              and np.all(np.isfinite(m)) and np.all(np.isfinite(cd)) and np.all(np.isfinite(cov)) and lo <= hi)
-    except (KeyError, TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InputError(f"{path}: not a pooling input of this version (mach, cd, cov, mach_range); refit the round")
+        check_input(doc)
+    except ValueError as exc:
+        raise InputError(f"{path}: not a pooling input of this version ({exc}); refit the round") from None
     return doc
 
 

@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..diagnosis import MIN_DIAGNOSIS_SAMPLES
 from ..diagnosis import diagnose as _analyse
+from ..diagnosis.summary import summary_paragraph
 from ..errors import InputError
 from ..results import DiagnosisResult
-from ..track import thin_for_fit
+from ..round import Round
+from ..track import RadarTrack, thin_for_fit
 from .options import DiagnoseOptions
 
 __all__ = ["diagnose", "run_diagnose"]
 
 
-def diagnose(track, rnd, options=None, **kwargs):
+def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = None, **kwargs: Any) -> DiagnosisResult:
     """Diagnose the gap between a track and the nominal simulation of its round: where the
     simulation misses, which unmodelled effect explains it, how large it is and whether it
     matters (material).
@@ -31,7 +34,8 @@ def diagnose(track, rnd, options=None, **kwargs):
     Returns
     -------
     DiagnosisResult
-        ``verdict``, ``paragraph``, ``to_dict()`` (``diagnosis.json``), ``write(DIR)``.
+        ``verdict``, ``paragraph``, ``summary()``, ``to_dataframe()`` (the candidate effects),
+        ``to_dict()`` (``diagnosis.json``), ``write(DIR)``.
     """
     opts = options if options is not None else DiagnoseOptions()
     track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
@@ -45,7 +49,8 @@ def diagnose(track, rnd, options=None, **kwargs):
     check_heights(track, rnd)
     d = _analyse(track, rnd, channels=opts.channels, alpha=opts.alpha, material_cd_shift=opts.material_cd_shift,
                  material_end_sd=opts.material_end_sd)
-    return DiagnosisResult(d, track, rnd)
+    record = dict(d.summary, summary=summary_paragraph(d.summary))     # what diagnosis.json holds
+    return DiagnosisResult(record, d, track, rnd)
 
 
 def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
@@ -19,7 +20,8 @@ from ..estimate.quality import assess, check_against_flexible, intervals
 from ..estimate.scheme1 import cd_grid, cd_table, determined_range, fit_scheme1, model_error_floor
 from ..estimate.scheme2 import fit_scheme2, windows_table
 from ..results import PARTIAL, FitResult
-from ..track import thin_for_fit
+from ..round import Round
+from ..track import RadarTrack, thin_for_fit
 from .options import FitOptions
 
 __all__ = ["fit", "run_fit", "summary_line"]
@@ -34,8 +36,9 @@ def _echo_err(msg):
 
 
 @single_blas
-def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, progress=False, ml_progress=None,
-        **kwargs):
+def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, chain_path: Any = None,
+        resume: bool = False, log: Callable[[str], None] | None = None, progress: bool = False,
+        ml_progress: Callable[[str], None] | None = None, **kwargs: Any) -> FitResult:
     """Estimate Cd(M) from a track.
 
     Parameters
@@ -83,6 +86,7 @@ def fit(track, rnd, options=None, *, chain_path=None, resume=False, log=None, pr
             raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
                              f"track (it has {', '.join(track.names)})")
     if opts.scheme == 2:
+        opts.check_windows(track.n)       # a bound on the windows, before any is fitted
         return _fit_scheme2(track, rnd, opts, chans, log, t_start)
     return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress)
 
@@ -408,7 +412,7 @@ def _why_not_clean(quality):
 
 def summary_line(result):
     """The one-line outcome the command prints (converged, determined range, caveat)."""
-    s = result.summary
+    s = result.record
     if s["scheme"] == 2:
         m = s["ml"]
         lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]
@@ -485,7 +489,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         if talk and track.n >= PROGRESS_SAMPLES:   # long work: say what is happening
             _echo_err(f"bayesdrag: fitting {track.n} samples: maximum likelihood"
                       + (", then the posterior (progress below)" if sampling else "") + " ...")
-        chain = ChainFile(partial, inputs=run.inputs_digest) if sampling else None
+        chain = ChainFile(partial, inputs=run.inputs_digest, max_steps=opts.max_steps) if sampling else None
         ml_progress = StageProgress(_echo_err) if talk else None
         result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar,
                      ml_progress=ml_progress)
@@ -496,7 +500,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         for w in result.warnings:
             _echo_err(f"bayesdrag: warning: {w}")
     if talk:
-        for note in ((result.summary.get("ml") or {}).get("quality") or {}).get("notes") or ():
+        for note in ((result.record.get("ml") or {}).get("quality") or {}).get("notes") or ():
             _echo_err(f"bayesdrag: note: {note}")
     echo(summary_line(result))
     if result.posterior is not None:

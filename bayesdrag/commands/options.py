@@ -8,6 +8,7 @@ nothing else holds a default. Construction checks each value and raises
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass, fields
 
 from ..drag import DRAG_MODEL_NAMES
@@ -36,6 +37,19 @@ NU_RANGE = (1.0, 100.0)
 #: and a shorter chain has no autocorrelation time, r_hat or ESS to report (``--max-steps 1``
 #: used to finish with "tau max nan")
 MIN_MAX_STEPS = 100
+#: caps checked before anything is allocated: a typing slip (``--walkers 1000000``) must not take
+#: the machine's memory or hours. 1024 walkers x 10 000 samples already hold ~0.5 GB of
+#: trajectories per step; a million steps is 50x the default limit
+MAX_WALKERS = 1024
+MAX_MAX_STEPS = 1_000_000
+#: most Dask worker processes of a local cluster (each holds a Python process and the kernel)
+MAX_WORKERS = 64
+#: most Scheme 2 windows one fit runs (one after the other, each its own fit and chain): the
+#: default window of 50 samples gives 200 on the densest track a fit uses (10 000 samples)
+MAX_WINDOWS = 200
+#: a Dask scheduler address: ``tcp://host:port`` (or tls, ucx, ws, wss, inproc) or ``host:port``
+_SCHEDULER_RE = re.compile(r"^(?:(?:tcp|tls|ucx|ws|wss|inproc)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)"
+                           r"(?::[0-9]{1,5})?/?$")
 
 
 def _bad(name, value, allowed):
@@ -171,13 +185,32 @@ class FitOptions:
         _int("overlap", self.overlap, 0)
         if self.walkers is not None:
             _int("walkers", self.walkers, 1)
+            if self.walkers > MAX_WALKERS:
+                _bad("walkers (--walkers)", self.walkers, f"use at most {MAX_WALKERS} (16 is the default; more "
+                     f"walkers do not buy effective samples per second here)")
         if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < MIN_MAX_STEPS:
             _bad("max_steps (--max-steps)", self.max_steps,
                  f"use an integer >= {MIN_MAX_STEPS} (the sampler's first convergence check)")
+        if self.max_steps > MAX_MAX_STEPS:
+            _bad("max_steps (--max-steps)", self.max_steps, f"use at most {MAX_MAX_STEPS} (the run stops earlier "
+                 f"at convergence; the default is 20000)")
         if self.moves not in MOVES:
             _bad("moves", self.moves, f"use one of {', '.join(MOVES)}")
         if self.seed is not None:
             _int("seed", self.seed, 0)
+
+    def check_windows(self, n_samples):
+        """Refuse (:class:`~bayesdrag.errors.InputError`) a Scheme 2 fit of a track of
+        ``n_samples`` samples that would make more than :data:`MAX_WINDOWS` windows, before any
+        is fitted."""
+        from ..estimate.scheme2 import window_slices
+
+        n = len(window_slices(int(n_samples), self.window, self.overlap))
+        if n > MAX_WINDOWS:
+            _bad("window (--window)", self.window,
+                 f"with overlap {self.overlap} it makes {n} Scheme 2 windows of this {n_samples}-sample track, and "
+                 f"one run fits at most {MAX_WINDOWS} (one after the other): use a window of at least "
+                 f"{-(-int(n_samples) // MAX_WINDOWS) + self.overlap} samples or a smaller overlap")
 
     @property
     def ml_nu(self):
@@ -301,6 +334,13 @@ class BatchOptions:
         object.__setattr__(self, "jobs", jobs)
         if self.workers is not None:
             _int("workers", self.workers, 1)
+            if self.workers > MAX_WORKERS:
+                _bad("workers (--workers)", self.workers, f"use at most {MAX_WORKERS} local worker processes (the "
+                     f"default is one per CPU); for more, start a Dask cluster and give --scheduler")
+        if self.scheduler is not None and (not isinstance(self.scheduler, str)
+                                           or not _SCHEDULER_RE.match(self.scheduler)):
+            _bad("scheduler (--scheduler)", self.scheduler, "give a Dask scheduler address such as "
+                 "tcp://host:8786 or host:8786")
         if self.covariance not in ("colored", "crb"):
             _bad("covariance", self.covariance, "use colored or crb")
 

@@ -3,72 +3,23 @@
 :mod:`bayesdrag.estimate.plan` and :mod:`bayesdrag.estimate.plan_summary`."""
 from __future__ import annotations
 
-import json
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+from ..drag import ReferenceTable
 from ..errors import InputError
 from ..estimate.plan_summary import make_plan
-from ..report.plan import write_plan
+from ..results import PlanResult
+from ..round import Round
 from .options import PLAN_MAX_CASES, PlanOptions
 
-__all__ = ["plan", "run_plan", "PlanResult"]
+__all__ = ["plan", "run_plan"]
 
 
-@dataclass(frozen=True, eq=False)
-class PlanResult:
-    """What a plan predicts (:func:`bayesdrag.plan`).
-
-    Attributes
-    ----------
-    plan : Plan
-        The cases (:class:`~bayesdrag.estimate.plan.CasePlan`: Mach, assumed Cd, statistical
-        and systematic shares) and the target's answer.
-    round : Round
-    options : PlanOptions
-    seconds : float
-        Wall time [s].
-    """
-
-    plan: object
-    round: object
-    options: object
-    seconds: float = 0.0
-
-    @property
-    def success(self):
-        """True: a plan that could not be made raises instead."""
-        return True
-
-    @property
-    def message(self):
-        return f"{len(self.plan.cases)} case(s) planned"
-
-    @property
-    def cases(self):
-        """The :class:`~bayesdrag.estimate.plan.CasePlan` of every case (elevation x velocity)."""
-        return self.plan.cases
-
-    @property
-    def paragraph(self):
-        """The plan in one paragraph; with a target, the recommendation."""
-        return self.plan.paragraph
-
-    def to_dict(self):
-        """The content of ``plan.json``: plain JSON types, a fresh copy."""
-        return json.loads(json.dumps(self.plan.to_dict(), allow_nan=False))
-
-    def write(self, directory, *, sources=None):
-        """Write ``plan.json``, ``plan.html`` and the figures into ``directory`` (created if
-        needed). Returns the list of files written."""
-        sources = sources or {}
-        return write_plan(Path(directory), self.plan, round_name=str(sources.get("round", self.round.path)),
-                          seconds=self.seconds)
-
-
-def plan(rnd, options=None, *, assumed_drag=None, **kwargs):
+def plan(rnd: Round, options: PlanOptions | None = None, *, assumed_drag: ReferenceTable | None = None,
+         **kwargs: Any) -> PlanResult:
     """Predict, before firing, the Cd sd by Mach each planned case will give.
 
     Parameters
@@ -86,7 +37,8 @@ def plan(rnd, options=None, *, assumed_drag=None, **kwargs):
     Returns
     -------
     PlanResult
-        ``to_dict()`` is ``plan.json``; ``write(DIR)`` writes the folder the command writes.
+        ``to_dict()`` is ``plan.json``, ``to_dataframe()`` the cases, ``summary()`` a printable
+        table; ``write(DIR)`` writes the folder the command writes.
 
     Raises
     ------
@@ -112,7 +64,7 @@ def plan(rnd, options=None, *, assumed_drag=None, **kwargs):
                          f"{len(elevations) * len(velocities)} cases; plan at most {PLAN_MAX_CASES} at once")
     p = make_plan(rnd, elevations, velocities, dt=opts.dt, rounds=opts.rounds, scatter=opts.scatter,
                   target=opts.target, lock_on=opts.lock_on, loss=opts.loss, assumed_drag=assumed_drag, seed=opts.seed)
-    return PlanResult(p, rnd, opts, time.perf_counter() - t0)
+    return PlanResult(p.to_dict(), p, rnd, opts, time.perf_counter() - t0)
 
 
 def run_plan(round_path, out, options=None, *, assumed_drag_path=None, echo=print):

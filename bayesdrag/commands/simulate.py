@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import InputError
 from ..io.outputs import atomic_write
+from ..round import Round
 from ..synthetic import add_noise, simulate_round
+from ..track import RadarTrack
 from .options import SimulateOptions
 
 __all__ = ["simulate", "run_simulate"]
 
 
-def simulate(rnd, options=None, **kwargs):
+def simulate(rnd: Round, options: SimulateOptions | None = None, **kwargs: Any) -> RadarTrack:
     """A synthetic radar track of a round from launch to impact.
 
     Parameters

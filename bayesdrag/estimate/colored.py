@@ -158,6 +158,41 @@ def standardize(a, rho, q, dt_ratio):
     return u.reshape(a.shape), float(logdet)
 
 
+def innovation_variances(rho, q, dt_ratio):
+    """Variances of the Kalman innovations in units of the white noise variance, ``F_i``.
+
+    The filter's variances do not depend on the data: ``u_i = nu_i / sqrt(F_i)`` of
+    :func:`standardize` and these ``F_i`` give each sample's Gaussian log density,
+    ``-1/2 (log(2 pi sigma^2 F_i) + u_i^2 / sigma^2)``, whose sum is the channel's exact
+    log-likelihood (the pointwise terms of :mod:`bayesdrag.estimate.loglik`).
+
+    Parameters
+    ----------
+    rho, q : float or (W,) array_like
+        Model-error AR coefficient per median sample interval and variance ratio.
+    dt_ratio : (N - 1,) array_like
+        Sample intervals over their median.
+
+    Returns
+    -------
+    (N,) or (W, N) ndarray
+        ``F_i >= 1`` [-].
+    """
+    rho = np.asarray(rho, float)
+    q = np.asarray(q, float)
+    shape = np.broadcast(rho, q).shape
+    phi = step_coefficients(rho, dt_ratio)
+    n = np.asarray(dt_ratio).size + 1
+    F = np.empty(shape + (n,))
+    P = np.array(np.broadcast_to(q, shape), float)
+    for i in range(n):
+        F[..., i] = P + 1.0
+        if i < n - 1:
+            f = phi[..., i]
+            P = f * f * (P / F[..., i]) + q * (1.0 - f * f)
+    return F
+
+
 @njit(cache=True)
 def _whitened_ss_shared(rT, rho, q, dt_ratio):
     """:func:`_whitened_ss` for walkers that share ``rho`` and ``q`` (floats), residuals ``rT``

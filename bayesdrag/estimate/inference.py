@@ -11,9 +11,16 @@ import warnings
 
 import arviz as az
 import numpy as np
+import xarray as xr
+
+from .loglik import draws_log_likelihood, thinned_draws
+
+#: the ``log_likelihood`` group's one variable (every sample of every channel of the track)
+LOG_LIKELIHOOD_VAR = "track"
 
 
-def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain=5, rng=None, seed=None):
+def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain=5, rng=None, seed=None,
+                      log_likelihood_draws=0):
     """ArviZ InferenceData of a Bayesian fit.
 
     Parameters
@@ -34,6 +41,11 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
         Consumed for the posterior-predictive noise.
     seed : int, keyword-only
         Alternative to ``rng`` (``numpy.random.default_rng(seed)``).
+    log_likelihood_draws : int or None, keyword-only
+        Draws (over all chains, evenly thinned in each) of the ``log_likelihood`` group, computed
+        on request: 0 (the default) for no group, None for every draw (draws x observations x 4
+        bytes: ~200 MB on the demo track); a fit's result asks for
+        :data:`bayesdrag.results.LOG_LIKELIHOOD_DRAWS`.
 
     Returns
     -------
@@ -44,7 +56,8 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
         (``lp``), ``observed_data`` (the track's channels against ``time`` [s]),
         ``constant_data`` (time, Mach grid, ML estimate and Cramér-Rao sd, fixed parameters,
         reference Cd), ``posterior_predictive`` (``cd`` on the Mach grid and the track channels
-        with noise [m, m/s]; its ``draw`` coordinate holds the posterior draw indices).
+        with noise [m, m/s]; its ``draw`` coordinate holds the posterior draw indices),
+        ``log_likelihood`` (:func:`log_likelihood_group`).
     """
     if rng is not None and seed is not None:
         raise TypeError("to_inference_data: give rng or seed, not both")
@@ -84,7 +97,60 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
     # the posterior predictive draws are a subset of the posterior draws: their draw
     # coordinate holds the posterior draw indices they belong to
     idata.add_groups({"posterior_predictive": idata_pp.posterior_predictive.assign_coords(draw=pick)})
+    if log_likelihood_draws is None or log_likelihood_draws > 0:
+        idata.add_groups({"log_likelihood": log_likelihood_group(result, post, log_likelihood_draws)})
     return idata
+
+
+def log_likelihood_group(result, post, total):
+    """The ``log_likelihood`` group: one variable :data:`LOG_LIKELIHOOD_VAR` over ``(chain,
+    draw, observation)`` (one variable, so that ``arviz.loo`` and ``arviz.compare`` use it
+    without being told which), float32.
+
+    Parameters
+    ----------
+    result : BayesResult
+    post : LogPosterior
+    total : int or None
+        Draws over all chains (evenly thinned in each, :func:`~.loglik.thinned_draws`); None for
+        every draw.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``draw`` holds the posterior draw indices kept; ``observation`` runs channel by channel
+        (coordinates ``obs_channel`` and ``obs_time`` [s] along it); attrs say how the draws were
+        thinned and what the terms are (:mod:`~.loglik`: conditional on each draw's noise sd).
+    """
+    W, S = result.draws.shape[:2]
+    pick = thinned_draws(S, W, total)
+    ll = draws_log_likelihood(result, post, pick).astype(np.float32)
+    t = np.asarray(post.problem.track.t, float)
+    chans = np.repeat(np.array(post.channels), t.size)
+    return xr.Dataset(
+        {LOG_LIKELIHOOD_VAR: (("chain", "draw", "observation"), ll)},
+        coords={"chain": np.arange(W), "draw": pick, "observation": np.arange(ll.shape[-1]),
+                "obs_channel": ("observation", chans), "obs_time": ("observation", np.tile(t, len(post.channels)))},
+        attrs={"thinned": int(pick.size < S), "draws_per_chain": int(pick.size), "draws_in_posterior": int(S),
+               "terms": "log p(z_i | theta, sigma) per sample and channel, conditional on the draw's noise sd; "
+                        "ar1 channels by their Kalman prediction errors",
+               "likelihood": result.likelihood})
+
+
+def read_inference_data(path):
+    """An ``InferenceData`` written by :func:`to_inference_data` (``posterior.nc``), read into
+    memory (the file is closed again).
+
+    Parameters
+    ----------
+    path : path
+
+    Returns
+    -------
+    arviz.InferenceData
+    """
+    with az.rc_context({"data.load": "eager"}):
+        return az.from_netcdf(str(path))
 
 
 def _predictive_tracks(result, post, pick, rng):

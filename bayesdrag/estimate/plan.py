@@ -16,6 +16,9 @@ How one case is predicted, and why (decisions):
   generic curve :func:`generic_drag` (the shipped 155 mm M101 table; the result says so). The
   samples are every ``dt`` from ``lock_on`` (default launch) to ``loss`` (default impact), in
   the channels the round's ``[radar] sigma`` gives, with its atmosphere and Coriolis geometry.
+  More samples than a fit uses (:data:`~bayesdrag.track.MAX_FIT_SAMPLES`) are thinned to every
+  k-th as the fit thins such a track: the plan predicts what that fit reports, and a tiny ``dt``
+  costs no more than a dense track (:func:`nominal_flight`).
 * **The fit's own machinery, not a look-alike.** The drag model is the one the default fit
   builds for such a track (:func:`bayesdrag.estimate.scheme1.build_drag_model`: the table times
   a smooth correction with a table, a spline in Cd without, knots placed from the data's start
@@ -86,7 +89,7 @@ from ..errors import InputError
 from ..io.drag_tables import load_m101
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
-from ..track import CHANNELS, RadarTrack
+from ..track import CHANNELS, MAX_FIT_SAMPLES, RadarTrack
 from .launch import launch_state_priors
 from .problem import OutputErrorProblem
 from .scheme1 import build_drag_model, coriolis_of
@@ -107,6 +110,10 @@ PLAN_MACH_STEP = 0.01
 MIN_TRACKED_SAMPLES = 30
 #: longest flight simulated [s]
 MAX_FLIGHT_TIME = 600.0
+#: most samples the nominal flight is evaluated at in one go (checked from ``dt`` before
+#: simulating: 600 s at dt >= 6 ms); a finer ``dt`` finds the impact on :data:`COARSE_DT` first
+MAX_DIRECT_SAMPLES = 100_000
+COARSE_DT = 0.05
 #: tolerances of the nominal flight's integration (relative; absolute [m, m/s]): millimetres over
 #: a flight, far below any radar's noise (the simulator's tighter 1e-11 is for reference tracks;
 #: here the nominal track only sets where the sensitivities are taken)
@@ -190,7 +197,17 @@ def case_round(rnd, elevation_deg, velocity):
 
 
 def nominal_flight(rnd_case, truth, dt, lock_on=None, loss=None):
-    """The nominal trajectory of one case, sampled like the radar.
+    """The nominal trajectory of one case, sampled like the radar, at most as densely as a fit
+    uses a track.
+
+    The radar's samples are every ``dt`` from launch, impact included, in the tracked part;
+    more than :data:`~bayesdrag.track.MAX_FIT_SAMPLES` of them are thinned to every k-th
+    (first and last kept) exactly as :func:`~bayesdrag.track.thin_for_fit` thins the track the
+    fit gets, so the plan predicts what that fit reports and its work is bounded. The bound is
+    checked before simulating: a flight of up to :data:`MAX_FLIGHT_TIME` at ``dt`` gives at most
+    :data:`MAX_DIRECT_SAMPLES` samples, else the impact is found on a coarser grid first and only
+    the kept samples are evaluated (``plan --dt 0.0001`` asked for 400 000 samples per case and
+    15 GB).
 
     Returns
     -------
@@ -200,8 +217,10 @@ def nominal_flight(rnd_case, truth, dt, lock_on=None, loss=None):
     L = rnd_case.launch
     model = PointMassModel(rnd_case.projectile.mass, rnd_case.projectile.diameter, truth, rnd_case.atmosphere,
                            coriolis=coriolis_of(rnd_case))
-    tr = model.simulate((), initial_state(L.velocity, L.elevation_deg), backend="scipy", stop_at_impact=True,
-                        dt=dt, max_time=MAX_FLIGHT_TIME, rtol=NOMINAL_RTOL, atol=NOMINAL_ATOL)
+    s0 = initial_state(L.velocity, L.elevation_deg)
+    direct = math.ceil(MAX_FLIGHT_TIME / dt) <= MAX_DIRECT_SAMPLES
+    tr = model.simulate((), s0, backend="scipy", stop_at_impact=True, dt=dt if direct else COARSE_DT,
+                        max_time=MAX_FLIGHT_TIME, rtol=NOMINAL_RTOL, atol=NOMINAL_ATOL)
     if not tr.success or tr.t_impact is None:
         raise InputError(f"the planned case QE {L.elevation_deg:g} deg, {L.velocity:g} m/s does not land within "
                          f"{MAX_FLIGHT_TIME:.0f} s ({tr.message})")
@@ -211,12 +230,31 @@ def nominal_flight(rnd_case, truth, dt, lock_on=None, loss=None):
     if t0 >= t_imp:
         raise InputError(f"option lock_on = {lock_on:g} s is not allowed for QE {L.elevation_deg:g} deg, "
                          f"{L.velocity:g} m/s: the shell lands at {t_imp:.1f} s; use a lock-on before impact")
-    keep = (tr.t >= t0 - 1e-9) & (tr.t <= t1 + 1e-9)
-    if int(keep.sum()) < MIN_TRACKED_SAMPLES:
+    t_all = tr.t if direct else _radar_times(t_imp, dt)
+    keep = np.flatnonzero((t_all >= t0 - 1e-9) & (t_all <= t1 + 1e-9))
+    if keep.size < MIN_TRACKED_SAMPLES:
         raise InputError(f"the tracked part {t0:g}-{t1:.2f} s of QE {L.elevation_deg:g} deg, {L.velocity:g} m/s "
-                         f"has {int(keep.sum())} samples at dt = {dt:g} s; a fit needs at least "
+                         f"has {keep.size} samples at dt = {dt:g} s; a fit needs at least "
                          f"{MIN_TRACKED_SAMPLES}: track longer (lock_on, loss) or sample faster (dt)")
-    return tr.t[keep], tr.state[keep], tr.mach[keep], t_imp
+    k = -(-keep.size // MAX_FIT_SAMPLES)
+    idx = np.arange(0, keep.size, k)
+    if idx[-1] != keep.size - 1:
+        idx = np.append(idx, keep.size - 1)
+    sel = keep[idx]
+    if direct:
+        return tr.t[sel], tr.state[sel], tr.mach[sel], t_imp
+    tr = model.simulate((), s0, t_all[sel], backend="scipy", rtol=NOMINAL_RTOL, atol=NOMINAL_ATOL)
+    if not tr.success or tr.t.size != sel.size:
+        raise InputError(f"the planned case QE {L.elevation_deg:g} deg, {L.velocity:g} m/s could not be sampled "
+                         f"at dt = {dt:g} s ({tr.message})")
+    return tr.t, tr.state, tr.mach, t_imp
+
+
+def _radar_times(t_imp, dt):
+    """The radar's sample times of a flight landing at ``t_imp``: every ``dt`` from launch, and
+    the impact (as :meth:`PointMassModel.simulate` gives them with ``dt``)."""
+    t = np.arange(0.0, t_imp, dt)
+    return np.append(t, t_imp) if t_imp - t[-1] > 1e-9 else t
 
 
 def _outputs(state, chans):
@@ -536,6 +574,7 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     chans, sigma = radar_channels(rnd)
     rc = case_round(rnd, elevation_deg, velocity)
     t, state, mach, t_imp = nominal_flight(rc, truth, dt, lock_on, loss)
+    thinned = int(round((t[1] - t[0]) / dt))          # k > 1: every k-th radar sample (nominal_flight)
     out = _outputs(state, chans)
     track = RadarTrack(t, out, {}, source=f"planned QE {elevation_deg:g} deg, {velocity:g} m/s")
     noisy = add_noise(track, sigma, np.random.default_rng(seed))
@@ -552,6 +591,10 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"], level_shares(rc, cd))
     smoothing.pop("R")
     notes = []
+    if thinned > 1:
+        notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: samples every {dt:g} s are more than a fit uses "
+                     f"({MAX_FIT_SAMPLES}): planned with one sample in {thinned} ({t.size} samples), as the fit "
+                     f"thins such a track")
     if loss is not None and loss > t_imp:
         notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s lands at {t_imp:.1f} s, before the loss at "
                      f"{loss:g} s: tracked to impact")

@@ -262,7 +262,8 @@ def _open_backend(path, resume, post, nwalkers, check_every, fingerprint):
     cf = ChainFile(path, flush_every=check_every, inputs=getattr(path, "inputs", None))
     backend = None
     if resume and cf.exists():
-        backend = cf.load_backend(nwalkers=nwalkers, ndim=post.ndim, nblobs=post.C, fingerprint=fingerprint)
+        backend = cf.load_backend(nwalkers=nwalkers, ndim=post.ndim, nblobs=post.C, fingerprint=fingerprint,
+                                  log_prob=post)   # stored values recomputed before the chain is continued
     if backend is None:
         return cf.new_backend(nwalkers, post.ndim, fingerprint=fingerprint), 0
     return backend, backend.iteration

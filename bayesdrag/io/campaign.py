@@ -68,12 +68,18 @@ def is_campaign_file(path):
     return "campaign" in doc or "rounds" in doc
 
 
-def read_campaign(path):
+def read_campaign(path, allow_outside=False):
     """Read and validate a campaign TOML.
+
+    The tracks and round files must be inside the campaign file's folder (after following
+    links), checked before anything in them is read: a campaign is often in a folder others
+    can write, and one pointing at ``/etc/shadow`` would have the user read it.
 
     Parameters
     ----------
     path : str or os.PathLike
+    allow_outside : bool
+        Accept files outside the campaign's folder (``--allow-outside-inputs``).
 
     Returns
     -------
@@ -83,8 +89,9 @@ def read_campaign(path):
     ------
     InputError
         Naming the file and the key: unreadable TOML, unknown keys, a round without ``track``
-        or ``round``, a name that is not a safe folder name, duplicate names, missing files,
-        fewer than one round.
+        or ``round``, a name that is not a safe folder name or is the name of an output,
+        duplicate names, files outside the campaign's folder, missing files, fewer than one
+        round.
     """
     path = Path(path)
     doc = read_toml(path, "campaign file", "a campaign lists [[rounds]] of name, track and round")
@@ -104,6 +111,7 @@ def read_campaign(path):
     if not isinstance(rounds, list) or not rounds:
         raise InputError(f"{path}: a campaign needs at least one [[rounds]] entry with name, track and round")
     out, seen = [], set()
+    root = path.resolve().parent
     for i, r in enumerate(rounds, 1):
         where = f"{path}: rounds entry {i}"
         if not isinstance(r, dict):
@@ -120,17 +128,35 @@ def read_campaign(path):
         if not isinstance(nm, str) or not _NAME_RE.match(nm):
             raise InputError(f"{where}: name {nm!r} is not allowed; use 1-64 letters, digits, '.', '_', '-' "
                              f"(it names the output folder)")
+        if _output_name(nm):
+            raise InputError(f"{where}: name {nm!r} is not allowed; it is the name of a file or folder bayesdrag "
+                             f"writes into the output folder (the round's outputs would be moved or overwritten): "
+                             f"choose another name")
         if nm in seen:
             raise InputError(f"{where}: duplicate round name {nm!r}; names must be unique")
         seen.add(nm)
         files = {}
         for k in ("track", "round"):
-            p = (path.parent / r[k]).resolve() if not Path(r[k]).is_absolute() else Path(r[k])
+            p = (path.parent / r[k]).resolve()
+            if not allow_outside and not p.is_relative_to(root):
+                raise InputError(f"{where} ({nm}): {k} {r[k]!r} is outside the campaign's folder {root}; a campaign "
+                                 f"reads only files in its own folder: move the file there, or pass "
+                                 f"--allow-outside-inputs")
             if not p.is_file():
                 raise InputError(f"{where} ({nm}): {k} file {r[k]!r} not found (looked at {p})")
             files[k] = p
         out.append(CampaignRound(nm, files["track"], files["round"]))
     return Campaign(name, tuple(out), path.resolve(), str(camp.get("description", "")))
+
+
+def _output_name(name):
+    """True when a round folder called ``name`` would collide with what bayesdrag writes into a
+    campaign's output folder (its outputs, ``superseded/``, the unfinished chain, the lock)."""
+    from fnmatch import fnmatch
+
+    from .outputs import KNOWN_OUTPUTS, LOCK_NAME, PARTIAL_CHAIN, SUPERSEDED
+
+    return name in (SUPERSEDED, PARTIAL_CHAIN, LOCK_NAME) or any(fnmatch(name, p) for p in KNOWN_OUTPUTS)
 
 
 def write_campaign(path, name, rounds):

@@ -13,6 +13,19 @@ a file that is not a chain of this format, of the expected shape, with finite va
 well-formed random state, made by the same problem and settings, raises
 :class:`~bayesdrag.errors.InputError` with one line naming the file and what is wrong.
 
+A chain file is data from a folder someone else may have written (the resume of a planted file
+moved a posterior mean by 5 %, copied a secret file's bytes into the outputs, or took 6.7 GB of
+memory for a 1.7 MB file), so before any value is read its datasets must be stored inside the
+file as this module writes them: contiguous or chunked, not compressed or filtered, not in
+external files, not virtual, every chunk of the rows read allocated (no sparse storage), and
+no larger than the run's own settings allow (walkers x dimensions exactly, steps at most the
+run's ``max_steps``; the file itself at most what such a chain takes). After reading, the log
+posterior and blobs stored for every walker's last position and for
+:data:`LOG_PROB_SAMPLE` positions drawn at random (unpredictably, so a forger cannot leave the
+checked ones genuine) are recomputed with the run's own posterior and must agree within
+:data:`LOG_PROB_ATOL` + :data:`LOG_PROB_RTOL` x |value|: a chain of other numbers is refused
+before the sampler continues it.
+
 Layout (``format = "bayesdrag-chain/2"``), group ``mcmc``:
 
 ======================  ===================  ===================================================
@@ -36,13 +49,15 @@ the input files' bytes when the command gives one (``ChainFile(path, inputs=...)
 from other track or round files, or copied from another folder made from other inputs, is refused.
 The chain path must be a regular file (or absent): a symbolic link or a device planted at
 ``chain.partial.h5`` is refused before it is opened, so starting a chain never truncates another
-file. Before each block is appended the free disk space is checked
-(:func:`bayesdrag.io.outputs.ensure_space`): a full disk stops the run with one line and the
-blocks already written intact, instead of an HDF5 write failing half-way (which crashed h5py).
+file. Before each block is appended the free disk space and the file size limit of the process
+(``ulimit -f``) are checked (:func:`bayesdrag.io.space.ensure_space`): running out stops the
+run with one line and the blocks already written intact, instead of an HDF5 write failing
+half-way (which crashed h5py: a segfault for ``EFBIG``).
 """
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 import re
 import stat
@@ -52,7 +67,7 @@ import h5py
 import numpy as np
 
 from ..errors import InputError
-from .outputs import DiskFullError, ensure_space, is_disk_full
+from .space import DiskFullError, ensure_file_size, ensure_space, space_problem
 
 #: value of the ``format`` attribute written and accepted
 FORMAT = "bayesdrag-chain/2"
@@ -63,6 +78,16 @@ BIT_GENERATOR = "MT19937"
 MT_KEY_SIZE = 624
 _FINGERPRINT_RE = re.compile(r"^[0-9a-f]{1,64}$")
 _AFRESH = "delete it to start the chain afresh"
+#: stored positions (besides every walker's last one) whose log posterior is recomputed on resume
+LOG_PROB_SAMPLE = 8
+#: agreement required between a stored and a recomputed log posterior (and blob): the same code
+#: on the same inputs gives the same number to round-off; a forged chain is off by far more
+LOG_PROB_ATOL = 1e-6
+LOG_PROB_RTOL = 1e-9
+#: HDF5 overhead a chain file may carry beyond its numbers [bytes] (headers, the random state,
+#: the space of the 'accepted' datasets rewritten at each flush)
+FILE_SLACK = 8 << 20
+_LAYOUTS = {h5py.h5d.CONTIGUOUS: "contiguous", h5py.h5d.CHUNKED: "chunked", h5py.h5d.COMPACT: "compact"}
 
 
 class ChainFile:
@@ -77,12 +102,18 @@ class ChainFile:
     inputs : str, keyword-only, optional
         Digest of the input files' bytes (:attr:`bayesdrag.io.outputs.OutputRun.inputs_digest`),
         combined with every fingerprint written and checked.
+    max_steps : int, keyword-only, optional
+        The run's step limit: a stored chain of more steps is refused before it is read. A
+        ``ChainFile`` given as ``path`` passes its own on.
     """
 
-    def __init__(self, path, *, flush_every=25, inputs=None):
+    def __init__(self, path, *, flush_every=25, inputs=None, max_steps=None):
+        if max_steps is None:
+            max_steps = getattr(path, "max_steps", None)
         self.path = os.fspath(path)
         self.flush_every = int(flush_every)
         self.inputs = None if inputs is None else str(inputs)
+        self.max_steps = None if max_steps is None else int(max_steps)
 
     def __fspath__(self):
         return self.path
@@ -128,7 +159,7 @@ class ChainFile:
             g.attrs["bayesdrag_fingerprint"] = str(fingerprint)
         return ChainBackend(self, nwalkers, ndim, flushed=0)
 
-    def load_backend(self, *, nwalkers, ndim, nblobs, fingerprint):
+    def load_backend(self, *, nwalkers, ndim, nblobs, fingerprint, max_steps=None, log_prob=None, rng=None):
         """The stored chain as a :class:`ChainBackend`, after checking every value read.
 
         Parameters
@@ -139,6 +170,14 @@ class ChainFile:
             Blob columns C per walker this run produces (0: none).
         fingerprint : str
             The fingerprint this run computes; the stored one must be equal.
+        max_steps : int, optional
+            The run's step limit (default: the file's :attr:`max_steps`; None: not bounded).
+        log_prob : callable, optional
+            The run's log posterior: ``log_prob(X)`` of positions (m, D) gives (m, 1 + C), the
+            log posterior and the blobs. When given, stored values are recomputed (module
+            docstring) and must agree.
+        rng : numpy.random.Generator, optional
+            Draws the positions checked (default: fresh entropy).
 
         Returns
         -------
@@ -149,24 +188,68 @@ class ChainFile:
         ------
         InputError
             One line naming the file and what is wrong: not an HDF5 file or truncated, not a
-            chain of this format (a file with a pickled random state included), another problem or settings, datasets of the wrong type or shape,
-            non-finite values, or a malformed random state.
+            chain of this format (a file with a pickled random state included), another problem
+            or settings, datasets of the wrong type or shape, stored outside the file, virtual,
+            compressed or sparse, more steps than ``max_steps``, non-finite values, a malformed
+            random state, or stored values the posterior does not reproduce.
         """
         self._check_kind()
+        W, D, C = int(nwalkers), int(ndim), int(nblobs)
+        limit = self.max_steps if max_steps is None else int(max_steps)
+        if limit is not None:
+            self._check_file_size(W, D, C, limit)
         try:
             with h5py.File(self.path, "r") as f:
-                return self._read(f, int(nwalkers), int(ndim), int(nblobs), self.fingerprint(fingerprint))
+                b = self._read(f, W, D, C, self.fingerprint(fingerprint), limit)
         except InputError:
             raise
         except (OSError, KeyError, ValueError, TypeError, RuntimeError, MemoryError) as exc:
             detail = " ".join(str(exc).split()) or type(exc).__name__
             raise InputError(f"{self.path}: not a readable chain file ({detail}); {_AFRESH}") from None
+        if b is not None and log_prob is not None:
+            self._check_log_prob(b, log_prob, rng if rng is not None else np.random.default_rng())
+        return b
+
+    def _check_file_size(self, W, D, C, max_steps):
+        """Refuse a file larger than a chain of this run's settings can be, before opening it."""
+        size = os.stat(self.path).st_size
+        bound = 8 * W * (D + 1 + C) * (max_steps + 64) + 8 * W + FILE_SLACK
+        if size > bound:
+            self._fail(f"the file is {size} bytes, more than a chain of {W} walkers x {max_steps} steps x {D} "
+                       f"dimensions takes ({bound}): not a chain of this run")
+
+    def _check_log_prob(self, b, log_prob, rng):
+        """Recompute the stored log posterior (and blobs) at every walker's last position and at
+        :data:`LOG_PROB_SAMPLE` random earlier ones."""
+        n, W = b.log_prob.shape
+        rows, walkers = [n - 1] * W, list(range(W))
+        earlier = (n - 1) * W
+        if earlier:
+            pick = rng.choice(earlier, size=min(LOG_PROB_SAMPLE, earlier), replace=False)
+            rows += list(pick // W)
+            walkers += list(pick % W)
+        rows, walkers = np.asarray(rows), np.asarray(walkers)
+        with np.errstate(all="ignore"):
+            out = np.asarray(log_prob(b.chain[rows, walkers]), dtype=float).reshape(rows.size, -1)
+        stored = b.log_prob[rows, walkers][:, None]
+        if b.blobs is not None:
+            stored = np.concatenate([stored, b.blobs[rows, walkers].reshape(rows.size, -1)], axis=1)
+        if out.shape != stored.shape:
+            self._fail(f"the run's posterior gives {out.shape[1]} values per position, the chain stores "
+                       f"{stored.shape[1]}")
+        ok = np.abs(out - stored) <= LOG_PROB_ATOL + LOG_PROB_RTOL * np.abs(stored)
+        if not ok.all():
+            i, j = np.argwhere(~ok)[0]
+            what = "log posterior" if j == 0 else f"blob {j}"
+            self._fail(f"the stored {what} at step {rows[i] + 1}, walker {walkers[i] + 1} is {stored[i, j]:.10g}, "
+                       f"the posterior of these inputs gives {out[i, j]:.10g} at that position: not a chain this "
+                       f"run made")
 
     # ------------------------------------------------------------------------------------
     def _fail(self, what):
         raise InputError(f"{self.path}: {what}; {_AFRESH}")
 
-    def _read(self, f, W, D, C, fingerprint):
+    def _read(self, f, W, D, C, fingerprint, max_steps=None):
         g = _member(f, GROUP, h5py.Group)
         if g is None:
             self._fail(f"no group '{GROUP}': not a bayesdrag chain file")
@@ -189,10 +272,16 @@ class ChainFile:
         if old != fingerprint:
             self._fail(f"the stored chain was made with other inputs or settings (fingerprint {old} != "
                        f"{fingerprint})")
-        chain = self._array(g, "chain", (W, D), n)
-        lp = self._array(g, "log_prob", (W,), n)
-        blobs = self._array(g, "blobs", (W, C), n) if C else None
-        acc = self._array(g, "accepted", (W,), None)
+        if max_steps is not None and n > max_steps:
+            self._fail(f"it holds {n} steps, more than this run's --max-steps {max_steps} (resume with "
+                       f"--max-steps {n} or more)")
+        names = [("chain", (W, D), n), ("log_prob", (W,), n), ("accepted", (W,), None)]
+        names += [("blobs", (W, C), n)] if C else []
+        datasets = {name: self._dataset(g, name, tail, rows, max_steps) for name, tail, rows in names}
+        chain = self._array(datasets["chain"], "chain", n)
+        lp = self._array(datasets["log_prob"], "log_prob", n)
+        blobs = self._array(datasets["blobs"], "blobs", n) if C else None
+        acc = self._array(datasets["accepted"], "accepted", None)
         if np.any(acc < 0) or np.any(acc > n) or np.any(acc != np.round(acc)):
             self._fail(f"'accepted' holds values that are not counts in 0..{n}")
         b = ChainBackend(self, W, D, flushed=n)
@@ -200,9 +289,9 @@ class ChainFile:
         b.iteration, b.random_state = n, self._random_state(g, n)
         return b
 
-    def _array(self, g, name, tail, n):
+    def _dataset(self, g, name, tail, n, max_steps):
         """Float dataset ``name`` of shape ``(>= n,) + tail`` (``tail`` only when n is None),
-        its first n rows, all finite."""
+        stored as this module stores it (module docstring), checked before any value is read."""
         ds = _member(g, name, h5py.Dataset)
         if ds is None:
             self._fail(f"dataset '{name}' is missing or not stored in this file")
@@ -213,6 +302,39 @@ class ChainFile:
         if not ok:
             need = tail if n is None else (f">={n}",) + tail
             self._fail(f"dataset '{name}' has shape {shape}, this run needs ({', '.join(map(str, need))})")
+        if n is not None and max_steps is not None and shape[0] > max_steps + self.flush_every:
+            self._fail(f"dataset '{name}' has {shape[0]} rows, more than this run's --max-steps {max_steps}")
+        self._check_storage(ds, name, shape[0] if n is None else n)
+        return ds
+
+    def _check_storage(self, ds, name, rows):
+        """Refuse data stored outside the file, virtual, compressed or not allocated (sparse)."""
+        if ds.is_virtual:
+            self._fail(f"dataset '{name}' is a virtual dataset (its values are in other files)")
+        if ds.external:
+            self._fail(f"dataset '{name}' is stored in external files")
+        dcpl = ds.id.get_create_plist()
+        layout = dcpl.get_layout()
+        if layout not in (h5py.h5d.CONTIGUOUS, h5py.h5d.CHUNKED):
+            self._fail(f"dataset '{name}' has {_LAYOUTS.get(layout, 'unknown')} storage, expected contiguous or "
+                       f"chunked")
+        if dcpl.get_nfilters():
+            self._fail(f"dataset '{name}' is compressed or filtered")
+        if rows == 0:
+            return
+        if layout == h5py.h5d.CONTIGUOUS:
+            need = rows * int(np.prod(ds.shape[1:], dtype=np.int64)) * ds.dtype.itemsize
+            allocated = ds.id.get_storage_size() >= need
+        else:
+            chunk = ds.chunks
+            ranges = [range(0, rows, chunk[0])] + [range(0, s, c) for s, c in zip(ds.shape[1:], chunk[1:])]
+            allocated = all(ds.id.get_chunk_info_by_coord(tuple(int(v) for v in corner)).byte_offset is not None
+                            for corner in itertools.product(*ranges))
+        if not allocated:
+            self._fail(f"dataset '{name}' is sparse: part of its first {rows} rows is not stored in the file")
+
+    def _array(self, ds, name, n):
+        """The first n rows of a checked dataset (all of it when n is None), all finite."""
         a = np.asarray(ds[()] if n is None else ds[:n], dtype=np.float64)
         if not np.all(np.isfinite(a)):
             self._fail(f"dataset '{name}' holds non-finite values")
@@ -227,6 +349,7 @@ class ChainFile:
         if key.dtype != np.dtype(np.uint32) or tuple(key.shape) != (MT_KEY_SIZE,):
             self._fail(f"'random_state/key' is {key.dtype.str} {tuple(key.shape)}, expected uint32 "
                        f"({MT_KEY_SIZE},)")
+        self._check_storage(key, "random_state/key", MT_KEY_SIZE)
         name = _attr_str(rg, "bit_generator")
         pos, has_gauss, step = (_attr_int(rg, k) for k in ("pos", "has_gauss", "step"))
         cached = _attr_float(rg, "cached_gaussian")
@@ -284,13 +407,15 @@ class ChainBackend(emcee.backends.Backend):
         # HDF5 allocates whole chunks of 32 steps; twice the block and a chunk spare
         need = 8 * W * (D + 1 + C) * (2 * (n1 - n0) + 64) + 8 * W + 8192
         path = self.file.path
-        ensure_space(os.path.dirname(os.path.abspath(path)), need, os.path.basename(path))
+        folder = os.path.dirname(os.path.abspath(path))
+        ensure_space(folder, need, os.path.basename(path))
+        ensure_file_size(path, need)
         try:
             self._append(n0, n1)
         except (OSError, RuntimeError) as exc:
-            if is_disk_full(exc, os.path.dirname(os.path.abspath(path))):
-                raise DiskFullError(f"{path}: the disk is full (No space left on device) while writing the "
-                                  f"chain") from None
+            why = space_problem(exc, folder)
+            if why is not None:
+                raise DiskFullError(f"{path}: {why} while writing the chain", reason=why) from None
             raise
         self.flushed = n1
 

@@ -37,20 +37,9 @@ def _kind(mode):
     return "not a regular file"
 
 
-def read_bytes(path, what, max_bytes=None, *, head=False):
-    """The bytes of a regular file, at most ``max_bytes`` (default by role, :data:`MAX_BYTES`).
-
-    A device (``/dev/zero``), pipe or socket is refused before anything is read (opened without
-    blocking), and a file larger than the bound is refused by its size, never read to the end.
-    With ``head=True`` the first ``max_bytes`` are returned whatever the file's size.
-
-    Raises
-    ------
-    InputError
-        Not found, a directory, not a regular file, unreadable, or too large.
-    """
-    path = Path(path)
-    limit = int(max_bytes or MAX_BYTES.get(what, DEFAULT_MAX_BYTES))
+def _open_regular(path, what):
+    """(binary file object, stat) of a regular file, opened without blocking so a device, pipe
+    or socket is refused before anything is read."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
@@ -65,10 +54,32 @@ def read_bytes(path, what, max_bytes=None, *, head=False):
         if stat.S_ISDIR(st.st_mode):
             raise InputError(f"{path}: {what} expected, found a directory")
         raise InputError(f"{path}: {what} is {_kind(st.st_mode)}, not a regular file; give a file")
-    with os.fdopen(fd, "rb") as fh:
+    return os.fdopen(fd, "rb"), st
+
+
+def _too_large(path, what, size, limit):
+    return InputError(f"{path}: {what} is {size} bytes, more than the {limit} allowed"
+                      + (f"; {_ADVICE[what]}" if what in _ADVICE else ""))
+
+
+def read_bytes(path, what, max_bytes=None, *, head=False):
+    """The bytes of a regular file, at most ``max_bytes`` (default by role, :data:`MAX_BYTES`).
+
+    A device (``/dev/zero``), pipe or socket is refused before anything is read (opened without
+    blocking), and a file larger than the bound is refused by its size, never read to the end.
+    With ``head=True`` the first ``max_bytes`` are returned whatever the file's size.
+
+    Raises
+    ------
+    InputError
+        Not found, a directory, not a regular file, unreadable, or too large.
+    """
+    path = Path(path)
+    limit = int(max_bytes or MAX_BYTES.get(what, DEFAULT_MAX_BYTES))
+    fh, st = _open_regular(path, what)
+    with fh:
         if not head and st.st_size > limit:
-            raise InputError(f"{path}: {what} is {st.st_size} bytes, more than the {limit} allowed"
-                             + (f"; {_ADVICE[what]}" if what in _ADVICE else ""))
+            raise _too_large(path, what, st.st_size, limit)
         try:
             raw = fh.read(limit if head else limit + 1)
         except OSError as exc:
@@ -78,23 +89,84 @@ def read_bytes(path, what, max_bytes=None, *, head=False):
     return raw
 
 
-def read_text(path: Path, what: str, max_bytes=None) -> str:
-    """The UTF-8 text of a regular file (:func:`read_bytes`), refusing UTF-16 and binary files."""
-    path = Path(path)
-    raw = read_bytes(path, what, max_bytes)
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise InputError(f"{path}: {what} is UTF-16 encoded; save it as UTF-8 (or ASCII) text")
+def _decode(path, what, raw, newlines_before=0):
+    """UTF-8 text of ``raw`` (one whole file or a block of whole lines of it; ``newlines_before``
+    counts the file's newlines before the block, for the line named in a message)."""
     try:
-        text = raw.decode("utf-8-sig")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
+        line = newlines_before + raw[:exc.start].count(b"\n") + 1
         raise InputError(f"{path}: {what} is not UTF-8 text: undecodable byte 0x{raw[exc.start]:02x} "
                          f"at line {line} (binary file?); expected a CSV text file") from None
     if "\x00" in text:
-        line = text[:text.index("\x00")].count("\n") + 1
+        line = newlines_before + text[:text.index("\x00")].count("\n") + 1
         raise InputError(f"{path}: {what} contains NUL bytes at line {line} (binary file?); "
                          f"expected a CSV text file")
     return text
+
+
+def _strip_bom(path, what, raw):
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(f"{path}: {what} is UTF-16 encoded; save it as UTF-8 (or ASCII) text")
+    return raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
+
+
+def read_text(path: Path, what: str, max_bytes=None) -> str:
+    """The UTF-8 text of a regular file (:func:`read_bytes`), refusing UTF-16 and binary files."""
+    path = Path(path)
+    return _decode(path, what, _strip_bom(path, what, read_bytes(path, what, max_bytes)))
+
+
+#: bytes read at a time by the table reader: the text of one block is held at once, the file never
+#: (a 5 M-row track read whole took 7.6 times its size; benchmarks/resources.py)
+BLOCK_BYTES = 8 << 20
+
+
+def _line_blocks(path, what, max_bytes=None, block_bytes=None):
+    """The lines of a text file in blocks of whole lines: yields (number of the block's first line
+    (1-based), list of str), the lines as ``str.splitlines`` splits the whole text.
+
+    A block ends after a newline, so no line (and no UTF-8 character, whose bytes never include
+    a newline) is cut; a file without newlines is one block. The size bound of
+    :func:`read_bytes` holds for the bytes read; decoding problems are found block by block, so
+    in a file of several blocks a problem of an earlier block is reported first.
+    """
+    limit = int(max_bytes or MAX_BYTES.get(what, DEFAULT_MAX_BYTES))
+    step = int(block_bytes or BLOCK_BYTES)
+    fh, st = _open_regular(path, what)
+    with fh:
+        if st.st_size > limit:
+            raise _too_large(path, what, st.st_size, limit)
+        first_line, newlines, total, buf, first = 1, 0, 0, bytearray(), True
+        while True:
+            try:
+                block = fh.read(step)
+            except OSError as exc:
+                raise InputError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+            total += len(block)
+            if total > limit:
+                raise InputError(f"{path}: {what} is more than the {limit} bytes allowed")
+            buf += block
+            if block:
+                cut = buf.rfind(b"\n") + 1
+                if cut == 0:
+                    continue
+            elif not buf:
+                return
+            else:
+                cut = len(buf)
+            raw = buf[:cut]
+            del buf[:cut]
+            if first:
+                raw, first = _strip_bom(path, what, raw), False
+            text = _decode(path, what, raw, newlines)
+            newlines += text.count("\n")
+            lines = text.splitlines()
+            del text, raw
+            yield first_line, lines
+            first_line += len(lines)
+            if not block:
+                return
 
 
 def read_toml(path: Path, what: str, holds: str) -> dict:
@@ -114,12 +186,23 @@ def read_toml(path: Path, what: str, holds: str) -> dict:
                          f"({holds})") from None
 
 
+#: a number in a table: ASCII decimal or scientific notation with an optional sign, or a NaN or
+#: infinity (read, then refused by name). Python's ``float`` also takes ``81_5.5`` (815.5) and
+#: Arabic-Indic or fullwidth digits: a typing slip or a foreign locale's file would be read as a
+#: different number, so only this form is a number.
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:nan|inf|infinity)",
+                     re.ASCII | re.IGNORECASE)
+
+
+def parse_number(s: str):
+    """The float of a field (surrounding white space allowed), or None when it is not a number
+    of :data:`_NUMBER`'s form."""
+    s = s.strip()
+    return float(s) if _NUMBER.fullmatch(s) else None
+
+
 def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
+    return parse_number(s) is not None
 
 
 def _clean_name(s: str) -> str:
@@ -137,23 +220,77 @@ MAX_MAGNITUDE = 1e15
 def read_table(path, what, required=(), allowed=None, header_check=None, quote=True):
     """Parse a strict numeric CSV. Returns (path, names, data (N, K), line numbers (N,)).
 
+    The file is read in blocks of lines (:func:`_line_blocks`), each parsed to numbers before the
+    next is read, so the memory is the numbers (``data`` is the transpose of a (K, N) array: each
+    column is contiguous) plus one block's text, not the file's text and its lines.
+
     ``quote=False`` for a file named inside another file (a round's reference table or met
     profile): its content is then not repeated in a message (a round pointing at any readable
     file would otherwise echo that file's first line): a header problem is shown with the names
     only when the line is a few plain column names, else the message names the file, the line
     and the header expected; values are never quoted."""
     path = Path(path)
-    text = read_text(path, what)
-    if not text.strip():
-        raise InputError(f"{path}: {what} is empty; expected a header row and rows of numbers")
-    lines = text.splitlines()
-    rows = [(i, ln) for i, ln in enumerate(lines, 1) if ln.strip() and not ln.lstrip().startswith("#")]
-    if not rows:
+    names, hline, any_text = None, None, False
+    blocks, line_blocks = [], []
+    non_finite = big = None           # the first of each, reported after a full parse (as before)
+    for first_line, lines in _line_blocks(path, what):
+        body, body_no = [], []
+        for j, ln in enumerate(lines):
+            if not ln.strip():
+                continue
+            any_text = True
+            if ln.lstrip().startswith("#"):
+                continue
+            if names is None:
+                hline = first_line + j
+                names = _checked_header(path, what, hline, ln, required, allowed, header_check, quote)
+                continue
+            body.append(ln)
+            body_no.append(first_line + j)
+        del lines
+        if not body:
+            continue
+        block = _parse_block(path, body, body_no, names, quote)      # (n, K)
+        finite = np.isfinite(block)
+        if non_finite is None and not finite.all():
+            r, c = np.argwhere(~finite)[0]
+            non_finite = (body_no[r], names[c], body[r].split(",")[c].strip())
+        if big is None:
+            over = np.abs(np.where(finite, block, 0.0)) > MAX_MAGNITUDE
+            if over.any():
+                r, c = np.argwhere(over)[0]
+                big = (body_no[r], names[c], block[r, c])
+        blocks.append(np.ascontiguousarray(block.T))
+        line_blocks.append(np.asarray(body_no, dtype=np.int64))
+        del body, block, finite
+    if names is None:
+        if not any_text:
+            raise InputError(f"{path}: {what} is empty; expected a header row and rows of numbers")
         raise InputError(f"{path}: {what} has only comments; expected a header row and rows of numbers")
+    if not blocks:
+        raise InputError(f"{path}: {what} has a header (line {hline}) but no data rows")
+    if non_finite is not None:
+        line, name, field_text = non_finite
+        shown = f"{field_text!r} is" if quote else "the value is"
+        raise InputError(f"{path}: line {line}, column {name!r}: {shown} not a "
+                         f"finite number; NaN and infinity are not allowed (drop the row instead)")
+    if big is not None:
+        line, name, value = big
+        shown = f"{value:.6g}" if quote else "the value"
+        raise InputError(f"{path}: line {line}, column {name!r}: {shown} is out of range; numbers "
+                         f"in a {what} must be within +-{MAX_MAGNITUDE:g} (a unit or typing mistake?)")
+    columns = blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+    del blocks
+    line_no = line_blocks[0] if len(line_blocks) == 1 else np.concatenate(line_blocks)
+    return path, names, columns.T, line_no
 
-    hline, header = rows[0]
+
+def _checked_header(path, what, hline, header, required, allowed, header_check, quote):
+    """The names of the header line, checked (:func:`_header`, then ``header_check``)."""
     try:
         names = _header(path, what, hline, header, required, allowed)
+        if header_check is not None:
+            header_check(path, hline, names)
     except InputError:
         if quote or _plain_names(header):
             raise
@@ -162,35 +299,18 @@ def read_table(path, what, required=(), allowed=None, header_check=None, quote=T
                          f"header naming {need}"
                          + (f" (allowed: {','.join(allowed)})" if allowed else "")
                          + "; the line is not shown") from None
-    if header_check is not None:
-        header_check(path, hline, names)
+    return names
 
-    body = rows[1:]
-    if not body:
-        raise InputError(f"{path}: {what} has a header (line {hline}) but no data rows")
-    ncol = len(names)
-    data_lines = [ln for _, ln in body]
-    try:  # fast path (C parser); any problem is located precisely by the slow path below
-        data = np.loadtxt(data_lines, delimiter=",", ndmin=2, comments=None, dtype=float)
-        if data.shape[1] != ncol:
+
+def _parse_block(path, body, body_no, names, quote):
+    """Numbers (n, K) of the data lines ``body`` (file line numbers ``body_no``)."""
+    try:  # fast path (C parser, whose numbers are a subset of _NUMBER's); the slow path locates a problem
+        data = np.loadtxt(body, delimiter=",", ndmin=2, comments=None, dtype=float)
+        if data.shape[1] != len(names):
             raise ValueError
+        return data
     except ValueError:
-        data = _slow_parse(path, body, names, quote)
-    line_no = np.fromiter((i for i, _ in body), dtype=np.int64, count=len(body))
-    finite = np.isfinite(data)
-    if not finite.all():
-        r, c = np.argwhere(~finite)[0]
-        field_text = body[r][1].split(",")[c].strip()
-        shown = f"{field_text!r} is" if quote else "the value is"
-        raise InputError(f"{path}: line {line_no[r]}, column {names[c]!r}: {shown} not a "
-                         f"finite number; NaN and infinity are not allowed (drop the row instead)")
-    big = np.abs(data) > MAX_MAGNITUDE
-    if big.any():
-        r, c = np.argwhere(big)[0]
-        shown = f"{data[r, c]:.6g}" if quote else "the value"
-        raise InputError(f"{path}: line {line_no[r]}, column {names[c]!r}: {shown} is out of range; numbers "
-                         f"in a {what} must be within +-{MAX_MAGNITUDE:g} (a unit or typing mistake?)")
-    return path, names, data, line_no
+        return _slow_parse(path, list(zip(body_no, body)), names, quote)
 
 
 _PLAIN_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_ .()\[\]/%-]{0,40}$")
@@ -250,13 +370,13 @@ def _slow_parse(path, body, names, quote=True):
             raise InputError(f"{path}: line {i}: {len(fields)} fields, but the header has {ncol} "
                              f"({','.join(names)})")
         for c, f in enumerate(fields):
-            try:
-                out[r, c] = float(f)
-            except ValueError:
+            value = parse_number(f)
+            if value is None:
                 what = ("empty field" if not f.strip()
                         else f"{f.strip()!r} is not a number" if quote else "not a number")
                 raise InputError(f"{path}: line {i}, column {names[c]!r}: {what}; "
-                                 f"expected a decimal number like 12.5 or 1.25e3") from None
+                                 f"expected a decimal number like 12.5 or 1.25e3 (ASCII digits)")
+            out[r, c] = value
     return out
 
 

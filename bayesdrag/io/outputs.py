@@ -29,7 +29,14 @@ Decisions written down (and why):
   a run killed during the swap is completed by the next run on the folder
   (under the lock, before it does anything else), and a run killed before its commit point
   leaves only its staging folder, which the next run removes. A failed run never touches the
-  files already in ``DIR``.
+  files already in ``DIR``. The plan is signed and only plans of this user's bayesdrag, of the
+  shapes a commit makes, are carried out again (:mod:`bayesdrag.io.commit`).
+* **No symbolic link is followed inside DIR.** ``DIR`` is resolved once (the user's own ``-o``
+  may pass links above it); before any work, an output's name that is a link or not a regular
+  file, and a ``superseded`` that is not a real folder of the user, are refused (one line, exit
+  2), and every rename checks its folders again. Round folders of a campaign are made by
+  :meth:`OutputRun.subfolder`, which refuses anything else with their name. Someone who can
+  write ``DIR`` cannot make a run write, move or read outside it (docs/security.md).
 * **What is superseded.** Each manifest lists the runs whose files are current: the run that
   wrote it, and earlier runs of *other* commands on the *same inputs* (a ``diagnose`` beside a
   ``fit`` of the same track and round is consistent with it; ``batch`` runs both into one
@@ -42,10 +49,12 @@ Decisions written down (and why):
 * **Modes follow the umask.** Files are created as ``0666 & ~umask`` like any other program's
   (temporary files are not made with ``mkstemp``, whose 0600 hid outputs from Dask workers
   running under another user).
-* **A full disk is one line, exit 1, nothing lost.** An ``ENOSPC``/``EDQUOT`` while writing (or a
-  library error that wraps one) becomes :class:`~bayesdrag.errors.OutputError`; the staging
-  folder is removed and the earlier outputs are untouched. :func:`ensure_space` lets a writer
-  (the chain file) check before it starts a block it could not finish.
+* **A full disk is one line, exit 1, nothing lost.** An ``ENOSPC``, ``EDQUOT`` or ``EFBIG`` while
+  writing (or a library error that wraps one) becomes :class:`~bayesdrag.io.space.DiskFullError`;
+  the staging folder is removed and the earlier outputs are untouched
+  (:mod:`bayesdrag.io.space`, whose checks let a writer stop before a block it could not finish).
+* **Inputs are never moved.** A run whose output has the name of one of its inputs in ``DIR``
+  refuses (exit 2) rather than move the input aside.
 * **Nothing read here is evaluated.** Manifests and plans are JSON, read with a size bound, and
   every name in them is checked to be a plain file name inside ``DIR`` before it is used.
 """
@@ -65,23 +74,23 @@ import time
 from fnmatch import fnmatch
 from pathlib import Path
 
+from .._user_cache import user_key
 from ..errors import InputError, OutputError
+from .commit import (NAME_RE, PLAN, PLAN_FORMAT, STAGING_PREFIX, SUPERSEDED, check_signature, execute,
+                     not_own_folder, plan_moves, safe_rel, signature)
+from .space import (DISK_FULL, MIN_FREE_BYTES, DiskFullError, ensure_file_size, ensure_space, file_size_limit,
+                    free_bytes, is_disk_full, space_problem)
 
 __all__ = ["OutputRun", "atomic_write", "write_json", "write_bytes", "write_figure", "ensure_output_dir",
-           "read_json", "sha256_file", "describe_inputs", "ensure_space", "is_disk_full", "DiskFullError", "MANIFEST",
+           "read_json", "sha256_file", "describe_inputs", "ensure_space", "is_disk_full", "space_problem",
+           "DiskFullError", "DISK_FULL", "file_size_limit", "ensure_file_size", "MANIFEST",
            "SUPERSEDED", "LOCK_NAME", "KNOWN_OUTPUTS", "MANIFEST_FORMAT"]
 
 #: the manifest of the run whose outputs are in ``DIR``
 MANIFEST = "manifest.json"
 MANIFEST_FORMAT = "bayesdrag-manifest/1"
-#: earlier runs' files, one folder per run
-SUPERSEDED = "superseded"
 #: the lock file (hidden; held with flock)
 LOCK_NAME = ".bayesdrag.lock"
-STAGING_PREFIX = ".staging-"
-#: the commit journal inside a staging folder (hidden: `bayesdrag plan` writes a `plan.json` output)
-PLAN = ".commit.json"
-PLAN_FORMAT = "bayesdrag-commit/1"
 #: what bayesdrag writes into an output folder (glob patterns): superseded in a folder that has
 #: no manifest (written by a version before manifests)
 KNOWN_OUTPUTS = ("manifest.json", "result.json", "posterior.nc", "chain.h5", "report.html", "summary.json",
@@ -94,11 +103,7 @@ KNOWN_OUTPUTS = ("manifest.json", "result.json", "posterior.nc", "chain.h5", "re
 PARTIAL_CHAIN = "chain.partial.h5"
 #: largest manifest or plan read back [bytes]
 MAX_JSON_BYTES = 8 << 20
-#: free space below which a run does not start [bytes]
-MIN_FREE_BYTES = 1 << 20
-_NAME_RE = re.compile(r"^\.?[A-Za-z0-9][A-Za-z0-9._-]{0,200}$")
 _RUN_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,100}$")
-_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 # ============================================================================ small writers
@@ -147,21 +152,29 @@ def atomic_write(path, write_fn):
     if os.path.lexists(path) and not path.is_symlink() and not stat.S_ISREG(os.lstat(path).st_mode):
         raise InputError(f"{path}: output path exists and is not a regular file (a device or pipe); "
                          f"give the name of a file to write")
+    if os.path.lexists(path) and not path.is_symlink() and not os.lstat(path).st_mode & 0o222:
+        raise InputError(f"{path}: the output file is read-only; bayesdrag does not replace it: remove it or "
+                         f"give another name")
     _remove_stale_parts(path)
     tmp = _tmp_name(path)
     try:
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
-    except PermissionError as exc:
-        raise InputError(f"{path.parent}: the output folder is not writable ({exc.strerror})") from None
+    except OSError as exc:
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise InputError(f"{path.parent}: the output folder is not writable ({exc.strerror})") from None
+        if exc.errno == errno.ENAMETOOLONG:
+            raise InputError(f"{path}: the name is too long ({exc.strerror}); give a shorter one") from None
+        raise
     try:
         write_fn(str(tmp))
         os.replace(tmp, path)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
-        if isinstance(exc, Exception) and is_disk_full(exc, path.parent):
-            raise DiskFullError(f"{path.parent}: the disk is full (No space left on device) while writing "
-                              f"{path.name}; nothing was written: free some space and run again") from None
+        why = space_problem(exc, path.parent) if isinstance(exc, Exception) else None
+        if why is not None:
+            raise DiskFullError(f"{path.parent}: {why} while writing {path.name}; nothing was written: free some "
+                                f"space and run again", reason=why) from None
         raise
 
 
@@ -242,63 +255,9 @@ def describe_inputs(inputs):
     return out
 
 
-# ============================================================================ disk full
-class DiskFullError(OutputError):
-    """No space left on the output folder's disk (or its quota): one line, exit status 1."""
-
-
-def is_disk_full(exc, folder=None):
-    """True when ``exc`` is (or wraps) "no space left on device" or "quota exceeded": an
-    ``OSError`` with that errno, a library error quoting it (HDF5, netCDF), or any error while
-    ``folder``'s file system has less than :data:`MIN_FREE_BYTES` left."""
-    seen = set()
-    e = exc
-    while e is not None and id(e) not in seen:
-        seen.add(id(e))
-        if isinstance(e, OSError) and e.errno in _DISK_FULL:
-            return True
-        text = str(e)
-        if "No space left on device" in text or "errno = 28" in text or "Disk quota exceeded" in text:
-            return True
-        e = e.__cause__ or e.__context__
-    if folder is not None:
-        free = free_bytes(folder)
-        return free is not None and free < MIN_FREE_BYTES
-    return False
-
-
-def free_bytes(folder):
-    """Bytes available to this user on ``folder``'s file system (None when unknown)."""
-    try:
-        s = os.statvfs(folder)
-    except OSError:
-        return None
-    return s.f_bavail * s.f_frsize
-
-
-def ensure_space(folder, nbytes, what):
-    """Raise :class:`~bayesdrag.errors.OutputError` when ``folder``'s file system has less than
-    ``nbytes`` plus :data:`MIN_FREE_BYTES` free, before a writer starts what it could not finish."""
-    free = free_bytes(folder)
-    if free is not None and free < nbytes + MIN_FREE_BYTES:
-        raise DiskFullError(f"{folder}: the disk is full ({free} bytes free, {int(nbytes)} needed) while "
-                            f"writing {what}")
-
-
 # ============================================================================ the run
 def _new_run_id():
     return f"{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{os.getpid()}-{secrets.token_hex(2)}"
-
-
-def _safe_rel(rel):
-    """A relative path from a plan or manifest, checked to be plain names (no '..', no '/'
-    at the start): a tuple of its parts."""
-    if not isinstance(rel, str) or not rel or rel.startswith("/"):
-        raise ValueError(f"not a relative path: {rel!r}")
-    parts = tuple(rel.split("/"))
-    if not all(_NAME_RE.match(p) and p not in (".", "..") for p in parts):
-        raise ValueError(f"not a plain relative path: {rel!r}")
-    return parts
 
 
 class OutputRun:
@@ -330,7 +289,10 @@ class OutputRun:
     """
 
     def __init__(self, directory, command, *, inputs=None, options=None, echo=None):
+        if not os.fspath(directory).strip():
+            raise InputError("output folder: the name is empty; give a folder (. for the current one)")
         self.folder = Path(directory)
+        self._real = None
         self.command = str(command)
         self.inputs = describe_inputs(inputs)
         self.options = options
@@ -352,8 +314,23 @@ class OutputRun:
     def adopt(self, name, as_name):
         """At commit, the file ``DIR/name`` (already written there, e.g. the finished chain)
         becomes the output ``DIR/as_name``."""
-        _safe_rel(name), _safe_rel(as_name)
+        safe_rel(name), safe_rel(as_name)
         self._adopted[str(as_name)] = str(name)
+
+    def subfolder(self, name, what):
+        """``DIR/name`` (``name`` a plain name, ``what`` says what it holds in a message), made
+        here when missing; refused (:class:`~bayesdrag.errors.InputError`, exit 2) when something
+        else is there: a symbolic link, a file, a folder of another user. Valid inside the
+        ``with`` block."""
+        safe_rel(name)
+        path = self._real / name
+        if not os.path.lexists(path):
+            path.mkdir()
+        why = not_own_folder(path)
+        if why:
+            raise InputError(f"{self.folder / name}: {what} {why}; bayesdrag makes these folders itself: "
+                             f"remove it")
+        return path
 
     # -------------------------------------------------------------------- enter / exit
     def __enter__(self):
@@ -366,13 +343,16 @@ class OutputRun:
         except OSError as exc:
             raise InputError(f"{out}: cannot create the output folder ({exc.strerror or exc}); "
                              f"choose another -o") from None
+        # resolved once: the user's own -o may pass symbolic links; inside DIR none is followed
+        self._real = Path(os.path.realpath(out))
         self._lock()
         try:
             self._recover()
+            self._check_where_outputs_go()
             free = free_bytes(out)
             if free is not None and free < MIN_FREE_BYTES:
                 raise DiskFullError(f"{out}: the disk is full ({free} bytes free); free some space and run again")
-            staging = out / f"{STAGING_PREFIX}{self.run_id}"
+            staging = self._real / f"{STAGING_PREFIX}{self.run_id}"
             try:
                 staging.mkdir()
             except OSError as exc:
@@ -383,6 +363,26 @@ class OutputRun:
             self._unlock()
             raise
         return self
+
+    def _check_where_outputs_go(self):
+        """Refuse, before any work, what a run would write through or move its files into:
+        a symbolic link or other non-file with an output's name, a ``superseded`` that is not a
+        folder of this user, and an input of this run named ``manifest.json`` in ``DIR``."""
+        for e in os.scandir(self._real):
+            named = any(fnmatch(e.name, p) for p in KNOWN_OUTPUTS)    # (the chain file checks itself)
+            if e.name == SUPERSEDED:
+                why = not_own_folder(Path(e.path))
+                if why:
+                    raise InputError(f"{self.folder / SUPERSEDED}: {why}; bayesdrag makes this folder itself to keep "
+                                     f"earlier outputs: remove or rename it")
+            elif named and (e.is_symlink() or not e.is_file(follow_symlinks=False)):
+                kind = "a symbolic link" if e.is_symlink() else "not a regular file"
+                raise InputError(f"{self.folder / e.name}: {kind} where bayesdrag writes an output (it never writes "
+                                 f"through one); remove it")
+        for role, v in self.inputs.items():
+            if Path(v["path"]).parent == self._real and Path(v["path"]).name == MANIFEST:
+                raise InputError(f"{v['path']}: the {role} is named like the manifest bayesdrag writes into "
+                                 f"{self.folder}; rename it or write to another folder")
 
     def __exit__(self, et, ev, tb):
         try:
@@ -410,17 +410,17 @@ class OutputRun:
         return False
 
     def _raise_if_full(self, exc):
-        """Re-raise a full disk as one :class:`DiskFullError` saying what was kept."""
-        if isinstance(exc, DiskFullError) or (not isinstance(exc, (InputError, OutputError))
-                                              and is_disk_full(exc, self.folder)):
-            raise DiskFullError(self._full_message()) from None
+        """Re-raise running out of room as one :class:`DiskFullError` saying what was kept."""
+        if isinstance(exc, DiskFullError) or not isinstance(exc, (InputError, OutputError)):
+            why = space_problem(exc, self.folder)
+            if why is not None:
+                raise DiskFullError(self._full_message(why), reason=why) from None
 
-    def _full_message(self):
+    def _full_message(self, why=DISK_FULL):
         partial = self.folder / PARTIAL_CHAIN
         keep = (f"; the unfinished chain stays in {partial}: free some space and continue it with --resume"
                 if partial.exists() else ": free some space and run again")
-        return (f"{self.folder}: the disk is full (No space left on device); nothing of this run was kept and "
-                f"the earlier outputs are untouched{keep}")
+        return f"{self.folder}: {why}; nothing of this run was kept and the earlier outputs are untouched{keep}"
 
     # -------------------------------------------------------------------- lock
     def _lock(self):
@@ -428,7 +428,7 @@ class OutputRun:
         where the file system cannot lock a folder (some network file systems), on
         ``DIR/.bayesdrag.lock``."""
         try:
-            fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+            fd = os.open(self._real, os.O_RDONLY | os.O_DIRECTORY)
         except OSError as exc:
             raise InputError(f"{self.folder}: cannot open the output folder ({exc.strerror or exc})") from None
         try:
@@ -448,14 +448,14 @@ class OutputRun:
         """The pid in the newest staging folder's run id (the run holding the lock)."""
         pids = []
         with contextlib.suppress(OSError):
-            for e in os.scandir(self.folder):
+            for e in os.scandir(self._real):
                 m = re.match(rf"^{re.escape(STAGING_PREFIX)}(\d{{8}}T\d{{6}}Z)-(\d+)-", e.name)
                 if m:
                     pids.append((m.group(1), m.group(2)))
         return max(pids)[1] if pids else None
 
     def _lock_file(self):
-        path = self.folder / LOCK_NAME
+        path = self._real / LOCK_NAME
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
         except OSError as exc:
@@ -486,47 +486,33 @@ class OutputRun:
     # -------------------------------------------------------------------- recovery
     def _recover(self):
         """Complete the commit of a run killed during its swap; remove stagings of runs killed
-        before their commit point."""
-        for entry in sorted(os.scandir(self.folder), key=lambda e: e.name):
+        before their commit point. Only a plan this user's bayesdrag wrote for this folder is
+        carried out (:mod:`bayesdrag.io.commit`); anything else is refused before a file is
+        moved: one line, exit status 2. A staging folder of another user is left alone."""
+        key = None
+        for entry in sorted(os.scandir(self._real), key=lambda e: e.name):
             if not entry.name.startswith(STAGING_PREFIX) or not entry.is_dir(follow_symlinks=False):
                 continue
             plan = Path(entry.path) / PLAN
-            if plan.is_file():
+            owner = entry.stat(follow_symlinks=False).st_uid
+            if owner != os.getuid():
+                if os.path.lexists(plan):
+                    raise InputError(f"{plan}: an interrupted commit in a folder of another user (uid {owner}), "
+                                     f"never carried out; move {entry.name} out of {self.folder}")
+                continue
+            if os.path.lexists(plan):
                 try:
                     doc = read_json(plan, "commit plan")
-                    moves = self._plan_moves(doc)
-                except (InputError, ValueError, TypeError, KeyError) as exc:
-                    raise InputError(f"{plan}: an interrupted commit whose plan cannot be used ({exc}); "
-                                     f"move {entry.name} out of {self.folder}") from None
-                self._execute(moves)
+                    moves = plan_moves(doc, entry.name)
+                    key = key or user_key()
+                    check_signature(key, doc, self._real, entry.name)
+                    execute(self._real, moves)
+                except (InputError, ValueError, TypeError, KeyError, OSError) as exc:
+                    detail = str(exc).split(": ", 1)[-1] if isinstance(exc, InputError) else str(exc)
+                    raise InputError(f"{plan}: an interrupted commit whose plan cannot be used ({detail}); nothing "
+                                     f"was moved by it: move {entry.name} out of {self.folder}") from None
                 self._note(f"completed the interrupted commit of run {doc.get('run')} in {self.folder}")
             shutil.rmtree(entry.path, ignore_errors=True)
-
-    @staticmethod
-    def _plan_moves(doc):
-        if not isinstance(doc, dict) or doc.get("format") != PLAN_FORMAT or not isinstance(doc.get("moves"), list):
-            raise ValueError("not a commit plan of this version")
-        moves = []
-        for m in doc["moves"]:
-            if not (isinstance(m, list) and len(m) == 3 and m[2] in ("in", "out")):
-                raise ValueError("malformed move")
-            moves.append((_safe_rel(m[0]), _safe_rel(m[1]), m[2]))
-        return moves
-
-    def _execute(self, moves):
-        """Do the renames of a plan; replaying a plan after a kill completes it. An ``out`` move
-        (an earlier file to ``superseded/``) is done when its source exists and its target does
-        not (the source's name is taken by the new file afterwards); an ``in`` move (a new file
-        into ``DIR``) whenever its source, which belongs to this run alone, still exists."""
-        for src, dst, kind in moves:
-            s, d = self.folder.joinpath(*src), self.folder.joinpath(*dst)
-            if not os.path.lexists(s):
-                continue
-            if kind == "in":
-                os.replace(s, d)
-            elif not os.path.lexists(d):
-                d.parent.mkdir(parents=True, exist_ok=True)
-                os.rename(s, d)
 
     def _note(self, msg):
         if self.echo is not None:
@@ -542,13 +528,13 @@ class OutputRun:
         for e in sorted(os.scandir(self.staging), key=lambda e: e.name):
             if e.name.endswith(".part") or e.name == PLAN:
                 continue
-            if not e.is_file(follow_symlinks=False) or not _NAME_RE.match(e.name) or e.name.startswith("."):
+            if not e.is_file(follow_symlinks=False) or not NAME_RE.match(e.name) or e.name.startswith("."):
                 raise OutputError(f"{self.staging}: unexpected entry {e.name!r} in the staging folder")
             names.append(e.name)
         return names
 
     def _commit(self):
-        out, staging = self.folder, self.staging
+        out, staging = self._real, self.staging
         staged = self._staged_files()
         new = {n: staging / n for n in staged}
         for as_name, name in self._adopted.items():
@@ -584,6 +570,11 @@ class OutputRun:
         # carried into the new one's also_current)
         stray = [n for n in new if os.path.lexists(out / n) and n not in {m[0] for m in moves}
                  and n not in self._adopted.values()]
+        clash = [n for n in stray if _is_input(out / n, inputs)]
+        if clash:
+            raise InputError(f"{self.folder / clash[0]}: an input of this run has the name of an output it writes "
+                             f"into {self.folder}; inputs are never moved: rename the input or write to another "
+                             f"folder")
         if stray:
             rid = self._superseded_id(f"unlisted-{self.run_id}", taken)
             moves += [(n, f"{SUPERSEDED}/{rid}/{n}") for n in stray]
@@ -597,12 +588,15 @@ class OutputRun:
         manifest_tmp = staging / MANIFEST
         manifest_tmp.write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
         moves.append((f"{stage_rel}/{MANIFEST}", MANIFEST, "in"))
+        plan_doc = {"format": PLAN_FORMAT, "run": self.run_id, "moves": [list(m) for m in moves]}
+        key = user_key()
+        if key is not None:
+            plan_doc["signature"] = signature(key, self._real, staging.name, self.run_id, plan_doc["moves"])
         plan_tmp = staging / f"{PLAN}.part"
-        plan_tmp.write_text(json.dumps({"format": PLAN_FORMAT, "run": self.run_id, "moves": [list(m) for m in moves]}),
-                            encoding="utf-8")
+        plan_tmp.write_text(json.dumps(plan_doc), encoding="utf-8")
         _fsync(plan_tmp)
         os.replace(plan_tmp, staging / PLAN)          # the commit point
-        self._execute([(_safe_rel(a), _safe_rel(b), k) for a, b, k in moves])
+        execute(self._real, [(safe_rel(a), safe_rel(b), k) for a, b, k in moves])
         shutil.rmtree(staging, ignore_errors=True)
         self.staging = None
         self.manifest = doc
@@ -610,7 +604,7 @@ class OutputRun:
     def _superseded_id(self, run, taken):
         base = run if isinstance(run, str) and _RUN_RE.match(run) else f"earlier-{self.run_id}"
         rid, k = base, 2
-        while rid in taken or os.path.lexists(self.folder / SUPERSEDED / rid):
+        while rid in taken or os.path.lexists(self._real / SUPERSEDED / rid):
             rid, k = f"{base}-{k}", k + 1
         taken.add(rid)
         return rid
@@ -618,7 +612,7 @@ class OutputRun:
     def _earlier_runs(self):
         """The runs whose files are current in ``DIR`` (from its manifest; a folder without one
         is one earlier run holding every known output name), and the manifest's own run id."""
-        out = self.folder
+        out = self._real
         path = out / MANIFEST
         doc = None
         if path.is_file() and not path.is_symlink():
@@ -649,8 +643,9 @@ def _checked_record(r):
     names = []
     for f in r["files"]:
         n = f.get("name") if isinstance(f, dict) else None
-        if not isinstance(n, str) or not _NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN:
-            return None
+        if (not isinstance(n, str) or not NAME_RE.match(n) or n.startswith(".") or n == PARTIAL_CHAIN
+                or not any(fnmatch(n, p) for p in KNOWN_OUTPUTS)):
+            return None           # a manifest names only what bayesdrag writes: never a user's own file
         names.append(n)
     return dict(r, names=names)
 

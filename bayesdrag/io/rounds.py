@@ -89,7 +89,7 @@ def _check_reference_reach(path, pt, ref, launch, atmosphere):
             f"reference_extrapolate = true to hold Cd at its last value beyond the table")
 
 
-def read_round(path):
+def read_round(path: str | os.PathLike[str]) -> Round:
     """Read and validate a round TOML file.
 
     Sections and keys (units in brackets; all but ``[projectile] mass`` and ``diameter``
@@ -250,7 +250,7 @@ def round_files(path, rnd):
     return files
 
 
-def write_round(path, rnd, comment=None):
+def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = None) -> None:
     """Write a round as TOML that :func:`read_round` reads back to the same values.
 
     ``reference_drag`` is written relative to the new file's directory. A reference table

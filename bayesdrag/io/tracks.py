@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import io
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -137,13 +138,16 @@ def _track_header_check(path, line, names):
                          f"{', '.join(CHANNELS)}; header has {', '.join(names)}")
 
 
-def read_track(path):
+def read_track(path: str | os.PathLike[str], *, quote: bool = True) -> RadarTrack:
     """Read and validate a radar track CSV.
 
     Parameters
     ----------
     path : str or os.PathLike
         CSV with header ``t`` plus at least one of ``x, y, z, v``; SI units (s, m, m/s).
+    quote : bool
+        False for a track another file points to (a campaign's): a message never repeats the
+        file's content (:func:`bayesdrag.io.csv.read_table`).
 
     Returns
     -------
@@ -162,7 +166,7 @@ def read_track(path):
         another unit is consistent here; the fit refuses it from the physics (its path bends as
         if gravity were 32.2 for feet). A ``v`` in ft/s alone (no positions) cannot be detected.
     """
-    path, names, data, line_no = read_table(path, "track", header_check=_track_header_check)
+    path, names, data, line_no = read_table(path, "track", header_check=_track_header_check, quote=quote)
     if data.shape[0] < 2:
         raise InputError(f"{path}: track has {data.shape[0]} data row; at least 2 are needed")
     cols = {n: np.ascontiguousarray(data[:, k]) for k, n in enumerate(names)}
@@ -202,7 +206,8 @@ def read_track(path):
     return RadarTrack(t, channels, extra, str(path), notes)
 
 
-def write_track(path, track, comment=None, extra=True):
+def write_track(path: str | os.PathLike[str], track: RadarTrack, comment: str | None = None,
+                extra: bool = True) -> None:
     """Write a track as CSV: ``t`` then the present channels (then extra columns).
 
     Precision: t with 6 decimals (1 us), x, y, z, v with 4 decimals (0.1 mm, 0.1 mm/s), extra

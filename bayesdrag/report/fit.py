@@ -8,54 +8,105 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.outputs import write_bytes
+from .._gc import paused_gc
+from ..errors import MissingDataError
+from ..io.outputs import OutputRun, atomic_write, ensure_space, write_bytes, write_json
 from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
                         plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
 from ..plots.residuals import plot_residuals, plot_residuals_acf
 from .render import figure_png, png_base64, render_report, versions
 
-__all__ = ["write_fit_report", "fit_figures"]
+__all__ = ["write_fit", "write_fit_files", "write_fit_report", "fit_figures", "cd_figure", "cd_relative_figure",
+           "sd_ratio_figure", "budget_figure", "residuals_figure", "corner_figure", "traces_figure"]
 
 #: resolution of the corner plot [dpi] (many panels)
 CORNER_DPI = 80
 
 
-def fit_figures(result):
-    """The figures of a fit: ``[(file name, title, caption, Figure, dpi)]``."""
-    if result.summary["scheme"] == 2:
-        rnd = result.round
-        rows = [result.summary["windows"][k] for k in result.windows_ok]
-        ax = plot_windows(rows, reference=rnd.reference_drag.value if rnd.reference_drag is not None else None)
-        return [("windows.png", "Cd per window", "Each window's Cd at its mean Mach number with its 90 % interval; "
-                 "the reference curve dashed.", ax.figure, None)]
-    f1, bayes, post = result.scheme1, result.posterior, result.log_posterior
-    res, prob, dm = f1.ml, f1.problem, f1.drag_model
-    rows = result.summary["cd"]
-    track = result.track
-    budget = result.summary.get("uncertainty_budget")
-    budget_fig = []
-    if budget and (len(budget["by_source"]) > 2 or budget.get("model_error_floor")):
-        budget_fig = [("cd_budget.png", "Uncertainty budget", "The Cd sd by source (GUM, linearised at the ML "
-                       "estimate): statistical = what the track leaves with every declared source held; each "
-                       "source's share; the total of the joint fit; dash-dot the model-error floor the band uses "
-                       "where the residuals show model error.",
-                       plot_uncertainty_budget(budget, cd=[r["ml"] for r in rows]).figure, None)]
+def _rows(result):
+    return result.record["cd"]
+
+
+def _reference_curve(result):
+    """The reference Cd(M) as a callable: the round's drag, else the ``cd`` rows' reference
+    column (a loaded result), else None."""
+    rnd = result.round
+    if rnd is not None:
+        return rnd.reference_drag.value if rnd.reference_drag is not None else None
+    ref = result.cd.reference
+    if np.all(np.isfinite(ref)):
+        return lambda m: np.interp(m, result.cd.mach, ref)
+    return None
+
+
+def cd_figure(result, ax=None):
+    """``cd.png``: the ML curve with its 90 % band (each row's band sd) and the reference; after
+    sampling the posterior's 50 % and 90 % bands with the ML curve's Cramér-Rao band; Scheme 2
+    the windows. Returns the Axes."""
+    if result.record["scheme"] == 2:
+        rows = [result.record["windows"][k] for k in result.windows_ok]
+        return plot_windows(rows, ax=ax, reference=_reference_curve(result))
+    dm = result.record["drag_model"]
+    if result.sampled:
+        return plot_cd_posterior(_rows(result), ax=ax, label=f"posterior ({dm})")
+    return plot_cd_ml(_rows(result), ax=ax, label=f"ML ({dm})")
+
+
+def _need_sampled(result, what):
+    if not result.sampled or result.record["scheme"] != 1:
+        raise MissingDataError(f"{what} draws the Scheme 1 posterior and this fit did not sample: fit with "
+                               f"mcmc=True (the default)")
+
+
+def cd_relative_figure(result, ax=None):
+    """``cd_relative.png``: the posterior bands in percent of the reference curve (Scheme 1,
+    sampled, with a reference drag). Returns the Axes."""
+    _need_sampled(result, "plot_cd_relative")
+    if not all(r.get("reference") for r in _rows(result)):
+        raise MissingDataError("plot_cd_relative draws the Cd relative to the reference drag, and the round has none")
+    return plot_cd_posterior_relative(_rows(result), ax=ax)
+
+
+def sd_ratio_figure(result, ax=None):
+    """``cd_sd_ratio.png``: the posterior sd over the Cramér-Rao sd against Mach (Scheme 1,
+    sampled). Returns the Axes."""
+    _need_sampled(result, "plot_sd_ratio")
+    return plot_cd_relative(_rows(result), ax=ax)
+
+
+def budget_figure(result, ax=None):
+    """``cd_budget.png``: the Cd sd by source against Mach in percent of Cd. Returns the Axes."""
+    budget = result.record.get("uncertainty_budget")
+    if not budget:
+        raise MissingDataError("plot_budget draws result.json's uncertainty_budget, and this result has none")
+    cd = [r["ml"] for r in _rows(result)] if result.record["scheme"] == 1 else None
+    return plot_uncertainty_budget(budget, ax=ax, cd=cd)
+
+
+def residuals_figure(result, fig=None):
+    """``residuals.png``: measured minus fitted with ±σ bands (after sampling: minus the
+    posterior-mean trajectory, with the residuals' autocorrelation). Needs the fit's objects.
+    Returns the Figure."""
+    result.require("plot_residuals", "scheme1", "track")
+    f1, bayes, track = result.scheme1, result.posterior, result.track
     if bayes is None:
-        return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the Cramér-Rao sd, or the colored-residual "
-                 "sd where the residuals show model error) and the reference.", plot_cd_ml(rows, label=f"ML ({dm.name})").figure, None),
-                ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.",
-                 plot_residuals(track.t, res.residuals, res.sigma), None)] + budget_fig
-    figs = [("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
-             "Cramér-Rao band (dotted) and the reference firing table (dashed).",
-             plot_cd_posterior(rows, label=f"posterior ({dm.name})").figure, None)]
-    if all(r.get("reference") for r in rows):
-        figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
-                     "reference curve, where their widths are visible.", plot_cd_posterior_relative(rows).figure, None))
-    figs += budget_fig
-    figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the bound; "
-                 "above 1 where the noise is estimated larger than the round's or the data are weak.",
-                 plot_cd_relative(rows).figure, None))
+        res = f1.ml
+        return plot_residuals(track.t, res.residuals, res.sigma, fig=fig)
+    prob = f1.problem
+    flat = bayes.thetas.reshape(-1, bayes.thetas.shape[-1])
+    y, _ = prob.predict(flat.mean(axis=0)[None])
+    resid = {c: prob.z[:, j] - y[0, :, j] for j, c in enumerate(prob.channels)}
+    sig = {c: float(np.exp(np.median(bayes.draws[..., bayes.names.index(f"log_sigma_{c}")]))) for c in prob.channels}
+    return plot_residuals_acf(track.t, resid, sig, fig=fig)
+
+
+def corner_figure(result, fig=None):
+    """``corner.png``: Cd at three Mach numbers of the determined range and the initial state.
+    Needs the fit's objects (after sampling). Returns the Figure."""
+    result.require("plot_corner", "scheme1", "posterior")
+    f1, bayes = result.scheme1, result.posterior
+    prob, dm, rows = f1.problem, f1.drag_model, _rows(result)
     flat = bayes.thetas.reshape(-1, bayes.thetas.shape[-1])
     det = [r["mach"] for r in rows if r.get("determined")] or [r["mach"] for r in rows]
     ms = np.quantile(det, [0.1, 0.5, 0.9]).round(2)
@@ -64,27 +115,124 @@ def fit_figures(result):
     for n in ("X0", "Z0", "Ux0", "Uz0", "Uy0"):
         if n in bayes.names:
             sel[n] = flat[:, list(prob.names).index(n)]
-    figs.append(("corner.png", "Corner plot", "Cd at three Mach numbers of the determined range and the initial "
-                 "state; lines at the 5, 50 and 95 % quantiles.", plot_corner(sel), CORNER_DPI))
+    return plot_corner(sel, fig=fig)
+
+
+def traces_figure(result, fig=None):
+    """``traces.png``: walkers against step with the burn-in marked. Needs the fit's objects
+    (after sampling). Returns the Figure (None when no traced parameter was sampled)."""
+    result.require("plot_traces", "scheme1", "posterior", "log_posterior")
+    prob, bayes, post = result.scheme1.problem, result.posterior, result.log_posterior
     picks = [n for n in ("Ux0", "Uz0", "log_sigma_x", "log_sigma_v") if n in post.names]
     chains = {n: bayes.chain[:, :, post.names.index(n)] for n in picks}
     mid = prob.names[prob.P // 2]
     if mid in post.names:
         chains[mid] = bayes.chain[:, :, list(post.names).index(mid)]
-    if chains:
-        fig = plot_traces(chains)
-        for ax in fig.axes:
-            ax.axvline(bayes.burn, color="k", lw=0.8, ls="--")
-        figs.append(("traces.png", "Traces", f"Walkers against step; burn-in ({bayes.burn} steps) left of the "
-                     "dashed line.", fig, None))
-    y, _ = prob.predict(flat.mean(axis=0)[None])
-    resid = {c: prob.z[:, j] - y[0, :, j] for j, c in enumerate(prob.channels)}
-    sig = {c: float(np.exp(np.median(bayes.draws[..., bayes.names.index(f"log_sigma_{c}")]))) for c in prob.channels}
+    if not chains:
+        return None
+    fig = plot_traces(chains, fig=fig)
+    for ax in fig.axes:
+        ax.axvline(bayes.burn, color="k", lw=0.8, ls="--")
+    return fig
+
+
+def fit_figures(result):
+    """The figures of a fit: ``[(file name, title, caption, Figure, dpi)]``."""
+    if result.record["scheme"] == 2:
+        return [("windows.png", "Cd per window", "Each window's Cd at its mean Mach number with its 90 % interval; "
+                 "the reference curve dashed.", cd_figure(result).figure, None)]
+    rows = _rows(result)
+    budget = result.record.get("uncertainty_budget")
+    budget_fig = []
+    if budget and (len(budget["by_source"]) > 2 or budget.get("model_error_floor")):
+        budget_fig = [("cd_budget.png", "Uncertainty budget", "The Cd sd by source (GUM, linearised at the ML "
+                       "estimate): statistical = what the track leaves with every declared source held; each "
+                       "source's share; the total of the joint fit; dash-dot the model-error floor the band uses "
+                       "where the residuals show model error.", budget_figure(result).figure, None)]
+    if result.posterior is None:
+        return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the "
+                 "Cramér-Rao sd, or the colored-residual sd where the residuals show model error) and the reference.",
+                 cd_figure(result).figure, None),
+                ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.", residuals_figure(result),
+                 None)] + budget_fig
+    figs = [("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
+             "Cramér-Rao band (dotted) and the reference firing table (dashed).", cd_figure(result).figure, None)]
+    if all(r.get("reference") for r in rows):
+        figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
+                     "reference curve, where their widths are visible.", cd_relative_figure(result).figure, None))
+    figs += budget_fig
+    figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the bound; "
+                 "above 1 where the noise is estimated larger than the round's or the data are weak.",
+                 sd_ratio_figure(result).figure, None))
+    figs.append(("corner.png", "Corner plot", "Cd at three Mach numbers of the determined range and the initial "
+                 "state; lines at the 5, 50 and 95 % quantiles.", corner_figure(result), CORNER_DPI))
+    traces = traces_figure(result)
+    if traces is not None:
+        figs.append(("traces.png", "Traces", f"Walkers against step; burn-in ({result.posterior.burn} steps) left "
+                     "of the dashed line.", traces, None))
     figs.append(("residuals.png", "Residuals and their autocorrelation",
                  "Measured minus the posterior-mean trajectory with ±σ (posterior median noise sd); right: "
                  "autocorrelation with the white-noise band ±2/√N. Correlated residuals mean model error: the "
-                 "bands are then too narrow (compare the colored CRB).", plot_residuals_acf(track.t, resid, sig), None))
+                 "bands are then too narrow (compare the colored CRB).", residuals_figure(result), None))
     return figs
+
+
+def write_fit(result, directory, *, sources=None):
+    """Write a fit's folder as one consistent set (:class:`~bayesdrag.io.outputs.OutputRun`):
+    ``result.json``, ``posterior.nc`` (after sampling), the figures, ``report.html`` and
+    ``manifest.json``; a finished chain ``chain.partial.h5`` in it becomes ``chain.h5``; an
+    earlier run's files are moved to ``superseded/``. What ``FitResult.write`` calls.
+
+    Parameters
+    ----------
+    result : FitResult
+    directory : path
+        Created if needed.
+    sources : dict, optional
+        ``{"track": ..., "round": ...}`` file names shown in the report (and, when they are
+        files, recorded with their SHA-256 in the manifest).
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    files = {k: v for k, v in (sources or {}).items() if v is not None and Path(v).is_file()}
+    with OutputRun(directory, "fit", inputs=files) as run:
+        result.write_into(run, sources=sources)
+    return [run.folder / f["name"] for f in run.manifest["files"]]
+
+
+def write_fit_files(result, directory, *, sources=None):
+    """Write ``result.json``, ``posterior.nc`` (after sampling), the figures and
+    ``report.html`` of ``result`` into ``directory`` as plain files (no manifest, nothing moved).
+
+    Returns
+    -------
+    list of Path
+    """
+    out = Path(directory)
+    written = [out / "result.json"]
+    with paused_gc():       # thousands of figure artists: no collections over the fit's objects
+        write_json(out / "result.json", result.to_dict())
+        idata = result.to_inference_data()
+        if idata is not None:
+            # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
+            ensure_space(out, netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
+            atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
+            written.append(out / "posterior.nc")
+        written += write_fit_report(out, result, sources=sources or {})
+    return written
+
+
+def netcdf_bytes(idata):
+    """Bytes of the arrays of an InferenceData (what its NetCDF file holds, before overhead)."""
+    total = 0
+    for name in idata.groups():
+        ds = getattr(idata, name.lstrip("/"), None)
+        if ds is not None:
+            total += sum(int(v.nbytes) for v in ds.variables.values())
+    return total
 
 
 def write_fit_report(out, result, sources=None):
@@ -103,7 +251,7 @@ def write_fit_report(out, result, sources=None):
         write_bytes(out / name, png)
         written.append(out / name)
         embedded.append({"title": title, "caption": caption, "png": png_base64(png)})
-    ctx = _context_scheme2(result, sources) if result.summary["scheme"] == 2 else _context_scheme1(result, sources)
+    ctx = _context_scheme2(result, sources) if result.record["scheme"] == 2 else _context_scheme1(result, sources)
     ctx["figures"] = embedded
     render_report(out / "report.html", ctx)
     written.append(out / "report.html")
@@ -115,7 +263,7 @@ def _common(result, sources, title_kind):
     return {"title": f"bayesdrag fit{title_kind}: {track_name}",
             "created": datetime.datetime.now().isoformat(timespec="seconds"),
             "warnings": list(result.warnings), "versions": versions(),
-            "quality": result.summary["ml"].get("quality")}
+            "quality": result.record["ml"].get("quality")}
 
 
 #: a sampled noise sd this many times the round's (or the track's) is explained in the report
@@ -159,7 +307,7 @@ def _noise_sources(summary):
 
 
 def _context_scheme1(result, sources):
-    s = result.summary
+    s = result.record
     f1, bayes = result.scheme1, result.posterior
     res, prob = f1.ml, f1.problem
     crb_c = dict(zip(res.names, res.crb_colored))
@@ -249,7 +397,7 @@ def budget_context(summary, n=6):
 
 
 def _context_scheme2(result, sources):
-    s = result.summary
+    s = result.record
     rows = s["windows"]
     inputs = [("track", f"{sources.get('track', result.track.source)} ({result.track.n} samples)"),
               ("round", str(sources.get("round", result.round.path))),

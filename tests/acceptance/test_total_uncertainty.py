@@ -31,8 +31,8 @@ WIND_TOL = 0.5
 
 
 def _coverage(result):
-    rows = result.summary["cd"]
-    lo, hi = result.summary["ml"]["mach_range_determined"]
+    rows = result.record["cd"]
+    lo, hi = result.record["ml"]["mach_range_determined"]
     det = [r for r in rows if lo <= r["mach"] <= hi]
     post = float(np.mean([r["q05"] <= r["reference"] <= r["q95"] for r in det]))
     ml = float(np.mean([abs(r["ml"] - r["reference"]) <= 1.645 * r["band_sd"] for r in det]))
@@ -45,21 +45,21 @@ def test_demo_default_band_covers_the_table():
             seed=3)
     post, ml = _coverage(r)
     assert post >= MIN_COVERAGE and ml >= MIN_COVERAGE, (post, ml)
-    assert "ar1" in r.summary["ml"]["noise"]["model"].values()
-    assert r.summary["uncertainty_budget"]["model_error_floor"]
+    assert "ar1" in r.record["ml"]["noise"]["model"].values()
+    assert r.record["uncertainty_budget"]["model_error_floor"]
 
 
 def test_withheld_cross_wind_is_fitted_with_auto():
     case = [c for c in C.EFFECT_CASES if c.id == "6dof-wind-34"][0]
     tr, rnd = C.make_track(case), C.diagnosis_round(case)
     r = fit(tr, rnd, seed=1, with_effects="auto")
-    w = r.summary["ml"]["with_effects"]
+    w = r.record["ml"]["with_effects"]
     assert "wind" in w["fitted"]
-    assert abs(r.summary["ml"]["params"]["wind.wy"] - case.params["wy"]) < WIND_TOL
+    assert abs(r.record["ml"]["params"]["wind.wy"] - case.params["wy"]) < WIND_TOL
     post, ml = _coverage(r)
     assert post >= MIN_COVERAGE and ml >= MIN_COVERAGE, (post, ml)
-    assert "wind" in r.summary["uncertainty_budget"]["by_source"]
-    assert all("ml_without_effects" in row for row in r.summary["cd"])
+    assert "wind" in r.record["uncertainty_budget"]["by_source"]
+    assert all("ml_without_effects" in row for row in r.record["cd"])
     plain = fit(tr, rnd, mcmc=False)
     assert any("autocorrelated" in x and "model error" in x for x in plain.warnings)
 

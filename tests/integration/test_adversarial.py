@@ -205,6 +205,10 @@ def test_fit_campaign_on_a_planted_chain_reports_the_round_and_never_runs_it(cas
     _planted_chain(case / "out" / "a" / "chain.partial.h5", case / "PWNED")
     code, lines = _cli(["fit", "camp.toml", "-o", case / "out", "--quiet", *QUICK[:2]], capsys)
     assert not (case / "PWNED").exists()
+    assert code != 0 and any("an unfinished chain of an earlier run is there; continue it with --resume" in ln
+                             for ln in lines), lines          # not read unless asked
+    code, lines = _cli(["fit", "camp.toml", "-o", case / "out", "--quiet", "--resume", *QUICK[:2]], capsys)
+    assert not (case / "PWNED").exists()
     assert code != 0 and any("never loaded" in ln for ln in lines), lines
 
 
@@ -453,15 +457,113 @@ def test_an_unusable_output_folder_is_refused_before_any_work(case, capsys, monk
     _one_line(code, lines, 2, r"(cannot create the output folder|output path exists and is not a folder)")
 
 
-def test_numbas_cache_is_per_user_and_never_in_an_output_folder(tmp_path, finished):
-    env = {k: v for k, v in ENV.items() if k != "NUMBA_CACHE_DIR"}
-    env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
-    r = subprocess.run([sys.executable, "-c", "import os, bayesdrag; print(os.environ['NUMBA_CACHE_DIR'])"],
+def _clean_env(tmp_path):
+    """The environment of a new user: a fresh home and cache folder, no numba settings."""
+    env = {k: v for k, v in ENV.items()
+           if k not in ("NUMBA_CACHE_DIR", "NUMBA_CACHE_LOCATOR_CLASSES", "OMP_WAIT_POLICY")}
+    (tmp_path / "home").mkdir(exist_ok=True)
+    (tmp_path / "cache").mkdir(exist_ok=True)
+    return dict(env, HOME=str(tmp_path / "home"), XDG_CACHE_HOME=str(tmp_path / "cache"))
+
+
+def _files_under(folder):
+    return sorted(p.relative_to(folder).as_posix() for p in Path(folder).rglob("*"))
+
+
+#: a Python snippet: compile (or load) one cached function of the package and print the settings
+_FIRST_USE = """
+import json, os
+import numpy as np
+{first}
+from bayesdrag.estimate import colored
+colored.whitened_ss(np.zeros((2, 5)), 0.5, 1.0, np.ones(4))
+print(json.dumps({{k: os.environ.get(k) for k in ("NUMBA_CACHE_DIR", "OMP_WAIT_POLICY", "NUMBA_CACHE_LOCATOR_CLASSES")}}))
+"""
+
+
+def test_import_bayesdrag_changes_no_variable_and_creates_no_file(tmp_path, base):
+    """``import bayesdrag`` and reading a track: the environment is as before, no file or folder
+    appears in the home or cache folder, numba is not even imported."""
+    env = _clean_env(tmp_path)
+    code = ("import json, os, sys\nbefore = dict(os.environ)\nimport bayesdrag\n"
+            f"tr = bayesdrag.read_track({str(base / 'track.csv')!r})\n"
+            "print(json.dumps({'same': dict(os.environ) == before, 'numba': 'numba' in sys.modules, 'n': tr.n}))")
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    out = json.loads(r.stdout)
+    assert out == {"same": True, "numba": False, "n": read_track(base / "track.csv").n}, out
+    assert _files_under(tmp_path / "home") == [] and _files_under(tmp_path / "cache") == []
+
+
+@pytest.mark.parametrize("first", ["from bayesdrag.dynamics import kernel", "from bayesdrag.estimate import posterior"])
+def test_the_first_kernel_use_caches_in_the_private_folder(tmp_path, first):
+    """Where the compiled functions are first needed the settings are made: the cache in the
+    per-user folder (0700), numba's threads passive; also when a module that imports numba
+    itself (the AR(1) filter) is imported before the dynamics."""
+    env = _clean_env(tmp_path)
+    r = subprocess.run([sys.executable, "-c", _FIRST_USE.format(first=first + "\nimport bayesdrag.dynamics")],
                        env=env, capture_output=True, text=True, check=True)
-    cache = Path(r.stdout.strip())
-    assert cache == tmp_path / "cache" / "bayesdrag" / "numba"
+    settings = json.loads(r.stdout.strip().splitlines()[-1])
+    cache = tmp_path / "cache" / "bayesdrag" / "numba"
+    assert settings["NUMBA_CACHE_DIR"] == str(cache) and settings["OMP_WAIT_POLICY"] == "PASSIVE"
+    assert settings["NUMBA_CACHE_LOCATOR_CLASSES"].split(",")[0] == "bayesdrag._numba_cache.PackageCacheLocator"
     assert stat.S_IMODE(cache.stat().st_mode) == 0o700 and stat.S_IMODE(cache.parent.stat().st_mode) == 0o700
-    assert not [p for p in finished.rglob("*") if p.suffix in (".nbi", ".nbc")]
+    assert [p for p in cache.rglob("colored.*.nbi")], _files_under(cache)
+    assert not r.stderr.strip(), r.stderr
+
+
+def test_a_users_own_numba_settings_are_respected(tmp_path):
+    env = dict(_clean_env(tmp_path), NUMBA_CACHE_DIR=str(tmp_path / "mine"), OMP_WAIT_POLICY="ACTIVE")
+    r = subprocess.run([sys.executable, "-c", _FIRST_USE.format(first="import bayesdrag.dynamics")], env=env,
+                       capture_output=True, text=True, check=True)
+    settings = json.loads(r.stdout.strip().splitlines()[-1])
+    assert settings["NUMBA_CACHE_DIR"] == str(tmp_path / "mine") and settings["OMP_WAIT_POLICY"] == "ACTIVE"
+    assert [p for p in (tmp_path / "mine").rglob("colored.*.nbi")]
+    assert _files_under(tmp_path / "cache") == []
+
+
+@pytest.mark.parametrize("how", ["default folder writable by others", "NUMBA_CACHE_DIR writable by others",
+                                 "default folder is a symbolic link"])
+def test_a_cache_folder_others_can_write_is_never_loaded(tmp_path, how):
+    """Reproducer 1's end: a pickle moved over a kernel's cache index ran in the next fit. A cache
+    folder others can write (or a link to one) is not used: the functions are compiled into a
+    private folder for this run, one note says why, the planted index never runs."""
+    env = _clean_env(tmp_path)
+    snippet = _FIRST_USE.format(first="import bayesdrag.dynamics")
+    # the names numba gives the cache files, from a clean run
+    clean = tmp_path / "clean"
+    subprocess.run([sys.executable, "-c", snippet], env=dict(env, NUMBA_CACHE_DIR=str(clean)), check=True,
+                   capture_output=True)
+    names = [p.relative_to(clean) for p in clean.rglob("*.nbi")]
+    assert names
+    marker = tmp_path / "PWNED"
+    shared = tmp_path / "shared"
+    for rel in names:
+        (shared / rel).parent.mkdir(parents=True, exist_ok=True)
+        (shared / rel).write_bytes(_pickle(marker))
+    for d in [shared, *shared.rglob("*")]:
+        if d.is_dir():
+            d.chmod(0o777)
+    if how == "NUMBA_CACHE_DIR writable by others":
+        env["NUMBA_CACHE_DIR"] = str(shared)
+    elif how == "default folder writable by others":
+        (tmp_path / "cache" / "bayesdrag").mkdir(mode=0o700)
+        shared.rename(tmp_path / "cache" / "bayesdrag" / "numba")
+        shared = tmp_path / "cache" / "bayesdrag" / "numba"
+    else:
+        (tmp_path / "evil").mkdir(mode=0o777)
+        shared.rename(tmp_path / "evil" / "numba")
+        shared = tmp_path / "evil" / "numba"
+        (tmp_path / "cache" / "bayesdrag").symlink_to(tmp_path / "evil", target_is_directory=True)
+    before = _tree(shared)
+    r = subprocess.run([sys.executable, "-c", snippet], env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert not marker.exists(), "a planted cache index was unpickled"
+    assert _tree(shared) == before
+    notes = r.stderr.strip().splitlines()
+    assert len(notes) == 1 and re.search(r"numba's cache folder is not used: .*(written by others|symbolic link)",
+                                         notes[0]), notes
+    used = json.loads(r.stdout.strip().splitlines()[-1])["NUMBA_CACHE_DIR"]
+    assert not Path(used).exists(), "the run's own cache folder was not removed at exit"
 
 
 # ================================================================== inputs
@@ -636,7 +738,8 @@ def test_batch_quiet_prints_no_dask_log_lines_and_never_runs_a_planted_chain(cas
     (case / "out" / "a").mkdir(parents=True)
     _planted_chain(case / "out" / "a" / "chain.partial.h5", case / "PWNED")
     r = subprocess.run([sys.executable, "-m", "bayesdrag", "batch", "camp.toml", "-o", "out", "--workers", "1",
-                        "--quiet", *QUICK[:2]], env=ENV, cwd=case, capture_output=True, text=True, timeout=600)
+                        "--quiet", "--resume", *QUICK[:2]], env=ENV, cwd=case, capture_output=True, text=True,
+                       timeout=600)
     assert not (case / "PWNED").exists()
     assert "INFO" not in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert r.returncode != 0 and "never loaded" in r.stdout + r.stderr

@@ -158,6 +158,13 @@ TRACK_CASES = [
     ("track-t-in-ms", _track(lambda d: _scale_track(d, "t", 1e3)), r"units look wrong.*milliseconds"),
     ("track-is-directory", _fit(lambda d: ((d / "track.csv").unlink(), (d / "track.csv").mkdir())),
      r"track\.csv: track expected, found a directory"),
+    # issue 25: only ASCII decimal notation is a number (Python's float read these as 815.5, 123)
+    ("track-underscore-in-number", _track(lambda d: _edit_track(d, _set_field(4, "z", "81_5.5"))),
+     r"line 6, column 'z': '81_5.5' is not a number; expected a decimal number"),
+    ("track-arabic-indic-digits", _track(lambda d: _edit_track(d, _set_field(4, "x", "\u0661\u0662\u0663"))),
+     r"line 6, column 'x': '\u0661\u0662\u0663' is not a number"),
+    ("track-fullwidth-digits", _track(lambda d: _edit_track(d, _set_field(4, "x", "\uff11\uff12\uff13"))),
+     r"line 6, column 'x': '\uff11\uff12\uff13' is not a number"),
 ]
 
 ROUND_CASES = [
@@ -228,7 +235,32 @@ OPTION_CASES = [
     ("sim-no-reference", _sim(_sub('reference_drag = "cd.csv"\n', "")), r"simulate needs \[projectile\] reference_drag"),
     ("sim-output-folder-missing", lambda d: ["simulate", "round.toml", "-o", "nowhere/t.csv"],
      r"output folder nowhere does not exist"),
+    # issue 25: names, sizes and caps, checked before any work
+    ("fit-empty-output", lambda d: ["fit", "track.csv", "round.toml", "-o", "", "--no-mcmc"],
+     r"command line: -o is empty; give a folder or file name"),
+    ("fit-output-name-too-long", lambda d: ["fit", "track.csv", "round.toml", "-o", "o" * 300, "--no-mcmc"],
+     r"o{40}\.\.\.o{30} \(300 characters\): the name is too long"),
+    ("fit-too-many-walkers", _fit(extra=["--walkers", "100000"]), r"walkers \(--walkers\) = 100000 .*at most 1024"),
+    ("fit-max-steps-too-large", _fit(extra=["--max-steps", "10000000"]), r"max_steps .* at most 1000000"),
+    ("fit-output-superseded-is-a-link", lambda d: ((d / "out" / "superseded").symlink_to(d, target_is_directory=True),
+                                                   FIT)[1],
+     r"out/superseded: is a symbolic link; bayesdrag makes this folder itself"),
+    ("sim-output-read-only", lambda d: ((d / "out" / "track_sim.csv").chmod(0o444), SIM)[1],
+     r"track_sim\.csv: the output file is read-only"),
+    ("batch-garbage-scheduler", lambda d: (_camp(d), ["batch", "camp.toml", "-o", "out", "--scheduler", "garbage:://x"])[1],
+     r"scheduler \(--scheduler\) = 'garbage:://x' is not allowed"),
+    ("batch-too-many-workers", lambda d: (_camp(d), ["batch", "camp.toml", "-o", "out", "--workers", "5000"])[1],
+     r"workers \(--workers\) = 5000 is not allowed; use at most 64"),
+    ("campaign-track-outside", lambda d: (_camp(d, track="/etc/passwd"), ["fit", "camp.toml", "-o", "out"])[1],
+     r"camp\.toml: rounds entry 1 \(r1\): track '/etc/passwd' is outside the campaign's folder"),
+    ("campaign-round-named-superseded", lambda d: (_camp(d, name="superseded"), ["fit", "camp.toml", "-o", "out"])[1],
+     r"name 'superseded' is not allowed; it is the name of a file or folder bayesdrag writes"),
 ]
+
+
+def _camp(d, name="r1", track="track.csv"):
+    (d / "camp.toml").write_text(f'[campaign]\nname = "c"\n[[rounds]]\nname = "{name}"\ntrack = "{track}"\n'
+                                 f'round = "round.toml"\n')
 
 #: entries whose hole is in a file this catalogue's owner may not fix (cli.py / fitting.py):
 #: kept as strict xfails so the fix shows up as XPASS

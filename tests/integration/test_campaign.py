@@ -39,7 +39,9 @@ def test_read_campaign_resolves_paths_relative_to_the_file(tmp_path):
     sub.mkdir()
     (sub / "camp.toml").write_text('[campaign]\nname = "trial 5"\n[[rounds]]\nname = "a"\ntrack = "../a.csv"\n'
                                    'round = "../a.toml"\n[[rounds]]\ntrack = "../b.csv"\nround = "../b.toml"\n')
-    c = read_campaign(sub / "camp.toml")
+    with pytest.raises(InputError, match=r"track '\.\./a\.csv' is outside the campaign's folder .*--allow-outside-inputs"):
+        read_campaign(sub / "camp.toml")        # files outside the campaign's folder only when allowed
+    c = read_campaign(sub / "camp.toml", allow_outside=True)
     assert c.name == "trial 5"
     assert c.names == ["a", "b"]  # second name defaults to the track's stem
     assert c.rounds[0].track == (tmp_path / "a.csv").resolve()

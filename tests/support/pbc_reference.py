@@ -340,7 +340,7 @@ def pbc_trajectory(mach, cd, mass, diameter, velocity, elevation_deg, wind=(0.0,
                    max_range=None, altitude=0.0, temperature_offset=0.0, *,
                    exact_atmosphere=True, dense_table=True, match_density=True,
                    exact_gravity=True, engine="scipy", method="DOP853", rtol=1e-11, atol=1e-9,
-                   step_multiplier=1.0, sample_dt=SAMPLE_DT):
+                   step_multiplier=1.0, sample_dt=SAMPLE_DT, wind_zones=None):
     """Trajectory from py-ballisticcalc for a custom Cd(M) table, in SI and bayesdrag's frame.
 
     Parameters
@@ -353,6 +353,10 @@ def pbc_trajectory(mach, cd, mass, diameter, velocity, elevation_deg, wind=(0.0,
         Muzzle velocity [m/s] and barrel elevation (quadrant elevation) [deg].
     wind : (wx, wy)
         Constant wind [m/s]; wx > 0 tailwind, wy > 0 blowing towards +y (right).
+    wind_zones : sequence of (wx, wy, until_m), optional
+        Winds that change with DOWNRANGE DISTANCE, as py-ballisticcalc models them (its
+        ``Wind(until_distance=...)``): each zone's wind [m/s] blows until ``until_m`` [m]
+        downrange (None or inf: to the end). Replaces ``wind``.
     t_out : array_like or None
         Output times [s]; None -> every ``sample_dt`` plus the end point.
     max_range : float or None
@@ -406,9 +410,16 @@ def pbc_trajectory(mach, cd, mass, diameter, velocity, elevation_deg, wind=(0.0,
     dm = DragModel(bc, table, weight=Weight.Kilogram(mass), diameter=Distance.Meter(diameter))
     ammo = Ammo(dm, mv=Velocity.MPS(velocity), use_powder_sensitivity=False)
     weapon = Weapon(sight_height=Distance.Meter(0.0), twist=Distance.Inch(0.0))
-    wx, wy = float(wind[0]), float(wind[1])
-    speed = math.hypot(wx, wy)
-    winds = [Wind(Velocity.MPS(speed), Angular.Radian(math.atan2(wy, wx)))] if speed > 0 else None
+    if wind_zones is not None:
+        winds = []
+        for wx, wy, until in wind_zones:
+            far = until is None or not math.isfinite(until)
+            winds.append(Wind(Velocity.MPS(math.hypot(wx, wy)), Angular.Radian(math.atan2(wy, wx)),
+                              until_distance=Distance.Meter(1.0e7 if far else float(until))))
+    else:
+        wx, wy = float(wind[0]), float(wind[1])
+        speed = math.hypot(wx, wy)
+        winds = [Wind(Velocity.MPS(speed), Angular.Radian(math.atan2(wy, wx)))] if speed > 0 else None
     shot = Shot(ammo=ammo, atmo=atmo, weapon=weapon, winds=winds, look_angle=Angular.Degree(0.0),
                 relative_angle=Angular.Degree(elevation_deg), cant_angle=Angular.Degree(0.0))
 

@@ -1,0 +1,560 @@
+"""What a fit found, as a value: :class:`FitResult`, its paragraph and printable summary (from
+``result.json``'s content, so a loaded result reads the same), and :func:`load_result` to read
+a written fit folder back into one."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import InputError, MissingDataError
+from .cd import CdTable, band_z
+from .document import jsonable, read_document
+from .summary import Summary
+
+if TYPE_CHECKING:
+    import arviz
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from ..estimate.ml import MLResult
+    from ..estimate.posterior import LogPosterior
+    from ..estimate.sampler import BayesResult
+    from ..estimate.scheme1 import Scheme1Fit
+    from ..estimate.scheme2 import Scheme2Result
+    from ..io.outputs import OutputRun
+    from ..round import Round
+    from ..track import RadarTrack
+
+__all__ = ["FitResult", "load_result", "fit_paragraph", "fit_summary", "BAND_KINDS", "LOG_LIKELIHOOD_DRAWS",
+           "PARTIAL", "CHAIN"]
+
+#: the sampler's chain while it runs, and once the run has finished
+PARTIAL = "chain.partial.h5"
+CHAIN = "chain.h5"
+#: the kinds of :meth:`FitResult.band`
+BAND_KINDS = ("total", "statistical", "posterior")
+#: posterior draws (over all chains, evenly thinned) whose pointwise log-likelihood
+#: ``to_inference_data`` holds and ``posterior.nc`` keeps: every draw times every observation
+#: would outweigh the rest of the file many times (sizes in docs/bayes.md)
+LOG_LIKELIHOOD_DRAWS = 128
+#: rows of the Cd table a summary shows
+SUMMARY_ROWS = 7
+
+
+class FitResult:
+    """What a fit found (:func:`bayesdrag.fit`), as a value: frozen, compared by what
+    ``result.json`` holds, printable in one short paragraph.
+
+    Attributes
+    ----------
+    record : dict
+        The content of ``result.json`` (read it, do not change it; :meth:`to_dict` gives a copy).
+    cd : CdTable
+        Cd(M) as arrays: ``mach``, ``ml``, ``sd`` (the total band sd), ``determined``,
+        ``reference``, ``crb_sd``, ``statistical_sd`` and, when sampled, ``mean``, ``q05``,
+        ``q95``.
+    track : RadarTrack or None
+        The track as fitted (thinned when very dense); None for a result read from a folder.
+    round : Round or None
+        None for a result read from a folder.
+    options : FitOptions or None
+        The options of the fit; None for a result read from a folder.
+    scheme1 : Scheme1Fit or None
+        The Scheme 1 maximum-likelihood fit (its ML result, problem, start, smoothing, launch
+        check, rejected samples).
+    posterior : BayesResult or None
+        The emcee run (Scheme 1 with sampling).
+    log_posterior : LogPosterior or None
+    scheme2 : Scheme2Result or None
+    window_draws : dict or None
+        Scheme 2: window index -> Cd draws (chains, draws).
+    windows_ok : tuple of int
+        Scheme 2: the windows whose fit converged.
+    grid : ndarray
+        The Mach grid of ``cd``.
+    warnings : tuple of str
+        Everything the user should read (misfits, undetermined ranges, launch conflicts, sampler
+        problems); the command prints them on stderr.
+    seconds : float
+        Wall-clock time of the fit [s].
+    folder : Path or None
+        The folder a loaded result was read from (None for a fresh fit).
+
+    Notes
+    -----
+    A result read back by :func:`load_result` holds what the folder holds (``result.json``,
+    ``posterior.nc``): its Cd table, bands, summary, ``to_dict()``, ``to_inference_data()`` and
+    the figures drawn from ``result.json`` are those of the fit; what needs the fit's objects
+    (the residual, corner and trace figures, writing the folder again) raises
+    :class:`~bayesdrag.errors.MissingDataError` naming what is missing. Two results are equal
+    when their ``to_dict()`` are.
+    """
+
+    record: dict[str, Any]
+    cd: CdTable
+    track: RadarTrack | None
+    round: Round | None
+    options: Any
+    scheme1: Scheme1Fit | None
+    posterior: BayesResult | None
+    log_posterior: LogPosterior | None
+    scheme2: Scheme2Result | None
+    window_draws: dict[int, np.ndarray] | None
+    windows_ok: tuple[int, ...]
+    grid: np.ndarray
+    warnings: tuple[str, ...]
+    seconds: float
+    folder: Path | None
+    _cache: dict[Any, Any]
+
+    def __init__(self, record: dict[str, Any] | None = None, track: RadarTrack | None = None,
+                 round: Round | None = None, options: Any = None, scheme1: Scheme1Fit | None = None,
+                 posterior: BayesResult | None = None, log_posterior: LogPosterior | None = None,
+                 scheme2: Scheme2Result | None = None, window_draws: dict[int, np.ndarray] | None = None,
+                 windows_ok: tuple[int, ...] | None = None, grid: np.ndarray | None = None,
+                 warnings: tuple[str, ...] = (), seconds: float = 0.0, *, summary: dict[str, Any] | None = None,
+                 inference_data: arviz.InferenceData | None = None, folder: Path | None = None) -> None:
+        if (record is None) == (summary is None):
+            raise TypeError("FitResult: give the result.json content as record= (summary= is its older name)")
+        rec = record if record is not None else summary
+        assert rec is not None
+        if windows_ok is None:
+            windows_ok = tuple(k for k, w in enumerate(rec.get("windows") or []) if w.get("converged"))
+        table = CdTable.from_rows(rec["cd"], statistical_sd=_scheme2_statistical_sd(rec, windows_ok))
+        values = dict(record=rec, cd=table, track=track, round=round, options=options, scheme1=scheme1,
+                      posterior=posterior, log_posterior=log_posterior, scheme2=scheme2, window_draws=window_draws,
+                      windows_ok=tuple(int(k) for k in windows_ok),
+                      grid=np.asarray(grid if grid is not None else table.mach, float), warnings=tuple(warnings),
+                      seconds=float(seconds), folder=None if folder is None else Path(folder),
+                      _cache={} if inference_data is None else {("idata", LOG_LIKELIHOOD_DRAWS): inference_data})
+        for k, v in values.items():
+            object.__setattr__(self, k, v)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"FitResult is frozen: cannot set {name!r}")
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError(f"FitResult is frozen: cannot delete {name!r}")
+
+    # -- what a reader asks first -------------------------------------------------------------
+    @property
+    def success(self) -> bool:
+        """True when the fit converged and its residuals look like the noise."""
+        ml = self.record["ml"]
+        return bool(ml.get("converged", False) and ml.get("quality", {}).get("ok", False))
+
+    @property
+    def message(self) -> str:
+        """The ML fit's outcome in words (Scheme 2: how many windows converged)."""
+        ml = self.record["ml"]
+        return str(ml.get("message") or f"{ml.get('windows_converged')} of {ml.get('windows')} windows converged")
+
+    @property
+    def scheme(self) -> int:
+        """1 (Cd(M) over the whole flight) or 2 (a constant Cd per window)."""
+        return int(self.record["scheme"])
+
+    @property
+    def drag_model(self) -> str:
+        """The drag model's name (``spline``, ``poly2``, ...; Scheme 2: ``constant per window``)."""
+        return str(self.record["drag_model"])
+
+    @property
+    def sampled(self) -> bool:
+        """True when the fit sampled the posterior (``mcmc`` in ``result.json``)."""
+        return "mcmc" in self.record
+
+    @property
+    def loaded(self) -> bool:
+        """True for a result read back from a folder (:func:`load_result`)."""
+        return self.folder is not None
+
+    @property
+    def ml(self) -> MLResult | None:
+        """The Scheme 1 :class:`~bayesdrag.estimate.ml.MLResult` (None for Scheme 2 and for a
+        result read from a folder)."""
+        return None if self.scheme1 is None else self.scheme1.ml
+
+    def band(self, level: float = 0.9, kind: str = "total") -> tuple[np.ndarray, np.ndarray]:
+        """A central band of Cd on the grid ``cd.mach``.
+
+        Parameters
+        ----------
+        level : float
+            Its probability, strictly between 0 and 1.
+        kind : {"total", "statistical", "posterior"}
+            ``total``: ``ml ± z sd`` with ``sd`` each row's band sd (what the fit stands by);
+            ``statistical``: ``ml ± z statistical_sd`` (the Cramér-Rao sd with every declared
+            source held); ``posterior``: the quantiles of the posterior Cd draws (after sampling;
+            Scheme 2: each window's quantiles of the draws ``posterior.nc`` holds, interpolated
+            onto the grid as its Cd is).
+
+        Returns
+        -------
+        lo, hi : (M,) ndarray
+            Cd [-].
+
+        Raises
+        ------
+        InputError
+            An unknown kind or a level outside (0, 1).
+        MissingDataError
+            ``kind="posterior"`` for a fit that did not sample.
+        """
+        if kind not in BAND_KINDS:
+            raise InputError(f"band kind {kind!r} is not known (allowed: {', '.join(BAND_KINDS)})")
+        z = band_z(level)
+        if kind == "posterior":
+            return self._posterior_band(float(level))
+        sd = self.cd.sd if kind == "total" else self.cd.statistical_sd
+        return self.cd.ml - z * sd, self.cd.ml + z * sd
+
+    def _posterior_band(self, level: float) -> tuple[np.ndarray, np.ndarray]:
+        if not self.sampled:
+            raise MissingDataError("band(kind='posterior') needs the posterior draws and this fit did not sample: "
+                                   "fit with mcmc=True (the default), or ask for kind='total'")
+        idata = self.to_inference_data()
+        if idata is None:
+            raise MissingDataError(f"band(kind='posterior'): no posterior.nc in {self.folder}")
+        p = ((1.0 - level) / 2.0, (1.0 + level) / 2.0)
+        cd = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
+        q = np.quantile(cd.reshape(-1, cd.shape[-1]), p, axis=0)
+        if self.scheme == 1:
+            return q[0], q[1]
+        mach = np.asarray(idata["constant_data"]["mach"], dtype=np.float64)   # Scheme 2: per window, onto the grid
+        order = np.argsort(mach)
+        return (np.interp(self.cd.mach, mach[order], q[0][order]), np.interp(self.cd.mach, mach[order], q[1][order]))
+
+    def summary(self) -> Summary:
+        """A printable summary (``print(res.summary())``; HTML in a notebook): drag model,
+        scheme, convergence, chi2 per channel, determined Mach range, whether the answer is
+        clean, and Cd at a handful of Mach numbers of the determined range."""
+        return fit_summary(self, SUMMARY_ROWS)
+
+    def __repr__(self) -> str:
+        return f"<FitResult: {fit_paragraph(self)}>"
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, FitResult):
+            return NotImplemented
+        return self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]   # a value holding mutable arrays
+
+    def to_dict(self) -> dict[str, Any]:
+        """The content of ``result.json``: plain JSON types, a fresh copy."""
+        return json.loads(json.dumps(jsonable(self.record), allow_nan=False))
+
+    # -- the posterior --------------------------------------------------------------------------
+    def to_inference_data(self, *, log_likelihood_draws: int | None = LOG_LIKELIHOOD_DRAWS
+                          ) -> arviz.InferenceData | None:
+        """The posterior as ArviZ ``InferenceData`` (what ``posterior.nc`` holds); None without
+        sampling.
+
+        Scheme 1: ``posterior`` (``cd`` over a ``mach`` dim, the drag coefficients as one vector,
+        noise and initial state by name), ``log_likelihood`` (one variable ``track`` over an
+        ``observation`` dim: every sample of every channel, for ``arviz.loo`` and
+        ``arviz.compare``), ``posterior_predictive``, ``sample_stats``, ``observed_data``,
+        ``constant_data``. Scheme 2: ``cd`` per window (no ``log_likelihood``: its windows
+        overlap).
+
+        Parameters
+        ----------
+        log_likelihood_draws : int or None, keyword-only
+            Posterior draws (over all chains, evenly thinned) of the ``log_likelihood`` group;
+            None for every draw (memory: draws x observations x 4 bytes, ~200 MB on the demo
+            track); 0 leaves the group out. ``posterior.nc`` keeps :data:`LOG_LIKELIHOOD_DRAWS`;
+            its draws are a thinned subset, nearly independent: ``arviz.loo(idata, reff=1.0)``.
+        """
+        key = ("idata", log_likelihood_draws)
+        if key not in self._cache:
+            if self.loaded:
+                if ("idata", LOG_LIKELIHOOD_DRAWS) in self._cache:
+                    raise MissingDataError(f"{self.folder}: posterior.nc holds the log-likelihood of "
+                                           f"{LOG_LIKELIHOOD_DRAWS} draws; other draws need the fit itself")
+                return None
+            self._cache[key] = self._inference_data(log_likelihood_draws)
+        return self._cache[key]
+
+    def _inference_data(self, log_likelihood_draws: int | None) -> arviz.InferenceData | None:
+        if self.posterior is not None and self.scheme1 is not None and self.log_posterior is not None:
+            from ..estimate.inference import to_inference_data
+
+            ref = self.round.reference_drag if self.round is not None else None
+            return to_inference_data(self.posterior, self.log_posterior, self.grid, self.cd_draws(), ref,
+                                     seed=getattr(self.options, "seed", None),
+                                     log_likelihood_draws=log_likelihood_draws)
+        if self.window_draws and self.track is not None:
+            from ..estimate.inference import windows_inference_data
+
+            chans = getattr(self.options, "channels", None) or self.track.names
+            return windows_inference_data(self.record["windows"], self.windows_ok, self.window_draws, self.track,
+                                          chans)
+        return None
+
+    def cd_draws(self) -> np.ndarray:
+        """Posterior Cd draws on the grid, (chains, draws, M), widened to the model-error floor
+        where ``result.json``'s rows are (Scheme 1 after sampling)."""
+        if "cd_draws" not in self._cache:
+            if self.posterior is None or self.scheme1 is None:
+                idata = self.to_inference_data() if self.sampled and self.scheme == 1 else None
+                if idata is None:
+                    raise MissingDataError("cd_draws() needs the Scheme 1 posterior: fit with mcmc=True (the default)")
+                self._cache["cd_draws"] = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
+            else:
+                from ..estimate.sampler import cd_draws, widen_to_floor
+
+                f1 = self.scheme1
+                cd = cd_draws(self.posterior, f1.drag_model, self.grid, f1.problem.P)
+                if any("model_error_floor" in r for r in self.record.get("cd", [])):
+                    cd = widen_to_floor(cd, [dict(r) for r in self.record["cd"]])   # as result.json's rows
+                self._cache["cd_draws"] = cd
+        return self._cache["cd_draws"]
+
+    # -- figures (the report's, one at a time) ----------------------------------------------------
+    def plot_cd(self, ax: Axes | None = None) -> Axes:
+        """Cd(M) with its band and the reference (the report's ``cd.png``): the ML curve and its
+        90 % band, after sampling the posterior's 50 % and 90 % bands; Scheme 2 its windows."""
+        from ..report.fit import cd_figure
+
+        return cd_figure(self, ax=ax)
+
+    def plot_cd_relative(self, ax: Axes | None = None) -> Axes:
+        """The posterior bands in percent of the reference curve (``cd_relative.png``; after
+        sampling, with a reference drag)."""
+        from ..report.fit import cd_relative_figure
+
+        return cd_relative_figure(self, ax=ax)
+
+    def plot_sd_ratio(self, ax: Axes | None = None) -> Axes:
+        """Posterior sd over the Cramér-Rao sd against Mach (``cd_sd_ratio.png``; after sampling)."""
+        from ..report.fit import sd_ratio_figure
+
+        return sd_ratio_figure(self, ax=ax)
+
+    def plot_budget(self, ax: Axes | None = None) -> Axes:
+        """The Cd sd by source against Mach (``cd_budget.png``; Scheme 1)."""
+        from ..report.fit import budget_figure
+
+        return budget_figure(self, ax=ax)
+
+    def plot_residuals(self, fig: Figure | None = None) -> Figure:
+        """Residuals with their noise band (``residuals.png``; after sampling also their
+        autocorrelation). Needs the fit's objects (not a loaded result)."""
+        from ..report.fit import residuals_figure
+
+        return residuals_figure(self, fig=fig)
+
+    def plot_corner(self, fig: Figure | None = None) -> Figure:
+        """Corner plot of Cd at three Mach numbers and the initial state (``corner.png``; after
+        sampling; needs the fit's objects)."""
+        from ..report.fit import corner_figure
+
+        return corner_figure(self, fig=fig)
+
+    def plot_traces(self, fig: Figure | None = None) -> Figure:
+        """Walkers against step with the burn-in marked (``traces.png``; after sampling; needs
+        the fit's objects)."""
+        from ..report.fit import traces_figure
+
+        return traces_figure(self, fig=fig)
+
+    def require(self, what: str, *names: str) -> None:
+        """Raise :class:`~bayesdrag.errors.MissingDataError` when an attribute ``names`` is None:
+        ``what`` needs the fit's objects, which a written folder does not hold."""
+        missing = [n for n in names if getattr(self, n) is None]
+        if missing:
+            where = f"read from {self.folder}" if self.loaded else "without them"
+            raise MissingDataError(f"{what} needs the fit's {', '.join(missing)}, and this result was {where} "
+                                   f"(a folder holds result.json and posterior.nc only): run bayesdrag.fit to get them")
+
+    # -- the output folder --------------------------------------------------------------------
+    def write(self, directory: str | Path, *, sources: dict[str, Any] | None = None) -> list[Path]:
+        """Write the folder the command line writes: ``result.json``, ``posterior.nc`` (after
+        sampling), the figures and ``report.html`` (:func:`bayesdrag.report.fit.write_fit`); a
+        finished chain ``chain.partial.h5`` in it becomes ``chain.h5``. The folder is written as
+        one consistent set (:class:`~bayesdrag.io.outputs.OutputRun`): ``manifest.json`` lists
+        the files, an earlier run's files are moved to ``superseded/``.
+
+        Parameters
+        ----------
+        directory : path
+            Created if needed.
+        sources : dict, optional
+            ``{"track": ..., "round": ...}`` file names shown in the report (and, when they are
+            files, recorded with their SHA-256 in the manifest).
+
+        Returns
+        -------
+        list of Path
+            The files written.
+        """
+        from ..report.fit import write_fit
+
+        return write_fit(self, directory, sources=sources)
+
+    def write_into(self, run: OutputRun, *, sources: dict[str, Any] | None = None) -> None:
+        """Write the outputs into an open :class:`~bayesdrag.io.outputs.OutputRun` (its staging
+        folder) and hand it the finished chain; the run commits them."""
+        self.write_files(run.staging, sources=sources)
+        if self.posterior is not None:
+            run.adopt(PARTIAL, CHAIN)
+
+    def write_files(self, directory: str | Path, *, sources: dict[str, Any] | None = None) -> list[Path]:
+        """Write ``result.json``, ``posterior.nc`` (after sampling), the figures and
+        ``report.html`` into ``directory`` as plain files (no manifest, nothing moved).
+
+        Returns
+        -------
+        list of Path
+        """
+        from ..report.fit import write_fit_files
+
+        self.require("writing the report", "track", "round")
+        return write_fit_files(self, directory, sources=sources)
+
+
+def _scheme2_statistical_sd(record: dict[str, Any], windows_ok: tuple[int, ...]) -> np.ndarray | None:
+    """Scheme 2's statistical sd on the grid: the converged windows' ``crb_sd_statistical``
+    interpolated as their Cd is (None for Scheme 1, whose rows carry it)."""
+    if record.get("scheme") != 2 or not windows_ok:
+        return None
+    w = [record["windows"][k] for k in windows_ok]
+    mach = np.array([r["mach"] for r in w], float)
+    stat = np.array([np.nan if r.get("crb_sd_statistical") is None else r["crb_sd_statistical"] for r in w], float)
+    order = np.argsort(mach)
+    return np.interp([r["mach"] for r in record["cd"]], mach[order], stat[order])
+
+
+# -- the fit in words (from result.json's content, so a loaded result reads the same) ----------------
+#: the central probability of the band the summary's table shows
+SUMMARY_BAND = 0.9
+
+
+def _fmt(v: float | None, spec: str = ".5f") -> str:
+    return "—" if v is None or not np.isfinite(v) else format(float(v), spec)
+
+
+def _determined(res: FitResult) -> str:
+    det = res.cd.determined_range
+    return f"Mach {det[0]:.2f}-{det[1]:.2f}" if det else "nowhere"
+
+
+def _clean(rec: dict[str, Any]) -> tuple[bool, int]:
+    q = rec["ml"].get("quality") or {}
+    return bool(q.get("ok", False)), len(q.get("problems") or [])
+
+
+def _posterior_line(rec: dict[str, Any]) -> str:
+    m = rec.get("mcmc")
+    if not m:
+        return "not sampled (maximum likelihood only)"
+    if rec.get("scheme") == 2:
+        return f"{m.get('windows_converged')} window(s) converged, max r_hat {m.get('r_hat_max', float('nan')):.3f}"
+    state = "converged" if m.get("converged") else "NOT converged"
+    return (f"{state}: {m.get('walkers')} walkers x {m.get('steps')} steps, {m.get('draws')} draws kept "
+            f"(tau max {m.get('tau_max', float('nan')):.1f} steps)")
+
+
+def fit_paragraph(res: FitResult) -> str:
+    """One short paragraph: scheme, drag model, convergence, determined range, cleanliness, the
+    posterior, warnings (what ``repr`` shows; no arrays)."""
+    rec = res.record
+    ok, n_prob = _clean(rec)
+    lo, hi = float(res.cd.mach[0]), float(res.cd.mach[-1])
+    parts = [f"Scheme {res.scheme}, {res.drag_model} drag", f"ML {res.message}",
+             f"Cd over Mach {lo:.2f}-{hi:.2f} ({len(res.cd)} rows), determined {_determined(res)}",
+             "clean" if ok else f"NOT clean ({n_prob} quality problem{'s' if n_prob != 1 else ''})",
+             f"posterior {_posterior_line(rec)}" if res.sampled else "not sampled",
+             f"{len(res.warnings)} warning{'s' if len(res.warnings) != 1 else ''}"]
+    if res.loaded:
+        parts.append(f"read from {res.folder}")
+    else:
+        parts.append(f"{res.seconds:.1f} s")
+    return "; ".join(parts) + ". See .summary(), .cd, .band(), .plot_cd(), .to_dict()"
+
+
+def fit_summary(res: FitResult, rows: int) -> Summary:
+    """The summary of a fit: a header block and Cd at ``rows`` Mach numbers of the determined
+    range (the whole range when nothing is determined)."""
+    rec = res.record
+    ml = rec["ml"]
+    ok, n_prob = _clean(rec)
+    q = ml.get("quality") or {}
+    chi2 = ", ".join(f"{c} {v['chi2_per_sample']:.3g}" for c, v in (q.get("channels") or {}).items()
+                     if v.get("chi2_per_sample") is not None)
+    if res.scheme == 2:
+        conv = f"{ml.get('windows_converged')} of {ml.get('windows')} windows converged"
+    else:
+        conv = f"{'yes' if ml.get('converged') else 'NO'} in {ml.get('iterations')} iterations ({ml.get('message')})"
+    data = ml.get("mach_range_data") or [float(res.cd.mach[0]), float(res.cd.mach[-1])]
+    header = [("drag model", res.drag_model), ("scheme", str(res.scheme)), ("ML converged", conv)]
+    if chi2:
+        header.append(("chi2 per sample", chi2))
+    header += [("Mach range of the data", f"{data[0]:.3f} - {data[1]:.3f}"),
+               ("Cd determined", _determined(res)),
+               ("clean answer", "yes" if ok else f"NO: {n_prob} quality problem(s), see the warnings"),
+               ("posterior", _posterior_line(rec)), ("warnings", str(len(res.warnings)))]
+    lo, hi = res.band(SUMMARY_BAND)
+    cols = ["Mach", "Cd (ML)", "band sd", f"{SUMMARY_BAND:.0%} band", "determined", "reference"]
+    post = res.cd.sampled
+    if post:
+        cols += ["post. mean", "q05", "q95"]
+    table = []
+    c = res.cd
+    for i in c.rows_at(rows):
+        row = [f"{c.mach[i]:.3f}", _fmt(c.ml[i]), _fmt(c.sd[i], ".2e"), f"{_fmt(lo[i])} - {_fmt(hi[i])}",
+               "yes" if c.determined[i] else "no", _fmt(c.reference[i])]
+        if post:
+            assert c.mean is not None and c.q05 is not None and c.q95 is not None
+            row += [_fmt(c.mean[i]), _fmt(c.q05[i]), _fmt(c.q95[i])]
+        table.append(tuple(row))
+    notes = (f"{SUMMARY_BAND:.0%} band: Cd (ML) ± {band_z(SUMMARY_BAND):.3f} x the row's total band sd; all "
+             f"{len(c)} rows in res.cd (res.cd.to_dataframe()).",)
+    return Summary(title=f"bayesdrag fit: Scheme {res.scheme}, {res.drag_model} drag", header=tuple(header),
+                   columns=tuple(cols), rows=tuple(table), notes=notes)
+
+
+def load_result(directory: str | Path) -> FitResult:
+    """The :class:`FitResult` of a folder ``bayesdrag fit`` (or ``res.write``) wrote.
+
+    Parameters
+    ----------
+    directory : path
+        Holds ``result.json`` and, after sampling, ``posterior.nc``.
+
+    Returns
+    -------
+    FitResult
+        Equal to the result that wrote the folder (the same ``to_dict()`` and Cd table); it
+        holds what the files hold (no track, round or fit objects).
+
+    Raises
+    ------
+    InputError
+        No ``result.json`` in the folder, or not a valid one.
+    """
+    folder = Path(directory)
+    record = read_document(folder, "result.json", "fit result", required=("scheme", "drag_model", "ml", "cd"))
+    idata = None
+    nc = folder / "posterior.nc"
+    if nc.is_file():
+        from ..estimate.inference import read_inference_data
+
+        idata = read_inference_data(nc)
+    return FitResult(record, inference_data=idata, folder=folder, warnings=_recorded_warnings(record))
+
+
+def _recorded_warnings(record: dict[str, Any]) -> tuple[str, ...]:
+    """The warnings ``result.json`` records: the quality gate's problems, the ML fit's notes and
+    the sampler's message when it did not converge."""
+    ml = record.get("ml", {})
+    out = list((ml.get("quality") or {}).get("problems") or [])
+    out += [w for w in ml.get("warnings") or [] if w not in out]
+    mc = record.get("mcmc") or {}
+    if mc and mc.get("converged") is False and mc.get("message"):
+        out.append(str(mc["message"]))
+    return tuple(out)
