@@ -213,6 +213,7 @@ def build_parser():
                         "others can write)")
     f.add_argument("--allow-outside-inputs", action="store_true",
                    help="a campaign: read tracks, round files and tables outside the campaign file's folder")
+    _add_columns(f)
     _add_quiet(f)
 
     b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
@@ -242,6 +243,7 @@ def build_parser():
                         "percent anywhere in the flown Mach range (default 0.1)")
     g.add_argument("--material-end-sd", type=_positive_float, default=None, metavar="N",
                    help="... or move the track's end by more than N noise sd (default 3)")
+    _add_columns(g)
     _add_quiet(g)
 
     _add_plan_parser(sub)
@@ -250,6 +252,28 @@ def build_parser():
     d.add_argument("-o", "--output", default="bayesdrag-demo", help="output folder (default ./bayesdrag-demo)")
     _add_quiet(d)
     return p
+
+
+def _columns(value):
+    """``--columns t=time,v=velocity``: ``{channel: header name}``."""
+    from .track import CHANNELS
+
+    out = {}
+    for part in value.split(","):
+        name, sep, col = (x.strip() for x in part.partition("="))
+        if not sep or not col or name not in ("t",) + CHANNELS:
+            raise argparse.ArgumentTypeError(f"{value!r}: use CHANNEL=COLUMN pairs, CHANNEL one of t, "
+                                             f"{', '.join(CHANNELS)} (e.g. t=time,v=velocity)")
+        if name in out or col in out.values():
+            raise argparse.ArgumentTypeError(f"{value!r}: {name if name in out else col} is named twice")
+        out[name] = col
+    return out
+
+
+def _add_columns(p):
+    p.add_argument("--columns", type=_columns, default=None, metavar="t=NAME,v=NAME",
+                   help="which header column holds t, x, y, z or v (e.g. t=time,v=velocity); without it the "
+                        "names t, x, y, z, v and the aliases of docs/formats.md are read")
 
 
 def _add_quiet(p):
@@ -312,7 +336,7 @@ def cmd_fit(args):
     if args.channels is not None and args.round is not None:
         from .io.tracks import read_track
 
-        track = read_track(args.track)
+        track = read_track(args.track, columns=args.columns)
         ch = [c.strip() for c in args.channels.split(",") if c.strip()]
         bad = [c for c in ch if c not in track.names]
         if bad or not ch:
@@ -326,6 +350,9 @@ def cmd_fit(args):
         if not is_campaign_file(args.track):
             raise InputError(f"command line: fit needs TRACK ROUND, or a campaign file ({args.track} is not a "
                              f"TOML file with [campaign] and [[rounds]])")
+        if args.columns:
+            raise InputError("command line: --columns maps the columns of one track; a campaign's tracks need "
+                             "the names t, x, y, z, v or their aliases")
         res = run_campaign(args.track, args.output, jobs=("fit",), options=opts, executor="sequential",
                            quiet=args.quiet > 0, echo=_stdout(args), pool_seed=args.seed or 0, resume=args.resume,
                            allow_outside=args.allow_outside_inputs)
@@ -333,7 +360,7 @@ def cmd_fit(args):
     from .commands.fit import run_fit
 
     run_fit(args.track, args.round, args.output, opts, resume=args.resume, verbosity=args.quiet,
-            echo=_stdout(args))
+            echo=_stdout(args), columns=args.columns)
     return 0
 
 
@@ -363,7 +390,7 @@ def cmd_diagnose(args):
     if args.material_end_sd is not None:
         kw["material_end_sd"] = args.material_end_sd
     run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet > 0,
-                 echo=_stdout(args))
+                 echo=_stdout(args), columns=args.columns)
     return 0
 
 

@@ -53,13 +53,14 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
     return DiagnosisResult(record, d, track, rnd)
 
 
-def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None):
+def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None, columns=None):
     """Read a track and a round, diagnose them, write ``DIR/diagnosis.json``, the figures and
     ``diagnosis.html`` as one consistent set (``manifest.json``; an earlier diagnosis's files
     moved to ``DIR/superseded/``; the folder checked and locked before the work).
 
     ``also(result, folder)``, when given, writes further outputs of the run into ``folder``
-    before it is committed (the batch's done marker).
+    before it is committed (the batch's done marker). ``columns`` maps the track's header
+    (``--columns``; :func:`bayesdrag.io.tracks.read_track`).
 
     Returns
     -------
@@ -69,7 +70,7 @@ def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo
     from ..io.tracks import read_track
     from .runs import output_run
 
-    track = thin_for_fit(read_track(track_path))
+    track = thin_for_fit(read_track(track_path, columns=columns))
     rnd = read_round(round_path)
     if not quiet:
         for note in track.notes:

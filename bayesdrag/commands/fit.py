@@ -430,7 +430,7 @@ def summary_line(result):
 
 
 def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print, run=None,
-            also=None, verbosity=None):
+            also=None, verbosity=None, columns=None):
     """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
 
     Outputs: ``result.json``, ``report.html`` and figures; with sampling also
@@ -450,6 +450,9 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     verbosity : int, optional
         Overrides ``quiet``: 0 notes, progress and warnings on stderr; 1 (``-q``) warnings only;
         2 (``-qq``) nothing. The command line passes ``echo`` a no-op from 1 on.
+    columns : dict, optional
+        ``{channel: header name}`` of the track file (``--columns``;
+        :func:`bayesdrag.io.tracks.read_track`).
     run : OutputRun, optional
         An open run to write into (the demo's), instead of one of its own.
     also : callable, optional
@@ -468,7 +471,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     level = (2 if quiet else 0) if verbosity is None else int(verbosity)
     talk, warn = level == 0, level <= 1
     opts = options if options is not None else FitOptions()
-    track = thin_for_fit(read_track(track_path))
+    track = thin_for_fit(read_track(track_path, columns=columns))
     rnd = read_round(round_path)
     if talk:
         for note in track.notes:

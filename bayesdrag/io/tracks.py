@@ -1,6 +1,7 @@
 """Track files (CSV): ``#`` comment lines, a header row naming ``t`` plus at
-least one of ``x, y, z, v``, then one row of numbers per radar sample; SI units (t [s], x, y,
-z [m], v [m/s]). Extra columns (SNR, range rate, ...) are kept in ``RadarTrack.extra``, ignored
+least one of ``x, y, z, v`` (or an alias: ``time``, ``t_s``, ``speed``, ...; :data:`ALIASES`;
+or any names mapped with ``columns``), then one row of numbers per radar sample; SI units (t [s],
+x, y, z [m], v [m/s]). Extra columns (SNR, range rate, ...) are kept in ``RadarTrack.extra``, ignored
 by the fit, and reported by one line in ``RadarTrack.notes``.
 
 Reading also checks that the channels agree with each other: the speed from the positions must
@@ -26,7 +27,7 @@ from ..errors import InputError
 from ..track import CHANNELS, UNITS, RadarTrack
 from .csv import read_table
 
-__all__ = ["read_track", "write_track"]
+__all__ = ["read_track", "write_track", "channel_names", "ALIASES"]
 
 
 # (median speed-from-positions / v, explanation) for the unit check
@@ -48,6 +49,21 @@ _UNIT_GUESSES = (
 UNIT_RATIO_LIMIT = 3.0
 UNIT_REL_LIMIT = 0.05
 UNIT_SIGNIFICANCE = 5.0
+#: fewest independent chords whose median's standard error the 5 % test trusts
+MIN_INDEPENDENT_CHORDS = 3
+
+#: header names read as a channel (matched ignoring case): unambiguous spellings of the time,
+#: the positions and the ground speed. A bare ``velocity`` is read as ``v`` too, with a note:
+#: a Doppler radar's velocity is its radial speed, the ground speed only along the line of
+#: sight. ``range`` and ``range_m`` never are: a chronograph's distance is integrated from its
+#: own velocity, not measured (``--columns x=range_m`` maps it when it is). An alias is not used
+#: when its channel is already in the header (the column is then kept as an extra).
+ALIASES = {"time": "t", "t_s": "t", "time_s": "t", "x_m": "x", "y_m": "y", "z_m": "z",
+           "speed": "v", "v_mps": "v", "speed_mps": "v", "velocity": "v"}
+#: aliases read with a note
+_NOTED = {"velocity": "a Doppler radar's 'velocity' is often its radial speed (the range rate), "
+                      "the ground speed only along the line of sight; map it with --columns, or rename "
+                      "it, only if it is the projectile's speed"}
 
 
 def _speed_ratio(t, channels):
@@ -73,6 +89,10 @@ def _speed_ratio(t, channels):
     # standard error of the median from the MAD; chords overlap by k samples, so count only
     # non-overlapping ones as independent
     n_ind = max(q.size / k, 1.0)
+    if n_ind < MIN_INDEPENDENT_CHORDS:
+        # a median of one or two chords has no spread to measure its error by: the 5 % test
+        # would fire on the noise of two samples 0.027 s apart ("v looks like yd/s")
+        return med, pos, math.inf
     se = 1.2533 * 1.4826 * float(np.median(np.abs(q - med))) / math.sqrt(n_ind)
     return med, pos, se
 
@@ -127,18 +147,65 @@ def _check_gap(path, t, line_no):
                          f"a stray sample (after impact?); drop it or split the track")
 
 
-def _track_header_check(path, line, names):
+def channel_names(path, line, names, columns=None):
+    """The header's names as the track reads them: ``columns`` (``{channel: header name}``, the
+    ``--columns`` mapping) first, then :data:`ALIASES`; other names stay as they are.
+
+    Returns
+    -------
+    (list of str, tuple of str)
+        The names, and notes on what was read how.
+
+    Raises
+    ------
+    InputError
+        A mapping naming a column the header lacks or a channel the header already has, or two
+        columns read as the same channel.
+    """
+    out, notes, src = list(names), [], {}
+    for canon, col in (columns or {}).items():
+        if col not in names:
+            raise InputError(f"{path}: line {line}: --columns {canon}={col}: the track has no column {col!r}; "
+                             f"header has {', '.join(names)}")
+        if canon in names and canon != col:
+            raise InputError(f"{path}: line {line}: --columns {canon}={col}: the header already has a column "
+                             f"{canon!r}; drop or rename one of them")
+        out[names.index(col)] = canon
+        src[canon] = col
+    for k, n in enumerate(names):
+        if n in src.values() or n in ("t",) + CHANNELS:
+            continue
+        target = ALIASES.get(n.lower())
+        if target is None or target in names or target in (columns or {}):
+            continue                  # the channel's own column (or the mapped one) wins
+        if target in src:
+            raise InputError(f"{path}: line {line}: columns {src[target]!r} and {n!r} both read as {target}; "
+                             f"keep one, or say which with --columns {target}=NAME")
+        out[k], src[target] = target, n
+        notes.append(f"{path}: column {n!r} read as {target} ({UNITS[target]})"
+                     + (f"; {_NOTED[n.lower()]}" if n.lower() in _NOTED else ""))
+    return out, tuple(notes)
+
+
+def _track_header_check(path, line, names, columns=None):
+    names = channel_names(path, line, names, columns)[0]
     if "t" not in names:
         lower = [n for n in names if n.lower() == "t"]
         hint = f" (column names are case-sensitive: found {lower[0]!r})" if lower else ""
-        raise InputError(f"{path}: line {line}: track needs a time column 't' plus at least one of "
-                         f"{', '.join(CHANNELS)}; header has {', '.join(names)}{hint}")
+        raise InputError(f"{path}: line {line}: track needs a time column 't' (or time, t_s) plus at least one "
+                         f"of {', '.join(CHANNELS)}; header has {', '.join(names)}{hint}; or map a column with "
+                         f"--columns t=NAME")
     if not any(c in names for c in CHANNELS):
+        rng = [n for n in names if n.lower() in ("range", "range_m", "dist", "distance")]
+        hint = (f"; {rng[0]!r} is not read as x: a chronograph's distance is integrated from its own velocity "
+                f"(map it with --columns x={rng[0]} only if it is a measured downrange distance)" if rng else "")
+        hint = hint or " (or an alias: speed, x_m, ...; or map a column with --columns v=NAME)"
         raise InputError(f"{path}: line {line}: track has 't' but none of the channels "
-                         f"{', '.join(CHANNELS)}; header has {', '.join(names)}")
+                         f"{', '.join(CHANNELS)}; header has {', '.join(names)}{hint}")
 
 
-def read_track(path: str | os.PathLike[str], *, quote: bool = True) -> RadarTrack:
+def read_track(path: str | os.PathLike[str], *, quote: bool = True,
+               columns: dict[str, str] | None = None) -> RadarTrack:
     """Read and validate a radar track CSV.
 
     Parameters
@@ -148,6 +215,9 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True) -> RadarTrac
     quote : bool
         False for a track another file points to (a campaign's): a message never repeats the
         file's content (:func:`bayesdrag.io.csv.read_table`).
+    columns : dict, optional
+        ``{channel: header name}`` (``--columns t=time,v=velocity``): which column holds which
+        of t, x, y, z, v; other names are read through :data:`ALIASES` (:func:`channel_names`).
 
     Returns
     -------
@@ -166,7 +236,14 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True) -> RadarTrac
         another unit is consistent here; the fit refuses it from the physics (its path bends as
         if gravity were 32.2 for feet). A ``v`` in ft/s alone (no positions) cannot be detected.
     """
-    path, names, data, line_no = read_table(path, "track", header_check=_track_header_check, quote=quote)
+    hline = []
+
+    def check(p, line, names):
+        hline.append(line)
+        _track_header_check(p, line, names, columns)
+
+    path, names, data, line_no = read_table(path, "track", header_check=check, quote=quote)
+    names, alias_notes = channel_names(path, hline[0], names, columns)
     if data.shape[0] < 2:
         raise InputError(f"{path}: track has {data.shape[0]} data row; at least 2 are needed")
     cols = {n: np.ascontiguousarray(data[:, k]) for k, n in enumerate(names)}
@@ -194,9 +271,9 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True) -> RadarTrac
             raise InputError(f"{path}: line {line_no[i]}: {c} = {a[i]:.6g} {UNITS[c]} is not plausible for a "
                              f"projectile's track (allowed {lo:g} .. {hi:g} {UNITS[c]}); check the units")
     extra = {n: cols[n] for n in names if n != "t" and n not in CHANNELS}
-    notes = ()
+    notes = alias_notes
     if extra:
-        notes = (f"{path}: extra column(s) {', '.join(extra)} kept but ignored by the fit",)
+        notes += (f"{path}: extra column(s) {', '.join(extra)} kept but ignored by the fit",)
     if "x" in channels and channels["x"][-1] - channels["x"][0] < -MIN_DOWNRANGE:
         x = channels["x"]
         notes += (f"{path}: x goes from {x[0]:.6g} m to {x[-1]:.6g} m: the track flies toward -x, while x is "

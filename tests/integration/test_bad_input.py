@@ -126,8 +126,8 @@ TRACK_CASES = [
     ("track-only-comments", _track(_write("track.csv", "# nothing\n# here\n")), r"has only comments"),
     ("track-no-header", _track(lambda d: _edit_track(d, lambda h, r: (",".join(r[0]), r[1:]))),
      r"track\.csv: line 1: track has no header row"),
-    ("track-missing-t", _track(lambda d: _edit_track(d, lambda h, r: (h.replace("t,", "time,"), r))),
-     r"line 1: track needs a time column 't'.*header has time"),
+    ("track-missing-t", _track(lambda d: _edit_track(d, lambda h, r: (h.replace("t,", "clock,"), r))),
+     r"line 1: track needs a time column 't'.*header has clock"),
     ("track-no-channel", _track(_write("track.csv", "t,snr\n0,1\n1,2\n")), r"track has 't' but none of the channels"),
     ("track-duplicate-column", _track(lambda d: _edit_track(d, lambda h, r: (h.replace("y", "x"), r))),
      r"duplicate column name 'x'"),
@@ -497,3 +497,17 @@ def test_one_round_campaign_reports_no_scatter_it_cannot_see():
     assert s["median"] is None and s["q05"] is None and "one round" in s["note"], s
     two = dict(one, name="r2", cd=(1.01 * cd).tolist())
     assert campaign_json(pool_rounds([one, two], n_draws=200, n_steps=200), [one, two])["scatter"]["median"] > 0
+
+
+ATTACK_EXIT2_TRACKS = [
+    ("attack-two-samples", _fit(_write("track.csv", "t,x,y,z,v\n0,0.3456,-1.1393,-0.1204,817.4888\n"
+                                                    "0.027,22.1385,0.5103,6.7653,817.2600\n")),
+     r"track\.csv: 2 samples x 4 channels \(x,y,z,v\) are too few to determine Cd: even the smallest drag model"),
+]
+
+
+@pytest.mark.parametrize("name, setup, match", _params(ATTACK_EXIT2_TRACKS))
+def test_attack_track_refused_before_any_fitting(name, setup, match, tmp_path, good, capsys, monkeypatch):
+    """Two samples 0.027 s apart: refused for what they are (too few), not blamed on units (the
+    unit check no longer trusts the median of one chord), and before any fitting work."""
+    test_attack_refused_before_any_fitting(name, setup, match, tmp_path, good, capsys, monkeypatch)

@@ -197,8 +197,8 @@ def test_no_header(tmp_path):
 
 
 def test_no_t_column(tmp_path):
-    with pytest.raises(InputError, match="line 1: track needs a time column 't'.*header has time, x"):
-        read_track(write_csv(tmp_path, "time,x\n0,0\n1,800\n"))
+    with pytest.raises(InputError, match="line 1: track needs a time column 't'.*header has clock, x"):
+        read_track(write_csv(tmp_path, "clock,x\n0,0\n1,800\n"))     # (time, t_s are read as t)
 
 
 def test_t_upper_case_hint(tmp_path):
