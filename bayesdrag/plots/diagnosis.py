@@ -94,8 +94,14 @@ def plot_ranking(s, ax=None):
     colors = ["C2" if e["name"] in s["verdict"] else "C1" if e["name"] in imm else "C0" if e["significant"] else "0.7"
               for e in eff]
     ax.barh(names, vals, color=colors)
+    # the colours in a legend, not in the title: a title that long was clipped at the right edge
+    from matplotlib.patches import Patch
+
+    keys = [("C2", "verdict"), ("C1", "detectable but immaterial"), ("C0", "significant alone"), ("0.7", "the rest")]
+    ax.legend(handles=[Patch(color=c, label=lab) for c, lab in keys], loc="lower right", fontsize="small",
+              framealpha=0.9)
     ax.set(xlim=(0, 1.05), xlabel="shrink (fraction of the gap removed, each fitted alone)",
-           title="candidates (green: verdict, orange: detectable but immaterial, blue: significant alone)")
+           title="candidate effects, ranked")
     return ax
 
 
