@@ -405,8 +405,8 @@ def _why_not_clean(quality):
         return "the model misses the track"
     origin = (quality.get("launch") or {}).get("origin")
     if origin:
-        return ("the track's clock is not the launch's" if origin["kind"] == "clock"
-                else "the track's origin is not at the gun")
+        return {"clock": "the track's clock is not the launch's", "position": "the track's origin is not at the gun"
+                }.get(origin["kind"], "the track does not start at the muzzle at t = 0")
     return "a parameter sits at a bound"
 
 

@@ -166,15 +166,16 @@ def checked_launch_priors(track, rnd, model, res, P, skip=(), start=None, sigma=
 
 
 def _position_noise(track, sigma):
-    """The noise sd [m] of one position sample: the round's where given, else what the track's
-    own high-frequency content shows; the largest over the position channels."""
+    """The noise sd [m] of one position sample: the round's, but never below what the track's
+    own high-frequency content shows (a radar noisier than its round says must not make a
+    correct origin look off); the largest over the position channels."""
     from .noise import hf_noise_sd
 
     t = np.asarray(track.t, float)
     out = 0.0
     for c in ("x", "y", "z"):
         if c in track.channels:
-            out = max(out, float((sigma or {}).get(c, 0.0)) or hf_noise_sd(t, track.channels[c]))
+            out = max(out, float((sigma or {}).get(c, 0.0)), hf_noise_sd(t, track.channels[c]))
     return out
 
 
@@ -194,6 +195,8 @@ def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
       :data:`LAUNCH_CONFLICT_K` sd: the round's ``velocity_sd`` and
       :data:`ORIGIN_EXTRAPOLATION` of the speed the extrapolation adds): the clock is then
       late (early) by the along-path distance over the speed;
+    * **clock or position**: along the path, when the flight loses too little speed over the
+      offset's time for the speeds to tell (a heavy shell's 0.4 s);
     * **position**: otherwise: the track's frame is not at the gun (a radar not at the gun's
       height, an x origin elsewhere). The Cd of such a fit is as good as its air: a height
       offset puts the fitted flight in air of another density (``density_offset``, the largest
@@ -229,7 +232,7 @@ def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
     cross = float(np.linalg.norm(cross_v))
     cross_lim = float(np.linalg.norm(lim * (np.abs(u) < 0.999)))  # the limits across the path
     dt = along / speed
-    kind = "clock"
+    kind, how = "clock", "not along the flight path"
     if cross > max(cross_lim, ORIGIN_NOISE_K * noise):
         kind = "position"
     elif L.velocity is not None:
@@ -240,17 +243,29 @@ def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
             else L.velocity_sd
         miss_clock = abs(v_back - L.velocity)
         miss_here = abs(speed - L.velocity)
-        if miss_here <= LAUNCH_CONFLICT_K * sd_v < miss_clock:
-            kind = "position"          # the first sample flies at the launch speed: not late
+        lim_v = LAUNCH_CONFLICT_K * sd_v
+        if miss_here <= lim_v < miss_clock:
+            # the first sample flies at the launch speed: not late
+            kind, how = "position", "along the flight path, but flying at the launch speed"
+        elif miss_here <= lim_v and miss_clock <= lim_v:
+            kind = "clock or position"       # the flight loses too little speed to tell
     r0 = float(np.linalg.norm(off))
     where = ", ".join(f"{n} {v:+.1f} m" for n, v in zip("xyz", off))
     out = {"kind": kind, "offset": [float(v) for v in off], "along": along, "cross": cross}
+    late = "late" if dt >= 0 else "early"
     if kind == "clock":
-        late = "late" if dt >= 0 else "early"
         out["clock_offset"] = dt
         out["message"] = (f"the first sample is {r0:.1f} m from the muzzle at t = 0 s, along the flight path: the "
                           f"track's clock looks {abs(dt):.3g} s {late} (a clock offset, not a position offset); launch "
                           f"priors left out; shift t so that t = 0 is the launch to use them")
+    elif kind == "clock or position":
+        out["clock_offset"] = dt
+        heights = start.kinematics.z if start is not None else track.channels.get("z", np.zeros(1))
+        out["density_offset"] = _density_offset(rnd, heights, off[2])
+        out["message"] = (f"the first sample is {r0:.1f} m from the muzzle at t = 0 s, along the flight path: either "
+                          f"the track's clock is {abs(dt):.3g} s {late} or its frame is that far along the path from "
+                          f"the gun (this flight loses too little speed in that time to tell); launch priors left "
+                          f"out; shift t, or the positions, so that the track starts at the muzzle at t = 0")
     else:
         heights = start.kinematics.z if start is not None else track.channels.get("z", np.zeros(1))
         out["density_offset"] = _density_offset(rnd, heights, off[2])
@@ -258,8 +273,8 @@ def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
         dens = (f"; the fitted flight is {abs(off[2]):.0f} m {'above' if off[2] > 0 else 'below'} the heights above "
                 f"the muzzle, in air up to {100 * rel:.2g} % off in density, and Cd is uncertain by that"
                 if rel is not None and abs(off[2]) > lim[2] else "")
-        out["message"] = (f"the first sample is {r0:.1f} m from the muzzle at t = 0 s ({where}), not along the "
-                          f"flight path: the track's frame is not at the gun (a position offset, not a clock offset); "
+        out["message"] = (f"the first sample is {r0:.1f} m from the muzzle at t = 0 s ({where}), {how}: the "
+                          f"track's frame is not at the gun (a position offset, not a clock offset); "
                           f"launch priors left out{dens}; put the origin at the muzzle (subtract the offset) or fix "
                           f"the round's [launch] altitude")
     return out
