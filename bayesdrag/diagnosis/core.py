@@ -117,6 +117,7 @@ def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
     joint = {"effects": list(found), "params": {k: float(v) for k, v in res.extras.items()},
              "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
              "shrink_given_others": conditional_shrinks(setup, res, drop_one)}
+    joint["remaining_gap_fraction"] = 1.0 - joint["shrink"]
     # parameters of different effects that the joint fit can hardly tell apart: their values
     # then rest on the shapes of the models (e.g. a cross wind against the spin drift of a
     # shell whose lift differs from the generic Mach shape) more than on the data
@@ -156,13 +157,13 @@ def _verdict(setup, rows, found, by_name, wrong_table):
         moved = wrong_table["verdict"] + wrong_table["immaterial"]
         for k, r in enumerate(rows):
             if r["name"] in moved:
-                rows[k] = dict(sub[r["name"]], detected=True, judged_against="fitted Cd (the table has another "
-                                                                             "shell's shape)")
+                rows[k] = dict(sub[r["name"]], detected=True, judged_against="fitted Cd")
         verdict += wrong_table["verdict"]
         immaterial += wrong_table["immaterial"]
         found = found + moved
-        setup.notes.append("the firing table has another shell's shape (drag_shape): the other effects were "
-                           "judged against a fitted Cd, as without a table"
+        what = ("the firing table has another shell's shape (drag_shape)" if "drag_shape" in verdict
+                else "drag_shape was detected (immaterial)")
+        setup.notes.append(f"{what}: the other effects were judged against a fitted Cd, as without a table"
                            + (f" ({', '.join(moved)} found there)" if moved else " (none found)"))
     # the effects list is "best first": the verdict, the detected but immaterial, then the rest
     order = {n: k for k, n in enumerate(verdict + immaterial)}

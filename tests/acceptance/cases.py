@@ -32,6 +32,9 @@ from bayesdrag.synthetic import add_noise, add_outliers
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
 
+if str(Path(__file__).resolve().parents[1]) not in sys.path:  # tests/ (for ``support``)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 V0 = 818.0
 #: shells: the paper's Table 1 155 mm (818 m/s, 1-in-20 twist) and a 105 mm howitzer shell
@@ -273,10 +276,16 @@ def magnitude_ok(case, row):
 def run_case(case):
     """Diagnose one case; returns a dict of what the acceptance checks."""
     from bayesdrag.diagnosis import diagnose
+    from bayesdrag.diagnosis.summary import console_summary, summary_paragraph
     from bayesdrag.effects import EFFECTS
+    from bayesdrag.results import DiagnosisResult
+    from support.text_figures import unmatched_numbers
 
-    d = diagnose(make_track(case), diagnosis_round(case))
+    track, rnd = make_track(case), diagnosis_round(case)
+    d = diagnose(track, rnd)
     s = d.summary
+    doc = DiagnosisResult(d, track, rnd).to_dict()
+    texts = [summary_paragraph(doc)] + console_summary(doc)
     rows = {r["name"]: r for r in s["effects"]}
     verdict = s["verdict"]
     immaterial = s.get("immaterial", [])
@@ -310,4 +319,7 @@ def run_case(case):
             "shrink": (true_row or {}).get("shrink"), "shrink_top": rows.get(top, {}).get("shrink"),
             "gap": s["baseline"]["gap"],
             "shrink_sd": (true_row or {}).get("shrink_sd"),
-            "remaining_gap_fraction": (true_row or {}).get("remaining_gap_fraction")}
+            "remaining_gap_fraction": (true_row or {}).get("remaining_gap_fraction"),
+            # every number the paragraph and the console summary print is one of diagnosis.json's
+            "text_numbers_not_in_json": [n for t in texts for n in unmatched_numbers(t, doc)],
+            "paragraph": texts[0]}

@@ -19,6 +19,7 @@ TOP1_MIN, MAG_MIN, SHRINK_MIN, FA_MAX = 0.90, 1.0, 0.9, 0.05
 def test_small_suite_case(case):
     r = run_case(case)
     assert r["correct"], r
+    assert r["text_numbers_not_in_json"] == [], r["paragraph"]
     if r["magnitude_ok"] is not None:
         assert r["magnitude_ok"], r
     if case.effect:
@@ -37,3 +38,6 @@ def test_full_suite_meets_the_acceptance():
     assert s["shrink_ge_0.9_within_noise_rate"] == 1.0, s
     assert s["cases_with_extra_effects"] == 0, s
     assert s["magnitude_rate"] >= 0.9, s
+    # every number the paragraph and the console summary print is one of diagnosis.json's
+    assert all(r["text_numbers_not_in_json"] == [] for r in results), \
+        [(r["id"], r["text_numbers_not_in_json"]) for r in results if r["text_numbers_not_in_json"]]
