@@ -28,6 +28,13 @@ Non-standard days are described by three numbers (the round's ``[atmosphere]`` a
     Physically identical to ``pressure_ratio`` for a point-mass model; both are kept because
     they come from different sources (met message vs diagnosis).
 
+Wind. Both atmospheres may carry a :class:`WindProfile`: horizontal wind that changes with height
+above sea level (met practice: a met file's levels, a METCM message's zones) or with downrange
+distance from the gun (how small-arms tools and py-ballisticcalc give winds by zone), linear
+between its levels, with steps where a level repeats, constant beyond its ends. The point-mass
+kernel and its scipy reference fly it (:mod:`bayesdrag.dynamics.pointmass`); a constant wind of
+the model or of the ``wind`` effect adds to it.
+
 All functions here are pure and vectorised over altitude.
 """
 from __future__ import annotations
@@ -36,6 +43,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import math
+from bisect import bisect_right
 
 import numpy as np
 
@@ -219,16 +227,21 @@ class Atmosphere:
     density_ratio : float, -
     gun_altitude : float, m
         Geometric altitude of the gun above sea level; trajectory heights ``z`` are relative to it.
+    wind : WindProfile or None
+        Wind that changes along the flight (by height or downrange distance), or None.
     """
 
     temperature_offset: float = 0.0
     pressure_ratio: float = 1.0
     density_ratio: float = 1.0
     gun_altitude: float = 0.0
+    wind: "WindProfile | None" = None
 
     def __post_init__(self):
         _check_params(self.temperature_offset, self.pressure_ratio, self.density_ratio)
         _check_altitude(self.gun_altitude)
+        if self.wind is not None and not isinstance(self.wind, WindProfile):
+            raise ValueError(f"wind must be a WindProfile or None, got {type(self.wind).__name__}")
 
     def at_height(self, z):
         """Air at heights ``z`` [m] above the gun. Returns :class:`AtmosphereState`."""
@@ -343,19 +356,27 @@ class MetProfile:
     ----------
     altitude : tuple of float, m
         Geometric altitude above mean sea level of each level, strictly increasing, >= 2 levels.
+        An altitude may repeat once with the same temperature and pressure: a step in the wind
+        there (the first row's wind below, the second's above); the air's levels are then the
+        distinct altitudes and the winds become :attr:`wind`.
     temperature : tuple of float, K
         In [150, 350] K.
     pressure : tuple of float, Pa
         In [100, 120000] Pa, strictly decreasing with altitude, hydrostatically consistent
         within :data:`HYDROSTATIC_ERROR`.
     wind_x, wind_y : tuple of float or None, m/s
-        Wind components in the track frame (x downrange, y right, z up; docs/formats.md) (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward
-        +y), or None. Data only: the kernel takes one constant wind; see :meth:`wind_at` and
-        :meth:`mean_wind`.
+        Wind components at the levels in the track frame (x downrange, y right, z up;
+        docs/formats.md) (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward +y), or None; a missing
+        component is zero. They make :attr:`wind` (linear in altitude between levels), which the
+        point-mass kernel and its scipy reference fly.
     gun_altitude : float, m
         Geometric altitude of the gun above sea level; heights ``z`` are relative to it.
     temperature_offset, pressure_ratio, density_ratio : float
         As in :class:`Atmosphere`.
+    wind : WindProfile or None
+        The wind the profile carries: from ``wind_x, wind_y`` (by altitude), or given directly
+        (a METCM message's zones, layers of constant wind; a wind by downrange distance).
+        Giving both is an error.
     source : str
         File the profile was read from ("" if built in code); not part of equality.
     notes : tuple of str
@@ -379,6 +400,7 @@ class MetProfile:
     temperature_offset: float = 0.0
     pressure_ratio: float = 1.0
     density_ratio: float = 1.0
+    wind: WindProfile | None = None
     source: str = field(default="", compare=False)
     notes: tuple = field(default=(), compare=False)
 
@@ -390,6 +412,8 @@ class MetProfile:
         if len(T) != n or len(p) != n:
             raise ValueError(f"altitude, temperature and pressure need one value per level; got "
                              f"{n}, {len(T)}, {len(p)}")
+        z, T, p, steps = self._wind_steps(z, T, p, self.wind_x is not None or self.wind_y is not None)
+        n = len(z)
         if n < 2:
             raise ValueError(f"a met profile needs at least 2 levels, got {n} (a single surface "
                              f"observation is [atmosphere] temperature_offset / pressure_ratio)")
@@ -432,23 +456,34 @@ class MetProfile:
             raise ValueError(f"pressure {p[i]:g} Pa at altitude {z[i]:g} m is not below the pressure "
                              f"{p[i - 1]:g} Pa of the level beneath; pressure must fall with altitude")
         winds = {}
+        z_all = steps if steps is not None else z
         for name in ("wind_x", "wind_y"):
             w = getattr(self, name)
             if w is None:
                 winds[name] = None
                 continue
             w = _float_tuple(name, w)
-            if len(w) != n:
-                raise ValueError(f"{name} needs one value per level ({n}), got {len(w)}")
+            if len(w) != len(z_all):
+                raise ValueError(f"{name} needs one value per level ({len(z_all)}), got {len(w)}")
             wa = np.abs(np.array(w))
             if np.any(wa > PROFILE_WIND_MAX):
                 i = int(np.argmax(wa > PROFILE_WIND_MAX))
-                raise ValueError(f"{name} = {w[i]:g} m/s at altitude {z[i]:g} m exceeds the plausible "
+                raise ValueError(f"{name} = {w[i]:g} m/s at altitude {z_all[i]:g} m exceeds the plausible "
                                  f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
             winds[name] = w
+        wind = self.wind
+        if any(v is not None for v in winds.values()):
+            if wind is not None:
+                raise ValueError("give the profile's wind either per level (wind_x, wind_y) or as wind, not both")
+            zero = (0.0,) * len(z_all)
+            wind = WindProfile("altitude", z_all, winds["wind_x"] or zero, winds["wind_y"] or zero)
+            if steps is not None:  # per-level winds cannot hold a step: they live in ``wind``
+                winds = {"wind_x": None, "wind_y": None}
+        elif wind is not None and not isinstance(wind, WindProfile):
+            raise ValueError(f"wind must be a WindProfile or None, got {type(wind).__name__}")
         _check_params(self.temperature_offset, self.pressure_ratio, self.density_ratio)
         _check_altitude(self.gun_altitude)
-        for k, v in dict(altitude=z, temperature=T, pressure=p, **winds,
+        for k, v in dict(altitude=z, temperature=T, pressure=p, **winds, wind=wind,
                          gun_altitude=float(self.gun_altitude),
                          temperature_offset=float(self.temperature_offset),
                          pressure_ratio=float(self.pressure_ratio),
@@ -487,6 +522,25 @@ class MetProfile:
             unshifted = self._eval(np.array([Hg]), Ta, np.log(pa), 0.0)[1][0]
             anchor = unshifted - self._eval(np.array([Hg]), self._Tk, self._lnp_levels, dT)[1][0]
         self._set("_ln_anchor", anchor + math.log(self.pressure_ratio))
+
+    @staticmethod
+    def _wind_steps(z, T, p, has_wind):
+        """Levels whose altitude repeats (with the same temperature and pressure) mark a step in
+        the wind: the air's levels are the distinct ones. Returns (altitudes, temperatures,
+        pressures, all altitudes or None when none repeats)."""
+        za = np.array(z)
+        rep = np.flatnonzero(np.diff(za) == 0)
+        if not rep.size or not has_wind:
+            return z, T, p, None  # a repeat without winds: refused as unsorted levels below
+        for i in rep:
+            if T[i] != T[i + 1] or p[i] != p[i + 1]:
+                raise ValueError(f"altitude {z[i + 1]:g} m repeats with another temperature or pressure; a "
+                                 f"repeated altitude marks a step in the wind and must repeat the level's "
+                                 f"temperature and pressure")
+        keep = np.ones(za.size, bool)
+        keep[rep + 1] = False
+        pick = np.flatnonzero(keep)
+        return tuple(z[i] for i in pick), tuple(T[i] for i in pick), tuple(p[i] for i in pick), z
 
     def _set(self, name, value):
         if isinstance(value, np.ndarray):
@@ -532,30 +586,8 @@ class MetProfile:
 
     @property
     def has_wind(self):
-        """True when the profile carries wind components."""
-        return self.wind_x is not None or self.wind_y is not None
-
-    def wind_at(self, z):
-        """Wind (wx, wy) [m/s] at heights ``z`` [m] above the gun, shape ``z.shape + (2,)``.
-
-        Linear in altitude between levels, constant beyond the ends (no lapse rule exists for
-        wind); a missing component is zero.
-        """
-        h = np.asarray(z, dtype=float) + self.gun_altitude
-        out = np.zeros(h.shape + (2,))
-        for j, w in enumerate((self.wind_x, self.wind_y)):
-            if w is not None:
-                out[..., j] = np.interp(h, self.altitude, w)
-        return out
-
-    def mean_wind(self, z_max, z_min=0.0, n=201):
-        """Height-averaged wind (wx, wy) [m/s] over [z_min, z_max] above the gun.
-
-        A simple summary for the constant-wind model (a ballistic-wind weighting would weight
-        the layers by the sensitivity of the trajectory instead).
-        """
-        z = np.linspace(z_min, max(z_max, z_min), n)
-        return tuple(float(v) for v in self.wind_at(z).mean(axis=0))
+        """True when the profile carries a wind."""
+        return self.wind is not None
 
 
 def _float_tuple(name, values):
@@ -567,3 +599,196 @@ def _float_tuple(name, values):
         i = int(np.argmax(~np.isfinite(a)))
         raise ValueError(f"{name} value {a[i]} (level {i + 1}) is not a finite number")
     return tuple(float(v) for v in a)
+
+
+# ------------------------------------------------------------------------------------------
+# winds that change along the flight
+# ------------------------------------------------------------------------------------------
+#: the coordinates a wind profile can change along: geometric height above mean sea level [m]
+#: (met practice) or downrange distance x from the gun along the firing azimuth [m]
+WIND_AXES = ("altitude", "downrange")
+#: width [m] over which a step of a wind profile turns from the lower wind to the upper (a cubic
+#: smoothstep centred on the level, at most half of either neighbouring layer): winds do not
+#: jump, and a jump is what a fixed-step integrator cannot cross accurately (an exact step put
+#: the RK4 kernel 5-27 cm off the scipy reference on a 155 mm flight, depending on where its
+#: steps fell; 100 m: 1 mm, docs/real_data.md)
+WIND_STEP_WIDTH = 100.0
+
+
+@dataclass(frozen=True)
+class WindProfile:
+    """Horizontal wind that changes along one coordinate of the flight.
+
+    The wind is linear in the coordinate between consecutive levels and constant beyond the
+    first and the last. A level may appear twice in a row: the wind steps there (the first of
+    the two rows holds below the level, the second above it), which is how layers of constant
+    wind (a METCM message's zones, the ``wind_profile`` effect's layers) are written. A step is
+    spread over :data:`WIND_STEP_WIDTH` centred on its level (a cubic smoothstep between the two
+    sides' linear pieces, at most half of either neighbouring layer wide), for the kernel and
+    the scipy reference alike.
+
+    Attributes
+    ----------
+    axis : {"altitude", "downrange"}
+        ``altitude``: geometric height above mean sea level [m], like a met profile's levels;
+        ``downrange``: distance x [m] from the gun along the firing azimuth (track frame).
+    levels : tuple of float, m
+        Non-decreasing; a value repeats at most once and not at either end.
+    wind_x, wind_y : tuple of float, m/s
+        Wind at each level in the track frame (x downrange, y right): ``wind_x`` > 0 a
+        tailwind, ``wind_y`` > 0 blowing toward +y. At most :data:`PROFILE_WIND_MAX` in size.
+
+    Raises
+    ------
+    ValueError
+        Unknown axis, lengths that differ, levels out of order, a level repeated more than once or
+        at an end, a non-finite or implausible wind.
+
+    Examples
+    --------
+    >>> w = WindProfile.layered("altitude", (0.0, 1000.0, 3000.0), (2.0, -4.0), (0.0, 1.0))
+    >>> w.at([500.0, 1000.0, 2000.0]).tolist()
+    [[2.0, 0.0], [-1.0, 0.5], [-4.0, 1.0]]
+    """
+
+    axis: str
+    levels: tuple
+    wind_x: tuple
+    wind_y: tuple
+
+    def __post_init__(self):
+        if self.axis not in WIND_AXES:
+            raise ValueError(f"wind profile axis {self.axis!r} is not allowed; use one of {', '.join(WIND_AXES)}")
+        lv = _float_tuple("wind levels", self.levels)
+        wx = _float_tuple("wind_x", self.wind_x)
+        wy = _float_tuple("wind_y", self.wind_y)
+        if not (len(lv) == len(wx) == len(wy)) or not lv:
+            raise ValueError(f"a wind profile needs one wind_x and wind_y per level; got {len(lv)} levels, "
+                             f"{len(wx)} wind_x, {len(wy)} wind_y")
+        d = np.diff(lv)
+        if np.any(d < 0):
+            i = int(np.argmax(d < 0)) + 1
+            raise ValueError(f"wind level {lv[i]:g} m is below the previous level {lv[i - 1]:g} m; levels must "
+                             f"be sorted by increasing {self.axis}")
+        rep = np.flatnonzero(d == 0)
+        if rep.size and (rep[0] == 0 or rep[-1] == len(lv) - 2 or np.any(np.diff(rep) == 1)):
+            i = int(rep[0])
+            raise ValueError(f"wind level {lv[i]:g} m repeats more than once or at an end; a level may repeat "
+                             f"once inside the profile (a step in the wind)")
+        for name, w in (("wind_x", wx), ("wind_y", wy)):
+            wa = np.abs(np.array(w))
+            if np.any(wa > PROFILE_WIND_MAX):
+                i = int(np.argmax(wa > PROFILE_WIND_MAX))
+                raise ValueError(f"{name} = {w[i]:g} m/s at {self.axis} {lv[i]:g} m exceeds the plausible "
+                                 f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
+        object.__setattr__(self, "levels", lv)
+        object.__setattr__(self, "wind_x", wx)
+        object.__setattr__(self, "wind_y", wy)
+        # each step: (level, half width, left value, left slope, right value, right slope) per component
+        steps = []
+        w = np.column_stack([wx, wy])
+        for i in rep:
+            v = lv[i]
+            hw = min(0.5 * WIND_STEP_WIDTH, 0.5 * (v - lv[i - 1]), 0.5 * (lv[i + 2] - v))
+            left = (w[i] - w[i - 1]) / (v - lv[i - 1])
+            right = (w[i + 2] - w[i + 1]) / (lv[i + 2] - v)
+            steps.append((v, hw, w[i], left, w[i + 1], right))
+        object.__setattr__(self, "_steps", tuple(steps))
+
+    @classmethod
+    def layered(cls, axis, edges, wind_x, wind_y):
+        """Layers of constant wind: layer k spans ``[edges[k], edges[k + 1])`` with
+        ``(wind_x[k], wind_y[k])``; below the first edge the first layer's wind holds, above the
+        last the last layer's.
+
+        Parameters
+        ----------
+        axis : {"altitude", "downrange"}
+        edges : (K + 1,) strictly increasing, m
+        wind_x, wind_y : (K,) m/s
+        """
+        e = np.asarray(edges, float)
+        wx, wy = np.asarray(wind_x, float).reshape(-1), np.asarray(wind_y, float).reshape(-1)
+        K = e.size - 1
+        if K < 1 or wx.size != K or wy.size != K or np.any(np.diff(e) <= 0):
+            raise ValueError(f"layers need K + 1 strictly increasing edges and K winds; got {e.size} edges, "
+                             f"{wx.size} wind_x, {wy.size} wind_y")
+        lv = np.repeat(e, 2)[1:-1]               # e0, e1, e1, e2, e2, ..., eK
+        return cls(axis, tuple(lv), tuple(np.repeat(wx, 2)), tuple(np.repeat(wy, 2)))
+
+    @property
+    def n_layers(self):
+        """Number of steps plus one when the profile is layered (every other level repeats)."""
+        return int(np.count_nonzero(np.diff(self.levels) == 0)) + 1
+
+    def at(self, s):
+        """Wind (wx, wy) [m/s] at coordinates ``s`` [m] (height above sea level or downrange
+        distance, by :attr:`axis`), shape ``s.shape + (2,)``."""
+        s = np.asarray(s, dtype=float)
+        lv = np.asarray(self.levels)
+        w = np.column_stack([self.wind_x, self.wind_y])
+        if lv.size == 1:
+            return np.broadcast_to(w[0], s.shape + (2,)).copy()
+        sc = np.clip(s, lv[0], lv[-1])
+        k = np.clip(np.searchsorted(lv, sc, side="right") - 1, 0, lv.size - 2)
+        span = lv[k + 1] - lv[k]
+        f = np.where(span > 0, (sc - lv[k]) / np.where(span > 0, span, 1.0), 0.0)
+        out = w[k] + f[..., None] * (w[k + 1] - w[k])
+        for v, hw, wl, sl, wr, sr in self._steps:
+            near = np.abs(sc - v) < hw
+            if np.any(near):
+                d = sc[near] - v
+                u = (d + hw) / (2.0 * hw)
+                g = (u * u * (3.0 - 2.0 * u))[:, None]
+                lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
+                out[near] = lo + g * (hi - lo)
+        return out
+
+    def at_scalar(self, s):
+        """:meth:`at` for one coordinate [m], as two floats (the scipy reference's fast path)."""
+        lv = self.levels
+        n = len(lv)
+        if n == 1 or s <= lv[0]:
+            return self.wind_x[0], self.wind_y[0]
+        if s >= lv[-1]:
+            return self.wind_x[-1], self.wind_y[-1]
+        for v, hw, wl, sl, wr, sr in self._steps:
+            d = s - v
+            if -hw < d < hw:
+                u = (d + hw) / (2.0 * hw)
+                g = u * u * (3.0 - 2.0 * u)
+                lo0, lo1 = wl[0] + d * sl[0], wl[1] + d * sl[1]
+                return lo0 + g * (wr[0] + d * sr[0] - lo0), lo1 + g * (wr[1] + d * sr[1] - lo1)
+        k = min(bisect_right(lv, s) - 1, n - 2)
+        f = (s - lv[k]) / (lv[k + 1] - lv[k])
+        return (self.wind_x[k] + f * (self.wind_x[k + 1] - self.wind_x[k]),
+                self.wind_y[k] + f * (self.wind_y[k + 1] - self.wind_y[k]))
+
+    def plus(self, other):
+        """The sum of two profiles along the same axis (levels merged; a step of either is a
+        step of the sum)."""
+        if other.axis != self.axis:
+            raise ValueError(f"cannot add a wind by {other.axis} to a wind by {self.axis}")
+        return _sum_profiles(self, other)
+
+
+def _side_value(p, v, upper):
+    """Wind of profile ``p`` at level ``v`` from below (``upper`` False) or above (True)."""
+    lv = p.levels
+    for i in range(len(lv) - 1):
+        if lv[i] == lv[i + 1] == v:
+            j = i + 1 if upper else i
+            return p.wind_x[j], p.wind_y[j]
+    return p.at_scalar(v)
+
+
+def _sum_profiles(a, b):
+    lv, wx, wy = [], [], []
+    for v in sorted(set(a.levels) | set(b.levels)):
+        lo = [_side_value(p, v, False) for p in (a, b)]
+        hi = [_side_value(p, v, True) for p in (a, b)]
+        for side in ((lo, hi) if lo != hi else (lo,)):
+            lv.append(v)
+            wx.append(side[0][0] + side[1][0])
+            wy.append(side[0][1] + side[1][1])
+    return WindProfile(a.axis, tuple(lv), tuple(wx), tuple(wy))
