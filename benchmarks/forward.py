@@ -80,7 +80,8 @@ def main(argv=None):
     # wind by height (6 layers of constant wind, steps spread over 100 m) and with a wind by
     # downrange distance, timed alike (one thread, CPU time, best of the repeats, interleaved
     # so that load on the shared machine hits all three)
-    from bayesdrag.atmosphere import Atmosphere, WindProfile
+    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.wind import WindProfile
 
     const = model.with_(wind=(-4.0, 3.0, 0.0))
     by_height = model.with_(atmosphere=Atmosphere(wind=WindProfile.layered(

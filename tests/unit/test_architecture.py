@@ -14,7 +14,7 @@ MAX_FUNCTION_LINES = 150
 #: the layers, lowest first: a module may import only from its own layer or lower ones
 LAYERS = [
     ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads", "bayesdrag._signals", "bayesdrag._gc", "bayesdrag._numba_cache"],
-    ["bayesdrag.atmosphere", "bayesdrag.drag"],
+    ["bayesdrag.wind", "bayesdrag.atmosphere", "bayesdrag.drag"],
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],
     ["bayesdrag.dynamics"],

@@ -3,7 +3,8 @@ distance, flown by the point-mass kernel and its scipy reference alike."""
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import WIND_STEP_WIDTH, Atmosphere, MetProfile, WindProfile
+from bayesdrag.atmosphere import Atmosphere, MetProfile
+from bayesdrag.wind import WIND_STEP_WIDTH, WindProfile
 from bayesdrag.dynamics import kernel as K
 from bayesdrag.dynamics.pointmass import PointMassModel, wind_tables
 from bayesdrag.dynamics.trajectory import initial_state
@@ -110,3 +111,19 @@ def test_a_met_profiles_winds_are_flown_by_height_above_sea_level():
     state = np.array([0.0, 0.0, 700.0, 300.0, 0.0, 0.0])
     a = prof.at_height(700.0).speed_of_sound
     assert m.mach_of(state) == pytest.approx(308.0 / a, rel=1e-12)
+
+
+def test_the_6dof_flies_the_atmospheres_wind_profile():
+    """A one-level profile is a constant wind: the 6-DOF flies it exactly as its ``wind=``
+    argument (track frame, y right), and a wind by height moves the drift."""
+    from bayesdrag.dynamics import shell as shells, sixdof
+
+    sh = shells.table1_shell()
+    t = np.arange(0.0, 20.0, 0.5)
+    const = sixdof.simulate_6dof(sh, 818.0, 30.0, t_out=t, wind=(3.0, -4.0, 0.0))
+    prof = sixdof.simulate_6dof(sh, 818.0, 30.0, t_out=t, atmosphere=Atmosphere(
+        wind=WindProfile("altitude", (0.0,), (3.0,), (-4.0,))))
+    np.testing.assert_allclose(prof.position, const.position, atol=1e-6)
+    layered = sixdof.simulate_6dof(sh, 818.0, 30.0, t_out=t, atmosphere=Atmosphere(wind=LAYERS))
+    still = sixdof.simulate_6dof(sh, 818.0, 30.0, t_out=t)
+    assert abs(layered.position[-1, 1] - still.position[-1, 1]) > 5.0
