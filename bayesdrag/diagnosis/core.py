@@ -13,9 +13,12 @@ from ..effects import EFFECTS
 from ..errors import FitError
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
-from .selection import DRAG_EFFECTS, conditional_shrinks, select_effects, wrong_table_fit
-from .setup import edf, fit_effects, flown_mach_span, make_setup, n_weighted, noise_floor, report_params
-from .signatures import mark_confounded
+from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
+from .setup import (edf, fit_effects, fit_starts, flown_mach_span, make_setup, n_weighted, noise_floor,
+                    report_params)
+from .signatures import mark_confounded, signatures
+from .statistics import autocovariance, colored_inflation
+from .winds import WIND_FAMILY, cannot_separate, layers_for, rechoose_wind
 from .statistics import ALPHA
 from .where import absorbed_by_launch, where_segments, with_launch_misfit
 
@@ -79,8 +82,10 @@ def _baseline(setup):
 def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
     """Steps 6 and 10: the detected effects (ordered by what each explains alone), their joint
     fit, its drop-one fits and, beside a table of another shell, the summary of the diagnosis
-    against a fitted Cd (else None)."""
+    against a fitted Cd (else None). A wind model the evidence did not choose
+    (``superseded_by``) takes no part."""
     found, selected_fit, drop_one, wrong_table = [], None, {}, None
+    rows = [r for r in rows if not r.get("superseded_by")]
     if rows and rows[0]["significant"]:
         found, selected_fit, drop_one = select_effects(setup, rows, fits, gap, sig_vec, alpha, K)
         if "drag_shape" in found and set(found) - set(DRAG_EFFECTS):
@@ -108,6 +113,57 @@ def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec,
     return names, nfit, subs, sub.summary
 
 
+def _fit_names(setup):
+    """``fit_fn(names, start_fit)``: the baseline plus the effects ``names`` fitted from the
+    initial state of ``start_fit``."""
+    def fit_fn(names, start):
+        effs = [EFFECTS[n] for n in names]
+        th = [start[0].theta[:setup.P + 6]]
+        return fit_effects(setup, effs, np.concatenate(th + [fit_starts(e) for e in effs]))
+    return fit_fn
+
+
+def _wind_beside_others(setup, found, fit, drop_one, fits, by_name, b, sig_vec, alpha):
+    """A wind model in a verdict with other effects, chosen again in their company by evidence
+    (:func:`bayesdrag.diagnosis.winds.rechoose_wind`: the constant wind, the profile by height,
+    the profile by downrange distance). Returns the verdict, its joint fit and drop-one fits, and
+    the evidence of the models tried (None when there was nothing to choose)."""
+    wind = [n for n in found if n in WIND_FAMILY]
+    if not wind or len(found) < 2 or fit is None:
+        return found, fit, drop_one, None
+    y_base = b.fit[2]
+    alternatives = [("wind", None)] + [("wind_profile", lay) for lay in
+                                       (layers_for(setup, y_base, ax) for ax in ("altitude", "downrange"))
+                                       if lay is not None]
+
+    fit_fn = _fit_names(setup)
+
+    def infl_fn(small, big):
+        resid = np.stack([big[0].residuals[c] for c in setup.channels], axis=-1)
+        return colored_inflation(big[2] - small[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
+
+    K = max(len(by_name), 1)
+
+    def admit_fn(name, small, big):
+        return admits(setup, EFFECTS[name], small, big, b.gap, sig_vec, alpha / K)[0]
+
+    new, nfit, lay, tried = rechoose_wind(setup, found, fit, alternatives, fit_fn, infl_fn, admit_fn)
+    if not tried:
+        return found, fit, drop_one, None
+    setup.ctx = replace(setup.ctx, wind_layers=lay)
+    if new != found:
+        w_new = next((n for n in new if n in WIND_FAMILY), None)
+        if w_new is not None and w_new not in by_name:
+            return found, fit, drop_one, tried
+        drop_one = drop_one_fits(setup, new, nfit, fits) if len(new) > 1 else {}
+        found, fit = new, nfit
+    if "wind_profile" in by_name and lay is not None:
+        by_name["wind_profile"].setdefault("layers", {}).update(
+            {"axis": lay.axis, "edges": list(lay.edges), "n": lay.n,
+             "edges_unit": "m above sea level" if lay.axis == "altitude" else "m downrange from the gun"})
+    return found, fit, drop_one, tried
+
+
 def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
     """The joint fit of several detected effects, as ``summary["joint"]`` (None for fewer than
     two); every figure of a detected effect comes from it (written into its row)."""
@@ -130,6 +186,7 @@ def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
         {"params": [pnames[i], pnames[j]], "corr": float(corr[i, j])}
         for i in range(len(pnames)) for j in range(i + 1, len(pnames))
         if pnames[i].split(".")[0] != pnames[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
+
     for n in found:
         e, r = EFFECTS[n], by_name[n]
         idx = [pnames.index(f"{e.name}.{p.name}") for p in e.params]
@@ -259,15 +316,25 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     sig_vec = np.array([setup.sigma[c] for c in chans])
     b = _baseline(setup)
 
-    effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span)
+    effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span, b.fit[2])
     K = max(len(effs), 1)
     rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
+    if "wind_profile" in fits:  # its signature with the layers the evidence chose
+        sigs.update(signatures(setup, b.theta, [EFFECTS["wind_profile"]]))
     mark_confounded(rows, sigs, alpha, K)
 
     opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
     found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
     by_name = {r["name"]: r for r in rows}
+    found, selected_fit, drop_one, wind_choice = _wind_beside_others(setup, found, selected_fit, drop_one, fits,
+                                                                     by_name, b, sig_vec, alpha)
     joint = _joint(setup, found, selected_fit, drop_one, by_name, b.chi2, b.gap)
+    if wind_choice and joint:
+        joint["wind_models"] = wind_choice
+    # the pairs the data cannot separate: verdict members in their joint fit, a wind against
+    # warmer or thinner air or a table's shape fitted beside it (diagnosis.winds)
+    separate = cannot_separate(setup, found, selected_fit if len(found) > 1 else None, fits, by_name,
+                               _fit_names(setup))
     judge_impacts(setup, rows, found, selected_fit, fits, **opts)
     verdict, immaterial, found = _verdict(setup, rows, found, by_name, wrong_table)
     best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
@@ -288,6 +355,7 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         "verdict": verdict,
         "immaterial": immaterial,
         "joint": joint,
+        "cannot_separate": separate,
         "materiality": {"cd_shift": material_cd_shift, "end_sd": material_end_sd,
                         "rule": "material when ignoring it would shift a fitted Cd by more than cd_shift "
                                 "(relative) anywhere in the flown Mach range or move the track's last sample by "

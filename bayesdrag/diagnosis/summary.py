@@ -108,8 +108,9 @@ def verdict_lines(s):
         if e.get("judged_against"):
             why = " (the table has another shell's shape)" if shape_named else ""
             txt += f"; judged against a {e['judged_against']}{why}"
-        if e.get("confounded_with"):
-            txt += f"; the data cannot tell it from {', '.join(e['confounded_with'])}"
+        confused = [n for n in e.get("confounded_with") or [] if not rows.get(n, {}).get("superseded_by")]
+        if confused:
+            txt += f"; the data cannot tell it from {', '.join(confused)}"
         imp = impact_text(e)
         if imp:
             txt += f"; if ignored, {imp}"
@@ -117,19 +118,29 @@ def verdict_lines(s):
     return out
 
 
-def _tradeoff_sentences(s):
-    """The pairs the data cannot separate (``joint.cannot_separate``) and the strongly correlated
-    parameters of the joint fit."""
+#: at most this many strongly correlated parameter pairs are worded (diagnosis.json lists all)
+MAX_CAUTIONS = 3
+
+
+def _separate_sentences(s):
+    """The pairs the data cannot separate (``cannot_separate``), with each one's size alone in
+    sd of the fit that holds both."""
+    parts = []
+    for p in s.get("cannot_separate") or []:
+        a, b = p["effects"]
+        z, z0 = p["size_over_sd"], p["size_alone_over_sd"]
+        how = "in the verdict's joint fit" if p.get("in_verdict") else f"when {b} is fitted beside it"
+        parts.append(f"The data cannot separate {a} from {b}: {how}, their sizes are {fmt(z[a], 2)} and "
+                     f"{fmt(z[b], 2)} sd (alone {fmt(z0[a], 2)} and {fmt(z0[b], 2)} sd).")
+    return parts
+
+
+def _caution_sentences(s):
+    """The strongly correlated parameters of the joint fit (the first :data:`MAX_CAUTIONS`)."""
     joint = s.get("joint") or {}
     parts = []
-    for p in joint.get("cannot_separate") or []:
-        a, b = p["effects"]
-        parts.append(f"The data cannot separate {a} from {b} (fitted together; parameter correlation "
-                     f"{fmt(p['corr'], 2)}).")
-    for c in joint.get("strongly_correlated") or []:
+    for c in (joint.get("strongly_correlated") or [])[:MAX_CAUTIONS]:
         a, b = c["params"]
-        if any(set(c["params"]) <= set(p.get("params", ())) for p in joint.get("cannot_separate") or []):
-            continue
         parts.append(f"Caution: {a} and {b} are correlated {fmt(c['corr'], 2)} in the joint fit, so their "
                      f"split rests on the models' shapes more than on the data.")
     return parts
@@ -155,10 +166,11 @@ def _verdict_tail(s):
     joint = s.get("joint")
     if joint:
         parts.append(f"Fitted together they remove {fmt(joint['shrink'], 3)} of the gap.")
-        parts += _tradeoff_sentences(s)
+        parts += _caution_sentences(s)
         left = joint.get("remaining_gap_fraction")
     else:
         left = rows[verdict[0]].get("remaining_gap_fraction")
+    parts += _separate_sentences(s)
     if left is not None and left > 0.05:
         parts.append(f"A fraction {fmt(left, 2)} of the gap remains (e.g. an effect that varies along the path).")
     return parts

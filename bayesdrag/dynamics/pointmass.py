@@ -408,6 +408,9 @@ class PointMassModel:
                 and state0 is not None:
             par[:, K.P_LIFT_VERT] = self.lift_vertical_speed(state0)
         for col, val in (overrides or {}).items():
+            if not isinstance(col, (int, np.integer)):
+                raise ValueError(f"override {col!r} is not a kernel column: the {col[0]} effect needs its model "
+                                 f"around this one (bayesdrag.effects.static_model)")
             par[:, col] = val
         grid = self.mach_grid
         if self.drag.n_params == 0:

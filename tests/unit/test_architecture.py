@@ -18,7 +18,7 @@ LAYERS = [
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],
     ["bayesdrag.dynamics"],
-    ["bayesdrag.effects", "bayesdrag.effect_inputs"],
+    ["bayesdrag.effects", "bayesdrag.effect_inputs", "bayesdrag.wind_layers"],
     ["bayesdrag.synthetic"],
     ["bayesdrag.estimate"],
     ["bayesdrag.diagnosis"],
