@@ -179,6 +179,20 @@ class WindProfile:
         return (self.wind_x[k] + f * (self.wind_x[k + 1] - self.wind_x[k]),
                 self.wind_y[k] + f * (self.wind_y[k + 1] - self.wind_y[k]))
 
+    def at_level(self, s):
+        """The wind at ``s`` [m] from the levels alone (linear between them, a step exactly at a
+        repeated level, the upper side there), without the smoothing of steps: the value a file
+        row at ``s`` must hold for the file to define this profile."""
+        lv = self.levels
+        if len(lv) == 1 or s <= lv[0]:
+            return self.wind_x[0], self.wind_y[0]
+        if s >= lv[-1]:
+            return self.wind_x[-1], self.wind_y[-1]
+        k = min(bisect_right(lv, s) - 1, len(lv) - 2)
+        f = (s - lv[k]) / (lv[k + 1] - lv[k]) if lv[k + 1] > lv[k] else 0.0
+        return (self.wind_x[k] + f * (self.wind_x[k + 1] - self.wind_x[k]),
+                self.wind_y[k] + f * (self.wind_y[k + 1] - self.wind_y[k]))
+
     def plus(self, other):
         """The sum of two profiles along the same axis (levels merged; a step of either is a
         step of the sum)."""

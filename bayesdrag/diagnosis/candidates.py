@@ -246,8 +246,13 @@ def _fit_profile_variants(setup, e, base_fit, gap, alpha, K, fits):
             ev = log_evidence(setup, "wind_profile", res, chain[0], _inflation(setup, chain, f), g_info, z_w,
                               occam(setup, "wind", chain[0], g_w))
         setup.ctx = saved
+        setup.ctx = replace(saved, wind_layers=lay)
+        k0 = res.theta.size - e.k
         info.append({"axis": lay.axis, "edges": list(lay.edges), "log_evidence": ev,
-                     "shrink": float(np.clip((base.cost - res.cost) / gap, 0.0, 1.0)) if gap > 0 else 0.0})
+                     "shrink": float(np.clip((base.cost - res.cost) / gap, 0.0, 1.0)) if gap > 0 else 0.0,
+                     "params": report_params(setup, e, res.theta[k0:]),
+                     "sd": report_params(setup, e, res.theta[k0:], res.cov_colored[k0:, k0:])})
+        setup.ctx = saved
         if best is None or ev > best[0]:
             best = (ev, lay, f)
     if best is None:

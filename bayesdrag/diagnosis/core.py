@@ -18,8 +18,10 @@ from .setup import (edf, fit_effects, fit_starts, flown_mach_span, make_setup, n
                     report_params)
 from .signatures import mark_confounded, signatures
 from .statistics import autocovariance, colored_inflation
-from .winds import WIND_FAMILY, cannot_separate, layers_for, rechoose_wind
+from .winds import (SHAPE_RIVAL_SHARE, WIND_FAMILY, cannot_separate, data_cost, layers_for, rechoose_wind,
+                    shape_rival_share)
 from .statistics import ALPHA
+from .found_air import found_atmosphere
 from .where import absorbed_by_launch, where_segments, with_launch_misfit
 
 __all__ = ["diagnose", "Diagnosis", "MIN_DIAGNOSIS_SAMPLES"]
@@ -46,6 +48,9 @@ class Diagnosis:
     mach: np.ndarray
     weights: np.ndarray
     best: str | None
+    #: the air found (diagnosis.found_air.found_atmosphere): (MetProfile, Atmosphere with a wind
+    #: by downrange distance, header lines), the first two None when the verdict leaves the air
+    found_air: tuple | None = None
 
 
 @dataclass
@@ -113,6 +118,41 @@ def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec,
     return names, nfit, subs, sub.summary
 
 
+def _profile_against_shape(setup, found, fit, fits, by_name, base_res):
+    """A wind profile in the selection against the table's shape in its place: an along-range wind
+    that changes along the flight and a drag that changes with Mach both change the drag along the
+    flight. When ``drag_shape`` removes at least :data:`~bayesdrag.diagnosis.winds.SHAPE_RIVAL_SHARE`
+    of what the profile removes, the data cannot separate them, and the pair is returned for
+    ``cannot_separate`` (else None). A profile that explains the gap alone stays named (``named``:
+    a table's shape is never named as the cause of a wind's signature); one *beside* other members
+    leaves the selection (``superseded_by`` the shape; a constant wind it had superseded comes
+    back): it was taking up the model error the others leave (a 6-DOF shell's drag from its yaw
+    of repose near the apex, which the point mass lacks)."""
+    if "wind_profile" not in found or "drag_shape" not in fits or "drag_shape" in found or fit is None:
+        return None
+    others = [n for n in found if n != "wind_profile"]
+    fit_fn = _fit_names(setup)
+    try:
+        ref = fit_fn(others, fit) if others else None
+        rival = fit_fn(others + ["drag_shape"], fit) if others else fits["drag_shape"]
+    except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return None
+    c_ref = data_cost(ref[0]) if ref is not None else float(base_res.cost)
+    share = shape_rival_share(c_ref, data_cost(fit[0]), data_cost(rival[0]))
+    if share < SHAPE_RIVAL_SHARE:
+        return None
+    pair = {"effects": ["wind_profile", "drag_shape"], "rival_share": round(float(share), 4), "in_verdict": False,
+            "named": not others}
+    if not others:
+        # the profile alone explains the gap: the wind is named (a table's shape is never named as
+        # the cause of a wind's signature), the pair is reported
+        return pair
+    by_name["wind_profile"]["superseded_by"] = "drag_shape"
+    if by_name.get("wind", {}).get("superseded_by") == "wind_profile":
+        del by_name["wind"]["superseded_by"]
+    return pair
+
+
 def _fit_names(setup):
     """``fit_fn(names, start_fit)``: the baseline plus the effects ``names`` fitted from the
     initial state of ``start_fit``."""
@@ -151,7 +191,7 @@ def _wind_beside_others(setup, found, fit, drop_one, fits, by_name, b, sig_vec, 
     if not tried:
         return found, fit, drop_one, None
     setup.ctx = replace(setup.ctx, wind_layers=lay)
-    if new != found:
+    if new != found or nfit is not fit:
         w_new = next((n for n in new if n in WIND_FAMILY), None)
         if w_new is not None and w_new not in by_name:
             return found, fit, drop_one, tried
@@ -261,6 +301,8 @@ def _baseline_summary(setup, track, b):
         "nuisance_drag": setup.nuisance,
         "edf": float(edf(setup, base)),
         "initial_state": {n: float(v) for n, v in zip(base.names[setup.P:], b.theta[setup.P:])},
+        # the highest point of the fitted flight [m above the gun] (the met file's top, diagnosis.found_air)
+        "z_max": float(np.nanmax(b.fit[2][:, chans.index("z")])) if "z" in chans else None,
         "ic_time": setup.t_ic, "converged": bool(base.converged), "message": base.message,
     }
 
@@ -324,17 +366,24 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     mark_confounded(rows, sigs, alpha, K)
 
     opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
-    found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
     by_name = {r["name"]: r for r in rows}
-    found, selected_fit, drop_one, wind_choice = _wind_beside_others(setup, found, selected_fit, drop_one, fits,
-                                                                     by_name, b, sig_vec, alpha)
+    shape_rival = None
+    for _ in range(2):  # a second time without a profile the data cannot tell from a table's shape
+        found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
+        found, selected_fit, drop_one, wind_choice = _wind_beside_others(setup, found, selected_fit, drop_one,
+                                                                         fits, by_name, b, sig_vec, alpha)
+        if shape_rival is not None:
+            break
+        shape_rival = _profile_against_shape(setup, found, selected_fit, fits, by_name, b.fit[0])
+        if shape_rival is None or shape_rival["named"]:
+            break
     joint = _joint(setup, found, selected_fit, drop_one, by_name, b.chi2, b.gap)
     if wind_choice and joint:
         joint["wind_models"] = wind_choice
     # the pairs the data cannot separate: verdict members in their joint fit, a wind against
     # warmer or thinner air or a table's shape fitted beside it (diagnosis.winds)
     separate = cannot_separate(setup, found, selected_fit if len(found) > 1 else None, fits, by_name,
-                               _fit_names(setup))
+                               _fit_names(setup)) + ([shape_rival] if shape_rival is not None else [])
     judge_impacts(setup, rows, found, selected_fit, fits, **opts)
     verdict, immaterial, found = _verdict(setup, rows, found, by_name, wrong_table)
     best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
@@ -367,5 +416,10 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         "notes": setup.notes,
         "reference_drag": setup.has_reference,
     }
+    try:
+        found = found_atmosphere(summary, rnd)
+    except ValueError as exc:  # an air no met file can hold (beyond the atmosphere model): said, not written
+        setup.notes.append(f"the air found could not be written as a met file ({exc})")
+        found = None
     return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
-                     b.mach, setup.weights, best_name)
+                     b.mach, setup.weights, best_name, found)

@@ -128,6 +128,12 @@ def _separate_sentences(s):
     parts = []
     for p in s.get("cannot_separate") or []:
         a, b = p["effects"]
+        if "rival_share" in p:
+            named = (f"{a} is named, never {b}, as the cause of a wind's signature" if p.get("named")
+                     else f"{a}, beside the others, is not named")
+            parts.append(f"The data cannot separate {a} from {b}: in its place {b} removes {fmt(p['rival_share'], 2)} "
+                         f"of what it removes; {named}.")
+            continue
         z, z0 = p["size_over_sd"], p["size_alone_over_sd"]
         how = "in the verdict's joint fit" if p.get("in_verdict") else f"when {b} is fitted beside it"
         parts.append(f"The data cannot separate {a} from {b}: {how}, their sizes are {fmt(z[a], 2)} and "

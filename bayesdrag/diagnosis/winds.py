@@ -32,7 +32,7 @@ from ..wind_layers import WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, WindLaye
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
            "wind_prior_precision", "occam", "data_cost", "fit_wind_profile", "rechoose_wind", "cannot_separate", "separable",
-           "SEPARATE_SD", "TRADE_PARTNERS"]
+           "SEPARATE_SD", "TRADE_PARTNERS", "SHAPE_RIVAL_SHARE", "shape_rival_share"]
 
 #: layers of the wind_profile candidate on each axis: enough to follow a wind that turns or
 #: strengthens once along the flight, few enough that each layer holds a quarter of the track
@@ -46,6 +46,12 @@ TRADE_PARTNERS = ("temperature", "density", "drag_scale", "drag_shape")
 #: its sd in their joint fit (the joint fit can tell "all of the signature is this effect" from
 #: "none of it is"); otherwise the verdict reports the pair as one the data cannot separate
 SEPARATE_SD = 3.0
+#: the table's shape in place of a wind profile: when it removes at least this share of what the
+#: profile removes (beside the other verdict members), the data cannot separate a wind that
+#: changes along the flight from a drag that changes with Mach, and the profile is not named. A
+#: 6-DOF shell's drag from its yaw of repose near the apex, which the point mass lacks: 0.84; the
+#: winds that change along the flight of the suite's tuning cases: 0-0.55
+SHAPE_RIVAL_SHARE = 0.75
 #: the edges of a layer grid are rounded to this [m]
 EDGE_ROUND = 10.0
 
@@ -481,3 +487,10 @@ def rechoose_wind(setup, verdict, fit, alternatives, fit_fn, infl_fn, admit_fn=N
 def _axis(name, layers):
     return None if name == "wind" or layers is None else layers.axis
 
+
+
+def shape_rival_share(c_ref, c_profile, c_rival):
+    """The share of what a wind profile removes (data cost from ``c_ref`` down to ``c_profile``)
+    that a rival in its place removes (down to ``c_rival``); 0 when the profile removes nothing."""
+    gain = c_ref - c_profile
+    return float(np.clip((c_ref - c_rival) / gain, 0.0, np.inf)) if gain > 0 else 0.0

@@ -149,8 +149,8 @@ def _rows_with_steps(levels, wind):
             i = next(i for i in range(len(wind.levels) - 1) if wind.levels[i] == wind.levels[i + 1] == v)
             out.append((v, wind.wind_x[i], wind.wind_y[i]))
             out.append((v, wind.wind_x[i + 1], wind.wind_y[i + 1]))
-        else:
-            wx, wy = wind.at_scalar(v)
+        else:  # the level's own value (not the smoothing of a step near it: the file's rows define the steps)
+            wx, wy = wind.at_level(v)
             out.append((v, float(wx), float(wy)))
     return out
 
