@@ -283,3 +283,48 @@ def test_diagnose_writes_the_found_wind_as_a_met_file_that_fits_back(tmp_path, c
     s2 = json.loads((tmp_path / "d2" / "diagnosis.json").read_text())
     assert s2["baseline"]["gap"] < GAP_BACK_MAX * s["baseline"]["gap"]
     assert not {"wind", "wind_profile"} & set(s2["verdict"])
+
+
+#: a row of cd is right within this relative error of the truth (the project's rule)
+TOL_CD_REL = 0.02
+
+
+def test_fit_and_plan_fly_the_rounds_met_winds(tmp_path, capsys):
+    """The fit flies the met profile's winds: a track flown in layered winds by height gives the
+    right Cd with them (every determined row within 2 %) and a misfit without them; plan takes
+    the round too. ``--with wind_profile`` is refused with one line (the fit does not fly the
+    diagnosis's layers yet)."""
+    import json
+
+    from bayesdrag.io.drag_tables import load_m101
+    from bayesdrag.synthetic import add_noise
+    from bayesdrag.io.tracks import write_track
+
+    T, p = _met_rows((0.0, 600.0, 600.0, 1500.0, 1500.0, 3000.0), dT=0.0)
+    rows = zip((0.0, 600.0, 600.0, 1500.0, 1500.0, 3000.0), T, p, (3.0, 3.0, -4.0, -4.0, -10.0, -10.0),
+               (1.0, 1.0, 3.0, 3.0, 4.0, 4.0))
+    (tmp_path / "windy.csv").write_text("altitude,temperature,pressure,wind_x,wind_y\n"
+                                        + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in rows))
+    body = (f'[projectile]\nmass = 42.6\ndiameter = 0.155\nreference_drag = "{REF}"\n[launch]\nelevation = 15.0\n'
+            f'velocity = 818.0\nazimuth = 90.0\n[radar]\nsigma = {{x = 1.0, y = 1.0, z = 1.0, v = 0.3}}\n')
+    (tmp_path / "windy.toml").write_text(body + '[atmosphere]\nprofile = "windy.csv"\n')
+    (tmp_path / "calm.toml").write_text(body)
+    windy = read_round(tmp_path / "windy.toml")
+    write_track(tmp_path / "t.csv", add_noise(simulate_round(windy, dt=0.05), {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3},
+                                              np.random.default_rng(15)))
+    ref = load_m101()
+    errs = {}
+    for name in ("windy", "calm"):
+        code, err = _cli(["fit", tmp_path / "t.csv", tmp_path / f"{name}.toml", "-o", tmp_path / name, "--no-mcmc"],
+                         capsys)
+        assert code == 0, err
+        r = json.loads((tmp_path / name / "result.json").read_text())
+        det = [c for c in r["cd"] if c["determined"]]
+        errs[name] = max(abs(c["ml"] / float(ref.value(np.array(c["mach"]))) - 1.0) for c in det)
+    assert errs["windy"] < TOL_CD_REL and errs["calm"] > 5 * TOL_CD_REL
+    code, err = _cli(["plan", tmp_path / "windy.toml", "-o", tmp_path / "plan"], capsys)
+    assert code == 0, err
+    code, err = _cli(["fit", tmp_path / "t.csv", tmp_path / "calm.toml", "-o", tmp_path / "wp", "--no-mcmc",
+                      "--with", "wind_profile"], capsys)
+    assert code == 2 and len(err) == 1 and "--with wind_profile: the fit cannot fly a wind profile yet" in err[0]
+    assert not (tmp_path / "wp").exists()
