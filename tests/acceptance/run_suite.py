@@ -97,7 +97,7 @@ def main(argv=None):
         print(f"{t[:12]:<13}" + "".join(f"{conf.get((t, p), 0):>12}" for p in preds))
     print("\nmagnitude errors:")
     for r in results:
-        if r["params"] and r["true_params"]:
+        if r["params"] and r["true_params"] and r.get("profile") is None:
             errs = {k: round(r["params"][k] - v, 4) for k, v in r["true_params"].items() if k in r["params"]}
             print(f"  {r['id']:<26} fitted {({k: round(v, 4) for k, v in r['params'].items()})} error {errs}")
     print("\nwinds that change with height (linear shear; the wind model named, the gap it leaves):")
