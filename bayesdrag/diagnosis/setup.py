@@ -383,7 +383,7 @@ def effect_problem(setup, effects, theta_start):
     free = np.concatenate([setup.free, [extra_free(setup, p.name) for p in ex]])
     fn = effect_fn(eff, setup.ctx, setup.theta0[setup.P:]) if eff else None
     # wind_profile's neighbouring layers tied by a random walk (diagnosis.winds)
-    walk = rw_priors(setup, [""] * setup.theta0.size + [p.name for p in ex], free)
+    walk = rw_priors([""] * setup.theta0.size + [p.name for p in ex], free)
     prob = OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
                               priors=setup.priors + _padded(setup.smooth, len(ex)) + walk, channels=setup.channels,
                               extras=ex, effect_fn=fn, t_ic=setup.t_ic, weights=setup.weights)
@@ -467,7 +467,7 @@ def track_chi2(setup, res):
     noise-weighted residuals."""
     th = res.theta
     pri = sum(((p.mean - p.fn(th)) / p.sd) ** 2 for p in setup.priors + setup.smooth
-              + rw_priors(setup, list(res.names), res.free))
+              + rw_priors(list(res.names), res.free))
     return float(res.cost) - float(pri)
 
 

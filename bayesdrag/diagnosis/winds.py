@@ -91,8 +91,8 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
 
 
 def _path(setup, y_base):
-    """Downrange x and height z [m] of the track's samples: the baseline's outputs where it has
-    the channel, else the model's states are not at hand and the channel's data are used."""
+    """Downrange x and height z [m] of the baseline's fitted path at the track's samples (None
+    for a channel the track does not have)."""
     ch = setup.channels
     x = y_base[:, ch.index("x")] if "x" in ch else None
     z = y_base[:, ch.index("z")] if "z" in ch else None
@@ -129,16 +129,14 @@ def _pidx(names, effect="wind_profile"):
     return out
 
 
-def rw_priors(setup, names_all, free):
+def rw_priors(names_all, free):
     """The random-walk priors of ``wind_profile``'s used layers: each neighbouring pair's
     difference ~ N(0, WIND_STEP_SD^2), per component (linear rows of the full parameter vector).
 
     Parameters
     ----------
-    setup : Setup
     names_all : sequence of str
-        The problem's parameter names (drag, state, extras), or the extras' names offset by
-        ``len(theta) - len(extras)`` -- here: the full names.
+        The problem's parameter names (drag, state, extras: ``wind_profile.wx_1``, ...).
     free : (n,) bool
         Which parameters are estimated (a held layer gets no prior).
 
@@ -167,7 +165,7 @@ def rw_information(names, free):
     what the effective number of parameters (:func:`bayesdrag.diagnosis.setup.edf`) discounts."""
     names = list(names)
     Lam = np.zeros((len(names), len(names)))
-    for p in rw_priors(None, names, free):
+    for p in rw_priors(names, free):
         r = np.asarray(p.row, float) / p.sd
         Lam += np.outer(r, r)
     return Lam
@@ -284,7 +282,7 @@ def _rw_cost(res):
     """The random-walk prior's share of a fit's cost."""
     th = res.theta
     total = 0.0
-    for p in rw_priors(None, list(res.names), res.free):
+    for p in rw_priors(list(res.names), res.free):
         total += float((p.fn(th) / p.sd) ** 2)
     return total
 

@@ -31,6 +31,14 @@ model.
 Per-trajectory parameters live in the rows of ``par`` with the column layout ``P_*`` below
 (``P_HAS_COR`` is not read: the Coriolis terms are always evaluated, branch-free).
 
+Wind: ``w = (P_WX, P_WY, P_WZ)`` plus, horizontally, the trajectory's wind table (a wind that
+changes along the flight, :class:`bayesdrag.wind.WindProfile`), linear on a uniform grid of the
+coordinate ``s = x P_WIND_AX_X + z P_WIND_AX_Z`` (height, or downrange distance). The table is
+read at the second and fourth RK4 stages and at each output row; the third stage and the step's
+end take the wind along the cell's line read there (:func:`_wind_near`: they lie centimetres
+away). Without a table (``wind_flat`` None) numba compiles the kernel without any of this: the
+constant-wind results are bit-identical to the kernel before wind tables existed.
+
 Integration: classic RK4 on a uniform step h (``pointmass.output_schedule``; ~0.074 s for a
 155 mm shell, against 0.027 s radar samples) with the acceleration at the step end re-used as
 the next step's first stage (4 evaluations per step), and a cubic Hermite interpolant through
