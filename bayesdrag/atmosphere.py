@@ -28,6 +28,13 @@ Non-standard days are described by three numbers (the round's ``[atmosphere]`` a
     Physically identical to ``pressure_ratio`` for a point-mass model; both are kept because
     they come from different sources (met message vs diagnosis).
 
+Wind. Both atmospheres may carry a :class:`WindProfile`: horizontal wind that changes with height
+above sea level (met practice: a met file's levels, a METCM message's zones) or with downrange
+distance from the gun (how small-arms tools and py-ballisticcalc give winds by zone), linear
+between its levels, with steps where a level repeats, constant beyond its ends. The point-mass
+kernel and its scipy reference fly it (:mod:`bayesdrag.dynamics.pointmass`); a constant wind of
+the model or of the ``wind`` effect adds to it.
+
 All functions here are pure and vectorised over altitude.
 """
 from __future__ import annotations
@@ -38,6 +45,8 @@ from typing import NamedTuple
 import math
 
 import numpy as np
+
+from .wind import PROFILE_WIND_MAX, WindProfile
 
 #: standard gravity [m/s^2]
 G0 = 9.80665
@@ -219,16 +228,24 @@ class Atmosphere:
     density_ratio : float, -
     gun_altitude : float, m
         Geometric altitude of the gun above sea level; trajectory heights ``z`` are relative to it.
+    wind : WindProfile or None
+        Wind that changes along the flight (by height or downrange distance), or None.
+    source : str
+        File the wind was read from ("" if built in code); not part of equality.
     """
 
     temperature_offset: float = 0.0
     pressure_ratio: float = 1.0
     density_ratio: float = 1.0
     gun_altitude: float = 0.0
+    wind: "WindProfile | None" = None
+    source: str = field(default="", compare=False)
 
     def __post_init__(self):
         _check_params(self.temperature_offset, self.pressure_ratio, self.density_ratio)
         _check_altitude(self.gun_altitude)
+        if self.wind is not None and not isinstance(self.wind, WindProfile):
+            raise ValueError(f"wind must be a WindProfile or None, got {type(self.wind).__name__}")
 
     def at_height(self, z):
         """Air at heights ``z`` [m] above the gun. Returns :class:`AtmosphereState`."""
@@ -292,8 +309,6 @@ CELSIUS_SUSPECT = 150.0
 #: :data:`HPA_SUSPECT` Pa is almost surely in hPa (mbar)
 PROFILE_PRESSURE_RANGE = (100.0, 120000.0)
 HPA_SUSPECT = 2000.0
-#: largest plausible wind component [m/s] (jet-stream cores reach ~100 m/s)
-PROFILE_WIND_MAX = 150.0
 #: hydrostatic consistency of each layer, as |ln(p_upper/p_lower) measured - hydrostatic| [-]
 #: (the relative pressure error the layer's temperatures cannot explain). Humidity (virtual
 #: temperature up to ~1.7 % above T on a hot humid day) explains up to ~0.2 % per km; above
@@ -345,21 +360,32 @@ class MetProfile:
     ----------
     altitude : tuple of float, m
         Geometric altitude above mean sea level of each level, strictly increasing, >= 2 levels.
+        An altitude may repeat once with the same temperature and pressure: a step in the wind
+        there (the first row's wind below, the second's above); the air's levels are then the
+        distinct altitudes and the winds become :attr:`wind`.
     temperature : tuple of float, K
         In [150, 350] K.
     pressure : tuple of float, Pa
         In [100, 120000] Pa, strictly decreasing with altitude, hydrostatically consistent
         within :data:`HYDROSTATIC_ERROR`.
     wind_x, wind_y : tuple of float or None, m/s
-        Wind components in the track frame (x downrange, y right, z up; docs/formats.md) (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward
-        +y), or None. Data only: the kernel takes one constant wind; see :meth:`wind_at` and
-        :meth:`mean_wind`.
+        Wind components at the levels in the track frame (x downrange, y right, z up;
+        docs/formats.md) (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward +y), or None; a missing
+        component is zero. They make :attr:`wind` (linear in altitude between levels), which the
+        point-mass kernel and its scipy reference fly.
     gun_altitude : float, m
         Geometric altitude of the gun above sea level; heights ``z`` are relative to it.
     temperature_offset, pressure_ratio, density_ratio : float
         As in :class:`Atmosphere`.
+    wind : WindProfile or None
+        The wind the profile carries: from ``wind_x, wind_y`` (by altitude), or given directly
+        (a METCM message's zones, layers of constant wind; a wind by downrange distance).
+        Giving both is an error.
     source : str
         File the profile was read from ("" if built in code); not part of equality.
+    zones : str
+        The METCM zone table the profile was read with ("": the shipped one, or not a METCM
+        message); not part of equality.
     notes : tuple of str
         Remarks found in validation (e.g. a layer slightly off hydrostatic balance); not part
         of equality.
@@ -381,7 +407,9 @@ class MetProfile:
     temperature_offset: float = 0.0
     pressure_ratio: float = 1.0
     density_ratio: float = 1.0
+    wind: WindProfile | None = None
     source: str = field(default="", compare=False)
+    zones: str = field(default="", compare=False)
     notes: tuple = field(default=(), compare=False)
 
     def __post_init__(self):
@@ -392,6 +420,8 @@ class MetProfile:
         if len(T) != n or len(p) != n:
             raise ValueError(f"altitude, temperature and pressure need one value per level; got "
                              f"{n}, {len(T)}, {len(p)}")
+        z, T, p, steps = self._wind_steps(z, T, p, self.wind_x is not None or self.wind_y is not None)
+        n = len(z)
         if n < 2:
             raise ValueError(f"a met profile needs at least 2 levels, got {n} (a single surface "
                              f"observation is [atmosphere] temperature_offset / pressure_ratio)")
@@ -434,23 +464,34 @@ class MetProfile:
             raise ValueError(f"pressure {p[i]:g} Pa at altitude {z[i]:g} m is not below the pressure "
                              f"{p[i - 1]:g} Pa of the level beneath; pressure must fall with altitude")
         winds = {}
+        z_all = steps if steps is not None else z
         for name in ("wind_x", "wind_y"):
             w = getattr(self, name)
             if w is None:
                 winds[name] = None
                 continue
             w = _float_tuple(name, w)
-            if len(w) != n:
-                raise ValueError(f"{name} needs one value per level ({n}), got {len(w)}")
+            if len(w) != len(z_all):
+                raise ValueError(f"{name} needs one value per level ({len(z_all)}), got {len(w)}")
             wa = np.abs(np.array(w))
             if np.any(wa > PROFILE_WIND_MAX):
                 i = int(np.argmax(wa > PROFILE_WIND_MAX))
-                raise ValueError(f"{name} = {w[i]:g} m/s at altitude {z[i]:g} m exceeds the plausible "
+                raise ValueError(f"{name} = {w[i]:g} m/s at altitude {z_all[i]:g} m exceeds the plausible "
                                  f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
             winds[name] = w
+        wind = self.wind
+        if any(v is not None for v in winds.values()):
+            if wind is not None:
+                raise ValueError("give the profile's wind either per level (wind_x, wind_y) or as wind, not both")
+            zero = (0.0,) * len(z_all)
+            wind = WindProfile("altitude", z_all, winds["wind_x"] or zero, winds["wind_y"] or zero)
+            if steps is not None:  # per-level winds cannot hold a step: they live in ``wind``
+                winds = {"wind_x": None, "wind_y": None}
+        elif wind is not None and not isinstance(wind, WindProfile):
+            raise ValueError(f"wind must be a WindProfile or None, got {type(wind).__name__}")
         _check_params(self.temperature_offset, self.pressure_ratio, self.density_ratio)
         _check_altitude(self.gun_altitude)
-        for k, v in dict(altitude=z, temperature=T, pressure=p, **winds,
+        for k, v in dict(altitude=z, temperature=T, pressure=p, **winds, wind=wind,
                          gun_altitude=float(self.gun_altitude),
                          temperature_offset=float(self.temperature_offset),
                          pressure_ratio=float(self.pressure_ratio),
@@ -489,6 +530,25 @@ class MetProfile:
             unshifted = self._eval(np.array([Hg]), Ta, np.log(pa), 0.0)[1][0]
             anchor = unshifted - self._eval(np.array([Hg]), self._Tk, self._lnp_levels, dT)[1][0]
         self._set("_ln_anchor", anchor + math.log(self.pressure_ratio))
+
+    @staticmethod
+    def _wind_steps(z, T, p, has_wind):
+        """Levels whose altitude repeats (with the same temperature and pressure) mark a step in
+        the wind: the air's levels are the distinct ones. Returns (altitudes, temperatures,
+        pressures, all altitudes or None when none repeats)."""
+        za = np.array(z)
+        rep = np.flatnonzero(np.diff(za) == 0)
+        if not rep.size or not has_wind:
+            return z, T, p, None  # a repeat without winds: refused as unsorted levels below
+        for i in rep:
+            if T[i] != T[i + 1] or p[i] != p[i + 1]:
+                raise ValueError(f"altitude {z[i + 1]:g} m repeats with another temperature or pressure; a "
+                                 f"repeated altitude marks a step in the wind and must repeat the level's "
+                                 f"temperature and pressure")
+        keep = np.ones(za.size, bool)
+        keep[rep + 1] = False
+        pick = np.flatnonzero(keep)
+        return tuple(z[i] for i in pick), tuple(T[i] for i in pick), tuple(p[i] for i in pick), z
 
     def _set(self, name, value):
         if isinstance(value, np.ndarray):
@@ -534,30 +594,8 @@ class MetProfile:
 
     @property
     def has_wind(self):
-        """True when the profile carries wind components."""
-        return self.wind_x is not None or self.wind_y is not None
-
-    def wind_at(self, z):
-        """Wind (wx, wy) [m/s] at heights ``z`` [m] above the gun, shape ``z.shape + (2,)``.
-
-        Linear in altitude between levels, constant beyond the ends (no lapse rule exists for
-        wind); a missing component is zero.
-        """
-        h = np.asarray(z, dtype=float) + self.gun_altitude
-        out = np.zeros(h.shape + (2,))
-        for j, w in enumerate((self.wind_x, self.wind_y)):
-            if w is not None:
-                out[..., j] = np.interp(h, self.altitude, w)
-        return out
-
-    def mean_wind(self, z_max, z_min=0.0, n=201):
-        """Height-averaged wind (wx, wy) [m/s] over [z_min, z_max] above the gun.
-
-        A simple summary for the constant-wind model (a ballistic-wind weighting would weight
-        the layers by the sensitivity of the trajectory instead).
-        """
-        z = np.linspace(z_min, max(z_max, z_min), n)
-        return tuple(float(v) for v in self.wind_at(z).mean(axis=0))
+        """True when the profile carries a wind."""
+        return self.wind is not None
 
 
 def _float_tuple(name, values):
@@ -569,3 +607,4 @@ def _float_tuple(name, values):
         i = int(np.argmax(~np.isfinite(a)))
         raise ValueError(f"{name} value {a[i]} (level {i + 1}) is not a finite number")
     return tuple(float(v) for v in a)
+

@@ -13,6 +13,10 @@ the effects' parameters side by side.
 name           parameters             how it enters the simulation
 =============  =====================  ========================================================
 wind           wx, wy [m/s]           kernel columns ``P_WX, P_WY`` (air moves toward +x, +y)
+wind_profile   wx_k, wy_k [m/s],      layers of constant wind by height or by downrange distance
+               k = 1..K               (:class:`WindLayers`, set by the diagnosis), flown through
+                                      the kernel's per-trajectory wind tables
+                                      (:class:`WindProfileModel`)
 temperature    dT [K]                 per-trajectory :class:`Atmosphere` with the profile shifted
                                       by dT at unchanged pressure at the gun (density *and*
                                       speed of sound change)
@@ -63,6 +67,14 @@ Decisions (and why):
   coefficients depends on the span (at most :data:`DRAG_SHAPE_MAX`); unused ones are held at 0
   (:func:`drag_shape_free`). It needs a reference table: without one the diagnosis' nuisance
   spline *is* the drag shape.
+* ``wind_profile`` is horizontal wind in a few layers, each ``(wx_k, wy_k)`` constant over its
+  layer (steps spread over 100 m, :data:`bayesdrag.wind.WIND_STEP_WIDTH`), the layers either by
+  height above the gun (met practice) or along the path by downrange distance (how small-arms
+  tools and py-ballisticcalc zone winds). Neighbouring layers are tied by a random-walk prior
+  (their difference has sd :data:`WIND_STEP_SD`), so a layer the data hardly see follows its
+  neighbours instead of wandering. The layers (axis and edges, :class:`WindLayers`) are the
+  context's; their number is at most :data:`WIND_LAYERS_MAX` (unused ones held at 0). The wind
+  adds to the round's own (a met profile's): it is what the round did not state.
 * ``drag_scale`` may go further from 1 than ``density`` (bounds 0.2-5 against 0.5-1.6): a table
   off by a factor two is a table of another shell, not air that thin or thick, so with such a
   gap the two twins no longer tie and the drag is named.
@@ -79,6 +91,9 @@ from .drag import DragModel, ReferenceTable, Spline
 from .dynamics import kernel as K
 from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from .effect_inputs import ExtraParam, SimInputs
+from .errors import InputError
+from .wind_layers import WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_PROFILE_KEY, WIND_STEP_SD, WindLayers, \
+    WindProfileModel, wind_profile_free
 
 #: induced-drag factor k in Cd (1 + k delta^2) [1/rad^2] (C_D_delta2 / C_D0 of a typical shell)
 K_YAW = 10.0
@@ -119,6 +134,8 @@ class EffectContext:
     ----------
     atmosphere : Atmosphere
         The round's (nominal) atmosphere.
+    wind_layers : WindLayers or None
+        The layers of ``wind_profile`` (axis, edges); None: the effect cannot be formed.
     latitude_deg, azimuth_deg : float or None
         Coriolis geometry (None: unknown latitude).
     v0 : float or None, m/s
@@ -133,6 +150,7 @@ class EffectContext:
     azimuth_deg: float = 0.0
     v0: float | None = None
     drag_shape: object = None
+    wind_layers: object = None
 
 
 @dataclass(frozen=True)
@@ -203,6 +221,13 @@ class Effect:
                                   K.P_LIFT_VERT: LIFT_VERTICAL_FRACTION * v0}}
         if n == "drag_shape":
             return {"overrides": {(DRAG_SHAPE_KEY, i): values[:, i] for i in range(self.k)}}
+        if n == "wind_profile":
+            if ctx.wind_layers is None:
+                # the diagnosis lays the layers over the track; a fit does not yet (issue 29 part B)
+                raise InputError("--with wind_profile: the fit cannot fly a wind profile yet; bayesdrag diagnose "
+                                 "names it and writes the air it found (diagnosis_met.csv, or "
+                                 "diagnosis_wind_downrange.csv): give that file as the round's [atmosphere] profile")
+            return {"overrides": {(WIND_PROFILE_KEY, i): values[:, i] for i in range(self.k)}}
         if n == "coriolis":
             if ctx.latitude_deg is None:
                 raise ValueError("the coriolis effect needs [launch] latitude")
@@ -268,6 +293,12 @@ def _make_effects():
         Effect("drag_scale", (ExtraParam("factor", 1.0, 0.2, 5.0, 1e-4),), ("-",),
                "This shell's drag is a constant factor times the firing table (lot, fuze, driving "
                "band or form differences); identical in its signature to a density ratio."),
+        Effect("wind_profile", tuple(ExtraParam(f"{c}_{k + 1}", 0.0, -60.0, 60.0, 0.02)
+                                     for k in range(WIND_LAYERS_MAX) for c in ("wx", "wy")),
+               ("m/s",) * (2 * WIND_LAYERS_MAX),
+               "A horizontal wind that changes along the flight, in layers of constant wind by height "
+               "or by downrange distance: a wind that turns from tail to head, or strengthens with "
+               "height, changes the airspeed differently in each part of the flight."),
         Effect("drag_shape", tuple(ExtraParam(f"s{i + 1}", 0.0, -DRAG_SHAPE_BOUND, DRAG_SHAPE_BOUND, 1e-4)
                                    for i in range(DRAG_SHAPE_MAX)),
                ("-",) * DRAG_SHAPE_MAX,
@@ -337,14 +368,20 @@ def effect_fn(effects, ctx, base_state0=None):
 
 
 def static_model(model, effects, ctx):
-    """Effects that change the model itself folded into it: ``coriolis`` (its Coriolis matrix)
-    and ``drag_shape`` (a :class:`DragShapeModel` around it, whose drag takes the effect's
-    coefficients from the kernel inputs)."""
+    """Effects that change the model itself folded into it: ``coriolis`` (its Coriolis matrix),
+    ``drag_shape`` (a :class:`DragShapeModel` around it, whose drag takes the effect's
+    coefficients from the kernel inputs) and ``wind_profile`` (a :class:`WindProfileModel`,
+    whose winds take the layers' values from the kernel inputs)."""
     for e in effects:
         if e.name == "coriolis" and e.k == 0:
             if ctx.latitude_deg is None:
                 raise ValueError("the coriolis effect needs [launch] latitude")
             model = model.with_(coriolis=(ctx.latitude_deg, ctx.azimuth_deg))
+        if e.name == "wind_profile":
+            if ctx.wind_layers is None:
+                raise ValueError("the wind_profile effect needs its layers (EffectContext.wind_layers: axis and "
+                                 "edges, which the diagnosis sets from the track)")
+            model = WindProfileModel(model, ctx.wind_layers)
         if e.name == "drag_shape":
             if ctx.drag_shape is None:
                 raise ValueError("the drag_shape effect needs a reference drag table and the flown Mach span "
@@ -587,3 +624,4 @@ def simulate_with_effects(model, drag_params, state0, t_out, effects=(), values=
                               np.asarray(t_out, float) + shift, t_start=t_start,
                               overrides=inp.overrides, atmospheres=inp.atmospheres)
     return tr.state[0], tr.mach[0]
+

@@ -230,6 +230,9 @@ SYSTEMATIC_SOURCES = {
 }
 #: largest mass_sd / mass and diameter_sd / diameter accepted
 SYSTEMATIC_RELATIVE_MAX = 0.2
+#: largest plausible ``[atmosphere] wind_sd`` [m/s]: a met message's winds are known to a few m/s;
+#: beyond this the profile says nothing and the wind is better left to the data
+WIND_SD_MAX = 30.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,6 +261,12 @@ class Systematics:
         sd of a scale error of v (``[radar] velocity_scale_sd``).
     time_offset : float or None, s
         sd of the radar clock against the launch (``[radar] time_offset_sd``).
+    wind_profile : float or None, m/s
+        How well the round's winds (its met profile's, or none: calm) are known, per layer
+        (``[atmosphere] wind_sd``): the prior sd of the ``wind_profile`` effect's layers, with
+        budget key ``wind_profile``. Stored on the round; the diagnosis takes it as the prior of
+        a wind's level. (Not yet a source of :data:`SYSTEMATIC_SOURCES`: the fit adds it with
+        ``--with wind_profile``.)
     """
 
     mass: float | None = None
@@ -267,8 +276,16 @@ class Systematics:
     position_scale: float | None = None
     velocity_scale: float | None = None
     time_offset: float | None = None
+    wind_profile: float | None = None
 
     def __post_init__(self):
+        wsd = number("wind_sd", self.wind_profile, "m/s", optional=True)
+        if wsd is not None:
+            wsd = positive("wind_sd", wsd, "m/s")
+            if wsd > WIND_SD_MAX:
+                raise ValueError(f"wind_sd = {wsd:g} m/s is larger than the plausible {WIND_SD_MAX:g} m/s "
+                                 f"(the sd of each layer's wind, in m/s: knots or km/h?)")
+        object.__setattr__(self, "wind_profile", wsd)
         for stem, (_, unit, hi) in SYSTEMATIC_SOURCES.items():
             val = number(f"{stem}_sd", getattr(self, stem), unit, optional=True)
             if val is not None:

@@ -37,3 +37,16 @@ def positive(key, value, unit):
     if value <= 0:
         raise ValueError(f"{key} = {value:g} must be > 0 ({unit})")
     return value
+
+
+def float_tuple(name, values):
+    """``values`` as a tuple of finite floats, or ValueError naming ``name`` (and the level of a
+    non-finite value)."""
+    try:
+        a = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a sequence of numbers") from None
+    if not np.all(np.isfinite(a)):
+        i = int(np.argmax(~np.isfinite(a)))
+        raise ValueError(f"{name} value {a[i]} (level {i + 1}) is not a finite number")
+    return tuple(float(v) for v in a)

@@ -8,8 +8,10 @@ and elevation slightly so the trajectories differ. Both backends produce the sta
 same 1482 sample times; the error is the kernel's largest position difference from a
 tight-tolerance solve_ivp (rtol 1e-11). The kernel time is the best of many repeats (the
 machine is shared, so the best is the least disturbed); it is also given for the batch sizes
-the ML fit (21 = 2 * 10 free parameters + 1) and emcee (64 walkers) use. The last line printed
-is one JSON object (DESIGN.md).
+the ML fit (21 = 2 * 10 free parameters + 1) and emcee (64 walkers) use. Winds that change along
+the flight are timed against the constant wind in the same run (``wind_profile_ratio_vs_constant_wind``:
+a wind by height in layers; ``wind_downrange_ratio_vs_constant_wind``: by downrange distance). The
+last line printed is one JSON object (DESIGN.md).
 """
 import argparse
 import json
@@ -74,6 +76,36 @@ def main(argv=None):
     numba.set_num_threads(n_threads)
     cpu_us = 1e6 * min(cpu) / B
 
+    # winds that change along the flight (issue 29): the same batch with a constant wind, with a
+    # wind by height (6 layers of constant wind, steps spread over 100 m) and with a wind by
+    # downrange distance, timed alike (one thread, CPU time, best of the repeats, interleaved
+    # so that load on the shared machine hits all three)
+    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.wind import WindProfile
+
+    const = model.with_(wind=(-4.0, 3.0, 0.0))
+    by_height = model.with_(atmosphere=Atmosphere(wind=WindProfile.layered(
+        "altitude", (0.0, 500.0, 1000.0, 2000.0, 3000.0, 4500.0, 6000.0),
+        (-2.0, -4.0, -6.0, -9.0, -12.0, -15.0), (1.0, 2.0, 3.0, 5.0, 6.0, 4.0))))
+    by_range = model.with_(atmosphere=Atmosphere(wind=WindProfile.layered(
+        "downrange", (0.0, 4000.0, 8000.0, 12000.0, 20000.0), (3.0, -2.0, -6.0, -9.0), (0.0, 2.0, 4.0, 6.0))))
+    numba.set_num_threads(1)
+    wind_cpu = {"constant": [], "altitude": [], "downrange": []}
+    for m in (const, by_height, by_range):
+        m.simulate_batch(P, s0, t)
+    for _ in range(reps):
+        for k, m in (("constant", const), ("altitude", by_height), ("downrange", by_range)):
+            t0 = time.process_time()
+            m.simulate_batch(P, s0, t)
+            wind_cpu[k].append(time.process_time() - t0)
+    numba.set_num_threads(n_threads)
+    wind_us = {k: 1e6 * min(v) / B for k, v in wind_cpu.items()}
+    wind_err = 0.0
+    for i in range(2):
+        ref_w = by_height.simulate((), s0[i], t, backend="scipy")
+        k_w = by_height.simulate((), s0[i], t)
+        wind_err = max(wind_err, float(np.max(np.abs(ref_w.state[:, :3] - k_w.state[:, :3]))))
+
     n_ref = 3 if args.quick else 8
     ref_times, err = [], 0.0
     for i in range(n_ref):
@@ -98,11 +130,18 @@ def main(argv=None):
         "batch": B, "samples": n_samples, "threads": numba.get_num_threads(),
         "us_per_trajectory_by_batch": by_batch, "cpu_us_per_trajectory_1_thread": round(cpu_us, 2), "kernel_step_s": round(model.kernel_step, 4),
         "first_call_s": round(first_call, 3), "cpu_count": os.cpu_count(),
+        "wind_cpu_us_per_trajectory_1_thread": {k: round(v, 2) for k, v in wind_us.items()},
+        "wind_profile_ratio_vs_constant_wind": round(wind_us["altitude"] / wind_us["constant"], 3),
+        "wind_downrange_ratio_vs_constant_wind": round(wind_us["downrange"] / wind_us["constant"], 3),
+        "wind_profile_max_position_error_m": float(f"{wind_err:.3g}"),
     }
     print(f"kernel: {batch_us:.1f} us/trajectory (batch {B}, {numba.get_num_threads()} threads, "
           f"best of {reps}); solve_ivp DOP853 rtol 1e-8: {ivp_us:.0f} us; ratio {ivp_us / batch_us:.0f}x; "
           f"max position error vs rtol 1e-11 reference {err:.2e} m; us/trajectory by batch size "
-          f"{by_batch}; one thread {cpu_us:.1f} us CPU/trajectory", file=sys.stderr)
+          f"{by_batch}; one thread {cpu_us:.1f} us CPU/trajectory; winds (one thread, CPU): constant "
+          f"{wind_us['constant']:.1f}, by height {wind_us['altitude']:.1f}, by downrange "
+          f"{wind_us['downrange']:.1f} us/trajectory, wind-by-height kernel vs scipy {wind_err:.2e} m",
+          file=sys.stderr)
     print(json.dumps(res))
 
 

@@ -17,16 +17,18 @@ from ..effects import EFFECTS
 from ..errors import FitError
 from .setup import (drag_shape_for, fit_effects, k_free, n_weighted, noise_floor, report_params)
 from .signatures import IDENTIFIABLE_FRACTION, signatures
+from .winds import WIND_FAMILY, fit_wind_profile, layers_for, log_evidence, occam
 from .statistics import autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation, threshold
 
 __all__ = ["screen_candidates", "fit_candidates", "candidate_row"]
 
 
-def screen_candidates(setup, candidates, base_theta, span):
+def screen_candidates(setup, candidates, base_theta, span, y_base=None):
     """The effects a diagnosis tests on this track, their signatures and the skipped ones.
 
     Sets ``setup.ctx.drag_shape`` (the table's shape functions over ``span``) when ``drag_shape``
-    is tested.
+    is tested, and ``setup.ctx.wind_layers`` (layers by height, until the evidence chooses) when
+    ``wind_profile`` is.
 
     Parameters
     ----------
@@ -37,6 +39,9 @@ def screen_candidates(setup, candidates, base_theta, span):
         The baseline fit's parameters.
     span : (float, float) or None
         Flown Mach range (:func:`bayesdrag.diagnosis.setup.flown_mach_span`).
+    y_base : (N, C) array, optional
+        The baseline's fitted outputs (the layers of ``wind_profile``; without them it is
+        skipped).
 
     Returns
     -------
@@ -58,6 +63,13 @@ def screen_candidates(setup, candidates, base_theta, span):
             skipped["drag_shape"] = "the nominal trajectory gives no Mach span to shape the table over"
         else:
             setup.ctx = replace(setup.ctx, drag_shape=drag_shape_for(setup, base_theta, span))
+    if "wind_profile" in names:
+        lay = None if y_base is None else (layers_for(setup, y_base, "altitude")
+                                           or layers_for(setup, y_base, "downrange"))
+        if lay is None:
+            skipped["wind_profile"] = "the track gives no height or downrange span to lay wind layers over"
+        else:
+            setup.ctx = replace(setup.ctx, wind_layers=lay)
     effs = [EFFECTS[n] for n in names if n not in skipped]
     sigs = signatures(setup, base_theta, effs)
     for e in list(effs):
@@ -102,6 +114,14 @@ def fit_candidates(setup, effs, base_fit, gap, alpha, K, skipped):
     rows = []
     fits = {}
     for e in effs:
+        if e.name == "wind_profile":
+            got = _fit_profile_variants(setup, e, base_fit, gap, alpha, K, fits)
+            if got is None:
+                skipped[e.name] = "its fits failed (by height and by downrange distance)"
+                continue
+            fits[e.name], row = got
+            rows.append(row)
+            continue
         try:
             res, prob, y = fit_effects(setup, [e], base_theta)
             if not np.all(np.isfinite(y)):
@@ -112,6 +132,7 @@ def fit_candidates(setup, effs, base_fit, gap, alpha, K, skipped):
             continue
         fits[e.name] = (res, prob, y)
         rows.append(candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base))
+    _wind_model_choice(setup, rows, fits, base_fit)
     rows.sort(key=lambda r: (not r["significant"], -round(r["delta_chi2"], 6 if r["delta_chi2"] < 1e3 else 3),
                              list(EFFECTS).index(r["name"])))
     return rows, fits
@@ -200,3 +221,74 @@ def candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base_res):
     if not res.success:
         row["message"] = res.message
     return row
+
+
+def _fit_profile_variants(setup, e, base_fit, gap, alpha, K, fits):
+    """``wind_profile`` fitted with layers by height and by downrange distance; the variant with
+    the larger evidence is kept (``setup.ctx.wind_layers`` set to it). The evidence is chained
+    through the constant wind's fit when there is one (:func:`bayesdrag.diagnosis.winds.log_evidence`).
+    Returns (its fit, its row with ``layers`` and each variant's evidence) or None when both fits
+    fail."""
+    base, _, y_base = base_fit
+    variants = fit_wind_profile(setup, y_base, base.theta, lambda st: fit_effects(st, [e], base.theta))
+    chain = fits.get("wind")
+    best, info = None, []
+    for lay, f in variants:
+        res, _, y = f
+        saved = setup.ctx
+        setup.ctx = replace(saved, wind_layers=lay)
+        g_info = _inflation(setup, base_fit, f)
+        if chain is None:
+            ev = log_evidence(setup, "wind_profile", res, base, g_info, g_info)
+        else:
+            g_w = _inflation(setup, base_fit, chain)
+            z_w = log_evidence(setup, "wind", chain[0], base, g_w, g_w)
+            ev = log_evidence(setup, "wind_profile", res, chain[0], _inflation(setup, chain, f), g_info, z_w,
+                              occam(setup, "wind", chain[0], g_w))
+        setup.ctx = saved
+        setup.ctx = replace(saved, wind_layers=lay)
+        k0 = res.theta.size - e.k
+        info.append({"axis": lay.axis, "edges": list(lay.edges), "log_evidence": ev,
+                     "shrink": float(np.clip((base.cost - res.cost) / gap, 0.0, 1.0)) if gap > 0 else 0.0,
+                     "params": report_params(setup, e, res.theta[k0:]),
+                     "sd": report_params(setup, e, res.theta[k0:], res.cov_colored[k0:, k0:])})
+        setup.ctx = saved
+        if best is None or ev > best[0]:
+            best = (ev, lay, f)
+    if best is None:
+        return None
+    ev, lay, f = best
+    setup.ctx = replace(setup.ctx, wind_layers=lay)
+    res, _, y = f
+    row = candidate_row(e, res, y, y_base, float(base.cost), gap, setup, alpha, K, base)
+    row["layers"] = {"axis": lay.axis, "edges": list(lay.edges), "n": lay.n, "variants": info,
+                     "edges_unit": "m above sea level" if lay.axis == "altitude" else "m downrange from the gun"}
+    row["log_evidence"] = ev
+    return f, row
+
+
+def _inflation(setup, small, big):
+    """Colored inflation of the output change from fit ``small`` to fit ``big`` (residual
+    autocovariance of ``big``)."""
+    chans = setup.channels
+    sig_vec = np.array([setup.sigma[c] for c in chans])
+    resid = np.stack([big[0].residuals[c] for c in chans], axis=-1)
+    return colored_inflation(big[2] - small[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
+
+
+def _wind_model_choice(setup, rows, fits, base_fit):
+    """No wind, a constant wind or a profile: the wind models' evidence
+    (:func:`bayesdrag.diagnosis.winds.log_evidence`, the profile's chained through the constant
+    wind); the one with the larger evidence stands for the wind, the other is kept out of the
+    selection (``superseded_by``)."""
+    by = {r["name"]: r for r in rows}
+    if "wind" in by:
+        g = _inflation(setup, base_fit, fits["wind"])
+        by["wind"]["log_evidence"] = log_evidence(setup, "wind", fits["wind"][0], base_fit[0], g, g)
+    present = [n for n in WIND_FAMILY if n in by and by[n].get("log_evidence") is not None]
+    if len(present) < 2:
+        return
+    best = max(present, key=lambda n: by[n]["log_evidence"])
+    for n in present:
+        if n != best:
+            by[n]["superseded_by"] = best

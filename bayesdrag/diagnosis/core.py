@@ -13,10 +13,15 @@ from ..effects import EFFECTS
 from ..errors import FitError
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
-from .selection import DRAG_EFFECTS, conditional_shrinks, select_effects, wrong_table_fit
-from .setup import edf, fit_effects, flown_mach_span, make_setup, n_weighted, noise_floor, report_params
-from .signatures import mark_confounded
+from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
+from .setup import (edf, fit_effects, fit_starts, flown_mach_span, make_setup, n_weighted, noise_floor,
+                    report_params)
+from .signatures import mark_confounded, signatures
+from .statistics import autocovariance, colored_inflation
+from .winds import (SHAPE_RIVAL_SHARE, WIND_FAMILY, cannot_separate, data_cost, layers_for, rechoose_wind,
+                    shape_rival_share)
 from .statistics import ALPHA
+from .found_air import found_atmosphere
 from .where import absorbed_by_launch, where_segments, with_launch_misfit
 
 __all__ = ["diagnose", "Diagnosis", "MIN_DIAGNOSIS_SAMPLES"]
@@ -43,6 +48,9 @@ class Diagnosis:
     mach: np.ndarray
     weights: np.ndarray
     best: str | None
+    #: the air found (diagnosis.found_air.found_atmosphere): (MetProfile, Atmosphere with a wind
+    #: by downrange distance, header lines), the first two None when the verdict leaves the air
+    found_air: tuple | None = None
 
 
 @dataclass
@@ -79,8 +87,10 @@ def _baseline(setup):
 def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
     """Steps 6 and 10: the detected effects (ordered by what each explains alone), their joint
     fit, its drop-one fits and, beside a table of another shell, the summary of the diagnosis
-    against a fitted Cd (else None)."""
+    against a fitted Cd (else None). A wind model the evidence did not choose
+    (``superseded_by``) takes no part."""
     found, selected_fit, drop_one, wrong_table = [], None, {}, None
+    rows = [r for r in rows if not r.get("superseded_by")]
     if rows and rows[0]["significant"]:
         found, selected_fit, drop_one = select_effects(setup, rows, fits, gap, sig_vec, alpha, K)
         if "drag_shape" in found and set(found) - set(DRAG_EFFECTS):
@@ -108,6 +118,92 @@ def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec,
     return names, nfit, subs, sub.summary
 
 
+def _profile_against_shape(setup, found, fit, fits, by_name, base_res):
+    """A wind profile in the selection against the table's shape in its place: an along-range wind
+    that changes along the flight and a drag that changes with Mach both change the drag along the
+    flight. When ``drag_shape`` removes at least :data:`~bayesdrag.diagnosis.winds.SHAPE_RIVAL_SHARE`
+    of what the profile removes, the data cannot separate them, and the pair is returned for
+    ``cannot_separate`` (else None). A profile that explains the gap alone stays named (``named``:
+    a table's shape is never named as the cause of a wind's signature); one *beside* other members
+    leaves the selection (``superseded_by`` the shape; a constant wind it had superseded comes
+    back): it was taking up the model error the others leave (a 6-DOF shell's drag from its yaw
+    of repose near the apex, which the point mass lacks)."""
+    if "wind_profile" not in found or "drag_shape" not in fits or "drag_shape" in found or fit is None:
+        return None
+    others = [n for n in found if n != "wind_profile"]
+    fit_fn = _fit_names(setup)
+    try:
+        ref = fit_fn(others, fit) if others else None
+        rival = fit_fn(others + ["drag_shape"], fit) if others else fits["drag_shape"]
+    except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return None
+    c_ref = data_cost(ref[0]) if ref is not None else float(base_res.cost)
+    share = shape_rival_share(c_ref, data_cost(fit[0]), data_cost(rival[0]))
+    if share < SHAPE_RIVAL_SHARE:
+        return None
+    pair = {"effects": ["wind_profile", "drag_shape"], "rival_share": round(float(share), 4), "in_verdict": False,
+            "named": not others}
+    if not others:
+        # the profile alone explains the gap: the wind is named (a table's shape is never named as
+        # the cause of a wind's signature), the pair is reported
+        return pair
+    by_name["wind_profile"]["superseded_by"] = "drag_shape"
+    if by_name.get("wind", {}).get("superseded_by") == "wind_profile":
+        del by_name["wind"]["superseded_by"]
+    return pair
+
+
+def _fit_names(setup):
+    """``fit_fn(names, start_fit)``: the baseline plus the effects ``names`` fitted from the
+    initial state of ``start_fit``."""
+    def fit_fn(names, start):
+        effs = [EFFECTS[n] for n in names]
+        th = [start[0].theta[:setup.P + 6]]
+        return fit_effects(setup, effs, np.concatenate(th + [fit_starts(e) for e in effs]))
+    return fit_fn
+
+
+def _wind_beside_others(setup, found, fit, drop_one, fits, by_name, b, sig_vec, alpha):
+    """A wind model in a verdict with other effects, chosen again in their company by evidence
+    (:func:`bayesdrag.diagnosis.winds.rechoose_wind`: the constant wind, the profile by height,
+    the profile by downrange distance). Returns the verdict, its joint fit and drop-one fits, and
+    the evidence of the models tried (None when there was nothing to choose)."""
+    wind = [n for n in found if n in WIND_FAMILY]
+    if not wind or len(found) < 2 or fit is None:
+        return found, fit, drop_one, None
+    y_base = b.fit[2]
+    alternatives = [("wind", None)] + [("wind_profile", lay) for lay in
+                                       (layers_for(setup, y_base, ax) for ax in ("altitude", "downrange"))
+                                       if lay is not None]
+
+    fit_fn = _fit_names(setup)
+
+    def infl_fn(small, big):
+        resid = np.stack([big[0].residuals[c] for c in setup.channels], axis=-1)
+        return colored_inflation(big[2] - small[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
+
+    K = max(len(by_name), 1)
+
+    def admit_fn(name, small, big):
+        return admits(setup, EFFECTS[name], small, big, b.gap, sig_vec, alpha / K)[0]
+
+    new, nfit, lay, tried = rechoose_wind(setup, found, fit, alternatives, fit_fn, infl_fn, admit_fn)
+    if not tried:
+        return found, fit, drop_one, None
+    setup.ctx = replace(setup.ctx, wind_layers=lay)
+    if new != found or nfit is not fit:
+        w_new = next((n for n in new if n in WIND_FAMILY), None)
+        if w_new is not None and w_new not in by_name:
+            return found, fit, drop_one, tried
+        drop_one = drop_one_fits(setup, new, nfit, fits) if len(new) > 1 else {}
+        found, fit = new, nfit
+    if "wind_profile" in by_name and lay is not None:
+        by_name["wind_profile"].setdefault("layers", {}).update(
+            {"axis": lay.axis, "edges": list(lay.edges), "n": lay.n,
+             "edges_unit": "m above sea level" if lay.axis == "altitude" else "m downrange from the gun"})
+    return found, fit, drop_one, tried
+
+
 def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
     """The joint fit of several detected effects, as ``summary["joint"]`` (None for fewer than
     two); every figure of a detected effect comes from it (written into its row)."""
@@ -117,6 +213,7 @@ def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
     joint = {"effects": list(found), "params": {k: float(v) for k, v in res.extras.items()},
              "shrink": float(np.clip((chi2_base - res.cost) / gap, 0, 1)) if gap > 0 else 0.0,
              "shrink_given_others": conditional_shrinks(setup, res, drop_one)}
+    joint["remaining_gap_fraction"] = 1.0 - joint["shrink"]
     # parameters of different effects that the joint fit can hardly tell apart: their values
     # then rest on the shapes of the models (e.g. a cross wind against the spin drift of a
     # shell whose lift differs from the generic Mach shape) more than on the data
@@ -129,6 +226,7 @@ def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
         {"params": [pnames[i], pnames[j]], "corr": float(corr[i, j])}
         for i in range(len(pnames)) for j in range(i + 1, len(pnames))
         if pnames[i].split(".")[0] != pnames[j].split(".")[0] and abs(corr[i, j]) >= JOINT_CORR_WARN]
+
     for n in found:
         e, r = EFFECTS[n], by_name[n]
         idx = [pnames.index(f"{e.name}.{p.name}") for p in e.params]
@@ -156,13 +254,13 @@ def _verdict(setup, rows, found, by_name, wrong_table):
         moved = wrong_table["verdict"] + wrong_table["immaterial"]
         for k, r in enumerate(rows):
             if r["name"] in moved:
-                rows[k] = dict(sub[r["name"]], detected=True, judged_against="fitted Cd (the table has another "
-                                                                             "shell's shape)")
+                rows[k] = dict(sub[r["name"]], detected=True, judged_against="fitted Cd")
         verdict += wrong_table["verdict"]
         immaterial += wrong_table["immaterial"]
         found = found + moved
-        setup.notes.append("the firing table has another shell's shape (drag_shape): the other effects were "
-                           "judged against a fitted Cd, as without a table"
+        what = ("the firing table has another shell's shape (drag_shape)" if "drag_shape" in verdict
+                else "drag_shape was detected (immaterial)")
+        setup.notes.append(f"{what}: the other effects were judged against a fitted Cd, as without a table"
                            + (f" ({', '.join(moved)} found there)" if moved else " (none found)"))
     # the effects list is "best first": the verdict, the detected but immaterial, then the rest
     order = {n: k for k, n in enumerate(verdict + immaterial)}
@@ -203,6 +301,8 @@ def _baseline_summary(setup, track, b):
         "nuisance_drag": setup.nuisance,
         "edf": float(edf(setup, base)),
         "initial_state": {n: float(v) for n, v in zip(base.names[setup.P:], b.theta[setup.P:])},
+        # the highest point of the fitted flight [m above the gun] (the met file's top, diagnosis.found_air)
+        "z_max": float(np.nanmax(b.fit[2][:, chans.index("z")])) if "z" in chans else None,
         "ic_time": setup.t_ic, "converged": bool(base.converged), "message": base.message,
     }
 
@@ -258,15 +358,32 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     sig_vec = np.array([setup.sigma[c] for c in chans])
     b = _baseline(setup)
 
-    effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span)
+    effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span, b.fit[2])
     K = max(len(effs), 1)
     rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
+    if "wind_profile" in fits:  # its signature with the layers the evidence chose
+        sigs.update(signatures(setup, b.theta, [EFFECTS["wind_profile"]]))
     mark_confounded(rows, sigs, alpha, K)
 
     opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
-    found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
     by_name = {r["name"]: r for r in rows}
+    shape_rival = None
+    for _ in range(2):  # a second time without a profile the data cannot tell from a table's shape
+        found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
+        found, selected_fit, drop_one, wind_choice = _wind_beside_others(setup, found, selected_fit, drop_one,
+                                                                         fits, by_name, b, sig_vec, alpha)
+        if shape_rival is not None:
+            break
+        shape_rival = _profile_against_shape(setup, found, selected_fit, fits, by_name, b.fit[0])
+        if shape_rival is None or shape_rival["named"]:
+            break
     joint = _joint(setup, found, selected_fit, drop_one, by_name, b.chi2, b.gap)
+    if wind_choice and joint:
+        joint["wind_models"] = wind_choice
+    # the pairs the data cannot separate: verdict members in their joint fit, a wind against
+    # warmer or thinner air or a table's shape fitted beside it (diagnosis.winds)
+    separate = cannot_separate(setup, found, selected_fit if len(found) > 1 else None, fits, by_name,
+                               _fit_names(setup)) + ([shape_rival] if shape_rival is not None else [])
     judge_impacts(setup, rows, found, selected_fit, fits, **opts)
     verdict, immaterial, found = _verdict(setup, rows, found, by_name, wrong_table)
     best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
@@ -287,6 +404,7 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         "verdict": verdict,
         "immaterial": immaterial,
         "joint": joint,
+        "cannot_separate": separate,
         "materiality": {"cd_shift": material_cd_shift, "end_sd": material_end_sd,
                         "rule": "material when ignoring it would shift a fitted Cd by more than cd_shift "
                                 "(relative) anywhere in the flown Mach range or move the track's last sample by "
@@ -298,5 +416,10 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         "notes": setup.notes,
         "reference_drag": setup.has_reference,
     }
+    try:
+        found = found_atmosphere(summary, rnd)
+    except ValueError as exc:  # an air no met file can hold (beyond the atmosphere model): said, not written
+        setup.notes.append(f"the air found could not be written as a met file ({exc})")
+        found = None
     return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
-                     b.mach, setup.weights, best_name)
+                     b.mach, setup.weights, best_name, found)

@@ -174,11 +174,13 @@ def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
 
 def _blocked(r, names):
     """Is candidate row ``r`` kept out of forward selection by one of ``names`` (confounded with
-    it: a structural twin, or as well supported)? ``drag_shape`` never is: its span *contains*
+    it: a structural twin, or as well supported)? ``drag_shape`` and ``wind_profile`` never are: a span that *contains*
     the drag-like effects it is confounded with (a yaw drag is a shape change early in the
     flight), so after one of them it can still add what they cannot, and the conditional test
     decides."""
-    return r["name"] != "drag_shape" and bool(set(r["confounded_with"]) & set(names))
+    if r["name"] in ("drag_shape", "wind_profile"):
+        return False
+    return bool(set(r["confounded_with"]) & set(names))
 
 
 def admits(setup, e, small, big, gap, sig_vec, a):

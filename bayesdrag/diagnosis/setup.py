@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..effects import EffectContext, drag_shape_free, drag_shape_model, effect_fn, extra_params, static_model
+from ..wind_layers import wind_profile_free
+from .winds import rw_information, rw_priors
 from ..errors import FitError
 from ..estimate.noise import OUTLIER_K, noise_and_outliers
 from ..estimate.problem import OutputErrorProblem, Prior
@@ -333,11 +335,14 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
 def extra_free(setup, name):
     """Is an effect parameter estimable from the channels? Without a ``y`` channel the cross
     wind has no lateral signature left (only its small share of the airspeed), so ``wind.wy``
-    is held at 0 and wind is judged by its along-range component. ``drag_shape`` uses as many
+    is held at 0 and wind is judged by its along-range component (``wind_profile``'s ``wy_k``
+    too). ``wind_profile`` uses as many layers as its context's layers have; ``drag_shape`` as many
     coefficients as its knots over the flown span give (:func:`bayesdrag.effects.drag_shape_knots`);
     the rest are held at 0."""
     if name.startswith("drag_shape.s"):
         return drag_shape_free(setup.ctx, int(name.rsplit("s", 1)[1]) - 1)
+    if name.startswith("wind_profile."):
+        return wind_profile_free(setup.ctx, name) and not (".wy_" in name and "y" not in setup.channels)
     return not (name == "wind.wy" and "y" not in setup.channels)
 
 
@@ -377,8 +382,10 @@ def effect_problem(setup, effects, theta_start):
         if len(theta_start) == setup.theta0.size else np.asarray(theta_start, float)
     free = np.concatenate([setup.free, [extra_free(setup, p.name) for p in ex]])
     fn = effect_fn(eff, setup.ctx, setup.theta0[setup.P:]) if eff else None
+    # wind_profile's neighbouring layers tied by a random walk (diagnosis.winds)
+    walk = rw_priors([""] * setup.theta0.size + [p.name for p in ex], free)
     prob = OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
-                              priors=setup.priors + _padded(setup.smooth, len(ex)), channels=setup.channels,
+                              priors=setup.priors + _padded(setup.smooth, len(ex)) + walk, channels=setup.channels,
                               extras=ex, effect_fn=fn, t_ic=setup.t_ic, weights=setup.weights)
     prob.diag_effects = tuple(e.name for e in effects)  # in the order of the fit's parameters
     return prob
@@ -435,6 +442,10 @@ def edf(setup, res):
     penalty of the nuisance spline takes, ``n_free - tr(cov Lambda)`` (Lambda the penalty's
     information on the drag coefficients; Hastie & Tibshirani's trace of the hat matrix)."""
     n_free = float(res.free.sum())
+    walk = rw_information(res.names, res.free)
+    if walk.any():  # wind_profile's random walk takes its share of the layers, as a penalty does
+        tw = float(np.trace(res.cov @ walk))
+        n_free -= tw if np.isfinite(tw) else 0.0
     if setup.pen is None:
         return n_free
     P = setup.P
@@ -455,14 +466,17 @@ def track_chi2(setup, res):
     """A fit's cost without its prior terms (launch priors, smoothness penalty): the track's own
     noise-weighted residuals."""
     th = res.theta
-    pri = sum(((p.mean - p.fn(th)) / p.sd) ** 2 for p in setup.priors + setup.smooth)
+    pri = sum(((p.mean - p.fn(th)) / p.sd) ** 2 for p in setup.priors + setup.smooth
+              + rw_priors(list(res.names), res.free))
     return float(res.cost) - float(pri)
 
 
 def report_params(setup, e, vals, cov=None):
     """An effect's reported parameters (``cov`` None) or their sd: the reported names (docs/diagnosis.md); for
-    ``drag_shape`` only the coefficients this track uses."""
+    ``drag_shape`` only the coefficients this track uses, for ``wind_profile`` only its layers."""
     out = e.report_params(vals) if cov is None else e.report_sd(vals, cov)
     if e.name == "drag_shape":
         out = {k: v for k, v in out.items() if extra_free(setup, f"drag_shape.{k}")}
+    if e.name == "wind_profile":  # the layers this track uses (a held wy without a y channel is 0)
+        out = {k: v for k, v in out.items() if wind_profile_free(setup.ctx, k)}
     return out

@@ -107,6 +107,11 @@ def mark_confounded(rows, sigs, alpha, K):
         for b in rows[i + 1:]:
             cc = canonical_corr(sigs[a["name"]][0], sigs[b["name"]][0])
             a.setdefault("_corr", {})[b["name"]] = cc
+            if "wind_profile" in (a["name"], b["name"]):
+                # nested wind models: the evidence chooses between them; against the others, the
+                # profile's layers span much of any drag-like signature alone, so whether the data
+                # separate them is asked of their joint fit (diagnosis.winds.cannot_separate)
+                continue
             close = (a["significant"] and b["significant"]
                      and abs(a["delta_chi2"] - b["delta_chi2"]) / max(a["inflation"], b["inflation"])
                      < _chi2.ppf(0.95, 1))

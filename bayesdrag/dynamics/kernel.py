@@ -31,6 +31,14 @@ model.
 Per-trajectory parameters live in the rows of ``par`` with the column layout ``P_*`` below
 (``P_HAS_COR`` is not read: the Coriolis terms are always evaluated, branch-free).
 
+Wind: ``w = (P_WX, P_WY, P_WZ)`` plus, horizontally, the trajectory's wind table (a wind that
+changes along the flight, :class:`bayesdrag.wind.WindProfile`), linear on a uniform grid of the
+coordinate ``s = x P_WIND_AX_X + z P_WIND_AX_Z`` (height, or downrange distance). The table is
+read at the second and fourth RK4 stages and at each output row; the third stage and the step's
+end take the wind along the cell's line read there (:func:`_wind_near`: they lie centimetres
+away). Without a table (``wind_flat`` None) numba compiles the kernel without any of this: the
+constant-wind results are bit-identical to the kernel before wind tables existed.
+
 Integration: classic RK4 on a uniform step h (``pointmass.output_schedule``; ~0.074 s for a
 155 mm shell, against 0.027 s radar samples) with the acceleration at the step end re-used as
 the next step's first stage (4 evaluations per step), and a cubic Hermite interpolant through
@@ -89,14 +97,17 @@ P_LIFT_SAT = 22   # its saturation B [-]
 P_SPIN_DECAY = 23  # spin damping kappa = -C_lp / k_a^2 [-]: dq/dt = -kappa k_ref rho |u| q
 P_LIFT_VERT = 24     # vertical-force speed m = nu p0 d [m/s]: vertical / lift = m q / (|u| (1 + C x_m))
 P_LIFT_VERT_SAT = 25  # its Mach fall-off C [-], x_m = max(M - 0.8, 0)
-N_PAR = 26
+P_WIND_AX_X = 26  # the wind table's coordinate is s = x * P_WIND_AX_X + z * P_WIND_AX_Z [m]:
+P_WIND_AX_Z = 27  # (0, 1) a wind by height, (1, 0) by downrange distance, (0, 0) no table
+N_PAR = 28
 
 #: rows of the per-block lane parameter array (``_L_*``): copies of the ``par`` columns laid out
 #: lane-contiguous so every RK stage loop reads them with plain vector loads
 _L_KREF, _L_WX, _L_WY, _L_WZ, _L_G, _L_LIFT, _L_COR = 0, 1, 2, 3, 4, 5, 6   # _L_COR: 9 rows
 _L_SCALE, _L_YAW_AMP, _L_YAW_RATE, _L_T0, _L_F0, _L_FH2, _L_FH = 15, 16, 17, 18, 19, 20, 21
 _L_LRISE, _L_LSAT, _L_SPIN, _L_LVERT, _L_LVSAT = 22, 23, 24, 25, 26
-_N_L = 27
+_L_WAX, _L_WAZ = 27, 28
+_N_L = 29
 
 #: lanes per block are a multiple of this (8 doubles = one AVX-512 register)
 LANE_WIDTH = 8
@@ -126,14 +137,43 @@ def lanes_per_block(B, n_threads):
 
 
 @njit(forceinline=True, **_OPTS)
-def _acc(z, vx, vy, vz, q, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
+def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
+    """Horizontal wind of lane ``l`` at downrange x and height z [m]: ``(wx, wy, gx, gy, s)``,
+    the lane's constant wind plus its wind table (linear on the grid ``w0 + i / inv_dw``, held
+    at the ends) read at the coordinate ``s = x P_WIND_AX_X + z P_WIND_AX_Z`` [m], with the
+    table cell's slopes ``gx, gy`` [1/s] along s. Without tables (``wtf`` None, a batch with no
+    wind profile) numba compiles the constant wind alone: the ``is None`` branch is resolved
+    when the kernel is compiled for that argument type."""
+    if wtf is None:
+        return LP[blk, _L_WX, l], LP[blk, _L_WY, l], 0.0, 0.0, 0.0
+    s = x * LP[blk, _L_WAX, l] + z * LP[blk, _L_WAZ, l]
+    si = min(max((s - w0) * inv_dw, 0.0), wmax)
+    j = int(si)
+    f = si - j
+    jw = WTO[blk, l] + 2 * j
+    dx = wtf[jw + 2] - wtf[jw]
+    dy = wtf[jw + 3] - wtf[jw + 1]
+    return (LP[blk, _L_WX, l] + wtf[jw] + f * dx, LP[blk, _L_WY, l] + wtf[jw + 1] + f * dy,
+            dx * inv_dw, dy * inv_dw, s)
+
+
+@njit(forceinline=True, **_OPTS)
+def _wind_near(x, z, blk, l, LP, WD):
+    """The wind at (x, z) from the last table read of lane ``l`` (``WD``: wind, slopes and
+    coordinate there) along that cell's line: exact for the table while the point stays in the
+    cell. RK4's second and fourth stages lie within a few centimetres of its first and third
+    (h^2 a / 4), so each step reads the table twice instead of four times."""
+    ds = x * LP[blk, _L_WAX, l] + z * LP[blk, _L_WAZ, l] - WD[blk, 4, l]
+    return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
+
+
+@njit(forceinline=True, **_OPTS)
+def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     """Acceleration (ax, ay, az) [m/s^2] and spin-fraction rate dq/dt [1/s] of lane ``l`` of
-    block ``blk`` at height z [m], ground velocity (vx, vy, vz) [m/s] and spin fraction q [-],
-    drag multiplier ``fac``. Branch-free so that the lane loops around it vectorise (the table
-    reads become gathers)."""
-    m0, inv_dm, dm, kmax, z0, inv_dz, zmax = tab
-    wx = LP[blk, _L_WX, l]
-    wy = LP[blk, _L_WY, l]
+    block ``blk`` at height z [m], ground velocity (vx, vy, vz) [m/s], spin fraction q [-] and
+    horizontal wind (wx, wy) [m/s], drag multiplier ``fac``. Branch-free so that the lane loops
+    around it vectorise (the table reads become gathers)."""
+    m0, inv_dm, dm, kmax, z0, inv_dz, zmax, w0, inv_dw, wmax = tab
     wz = LP[blk, _L_WZ, l]
     g = LP[blk, _L_G, l]
     ux = vx - wx
@@ -178,7 +218,8 @@ def _acc(z, vx, vy, vz, q, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
 
 
 @njit(forceinline=True, **_OPTS)
-def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw, BL, LP, CDO, ATO, ST):
+def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
+                ATO, WTO, ST):
     """Load block ``blk``'s lanes: state, per-lane parameters, table offsets (lanes past B
     repeat the last trajectory and are not stored)."""
     for l in range(nl):
@@ -198,6 +239,8 @@ def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw
         LP[blk, _L_SPIN, l] = par[b, P_SPIN_DECAY] * par[b, P_KREF] * par[b, P_RHO_SCALE]
         LP[blk, _L_LVERT, l] = par[b, P_LIFT_VERT]
         LP[blk, _L_LVSAT, l] = par[b, P_LIFT_VERT_SAT]
+        LP[blk, _L_WAX, l] = par[b, P_WIND_AX_X]
+        LP[blk, _L_WAZ, l] = par[b, P_WIND_AX_Z]
         for c in range(9):
             LP[blk, _L_COR + c, l] = par[b, P_COR + c]
         scale = par[b, P_CD_SCALE] * par[b, P_RHO_SCALE]
@@ -210,6 +253,7 @@ def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw
         LP[blk, _L_FH, l] = scale
         CDO[blk, l] = cd_idx[b] * (n_cells * 4)
         ATO[blk, l] = atm_idx[b] * (n_z * 2)
+        WTO[blk, l] = wind_idx[b] * (n_w * 2)
     if yaw:
         for l in range(nl):
             LP[blk, _L_F0, l] = LP[blk, _L_SCALE, l] * (
@@ -217,10 +261,13 @@ def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw
 
 
 @njit(forceinline=True, **_OPTS)
-def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, cd_flat, atm_flat, tab, ST, AC, K2, K3, K4, ST1, AC1):
+def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2, K3, K4,
+              ST1, AC1, WD):
     """One RK4 step of every lane of block ``blk`` from ``ST``/``AC`` (state and acceleration at
     t_s) to ``ST1``/``AC1`` (at t_s + h). One loop per stage, lanes innermost: independent
-    vectors in flight."""
+    vectors in flight. The wind table is read at the second and fourth stages (``WD``); the
+    third and the step's end take it along those cells' lines (:func:`_wind_near`)."""
+    w0, inv_dw, wmax = tab[7], tab[8], tab[9]
     if yaw:
         for l in range(nl):
             ts = LP[blk, _L_T0, l] + s * h
@@ -229,22 +276,39 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, cd_flat, atm_flat, tab, 
             LP[blk, _L_FH, l] = LP[blk, _L_SCALE, l] * (
                 1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * (ts + h)))
     for l in range(nl):
+        wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
+        if wind_flat is not None:
+            WD[blk, 0, l], WD[blk, 1, l], WD[blk, 2, l], WD[blk, 3, l], WD[blk, 4, l] = _wind(
+                ST[blk, 0, l] + h2 * ST[blk, 3, l], ST[blk, 2, l] + h2 * ST[blk, 5, l], blk, l, LP, WTO, wind_flat,
+                w0, inv_dw, wmax)
+            wx, wy = WD[blk, 0, l], WD[blk, 1, l]
         K2[blk, 0, l], K2[blk, 1, l], K2[blk, 2, l], K2[blk, 3, l] = _acc(
             ST[blk, 2, l] + h2 * ST[blk, 5, l], ST[blk, 3, l] + h2 * AC[blk, 0, l],
             ST[blk, 4, l] + h2 * AC[blk, 1, l], ST[blk, 5, l] + h2 * AC[blk, 2, l],
-            ST[blk, 6, l] + h2 * AC[blk, 3, l],
+            ST[blk, 6, l] + h2 * AC[blk, 3, l], wx, wy,
             LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
     for l in range(nl):
+        wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
+        if wind_flat is not None:
+            wx, wy = _wind_near(ST[blk, 0, l] + h2 * (ST[blk, 3, l] + h2 * AC[blk, 0, l]),
+                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD)
         K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
             ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
             ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
-            ST[blk, 5, l] + h2 * K2[blk, 2, l], ST[blk, 6, l] + h2 * K2[blk, 3, l],
+            ST[blk, 5, l] + h2 * K2[blk, 2, l], ST[blk, 6, l] + h2 * K2[blk, 3, l], wx, wy,
             LP[blk, _L_FH2, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
     for l in range(nl):
+        wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
+        if wind_flat is not None:
+            WD[blk, 0, l], WD[blk, 1, l], WD[blk, 2, l], WD[blk, 3, l], WD[blk, 4, l] = _wind(
+                ST[blk, 0, l] + h * (ST[blk, 3, l] + h2 * K2[blk, 0, l]),
+                ST[blk, 2, l] + h * (ST[blk, 5, l] + h2 * K2[blk, 2, l]), blk, l, LP, WTO, wind_flat, w0, inv_dw,
+                wmax)
+            wx, wy = WD[blk, 0, l], WD[blk, 1, l]
         K4[blk, 0, l], K4[blk, 1, l], K4[blk, 2, l], K4[blk, 3, l] = _acc(
             ST[blk, 2, l] + h * (ST[blk, 5, l] + h2 * K2[blk, 2, l]),
             ST[blk, 3, l] + h * K3[blk, 0, l], ST[blk, 4, l] + h * K3[blk, 1, l],
-            ST[blk, 5, l] + h * K3[blk, 2, l], ST[blk, 6, l] + h * K3[blk, 3, l],
+            ST[blk, 5, l] + h * K3[blk, 2, l], ST[blk, 6, l] + h * K3[blk, 3, l], wx, wy,
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
     for l in range(nl):
         for c in range(3):
@@ -255,13 +319,16 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, cd_flat, atm_flat, tab, 
             ST1[blk, 3 + c, l] = v + h6 * (a1 + 2.0 * K2[blk, c, l] + 2.0 * K3[blk, c, l] + K4[blk, c, l])
         ST1[blk, 6, l] = ST[blk, 6, l] + h6 * (AC[blk, 3, l] + 2.0 * K2[blk, 3, l]
                                                + 2.0 * K3[blk, 3, l] + K4[blk, 3, l])
+        wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
+        if wind_flat is not None:
+            wx, wy = _wind_near(ST1[blk, 0, l], ST1[blk, 2, l], blk, l, LP, WD)
         AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l], AC1[blk, 3, l] = _acc(
-            ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l],
+            ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l], wx, wy,
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
 
 
 @njit(forceinline=True, **_OPTS)
-def _hermite_row(blk, nl, th, h, z0, inv_dz, zmax, LP, ATO, atm_flat, ST, AC, ST1, AC1, OB):
+def _hermite_row(blk, nl, th, h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB):
     """One output row of every lane: cubic Hermite on [t_s, t_s + h] (position ``th`` in [0, 1])
     from the states and accelerations at both ends, and its Mach number, into ``OB``."""
     th2 = th * th
@@ -270,14 +337,16 @@ def _hermite_row(blk, nl, th, h, z0, inv_dz, zmax, LP, ATO, atm_flat, ST, AC, ST
     e01 = 3.0 * th2 - 2.0 * th3
     e10 = h * (th3 - 2.0 * th2 + th)
     e11 = h * (th3 - th2)
+    z0, inv_dz, zmax, w0, inv_dw, wmax = tab[4], tab[5], tab[6], tab[7], tab[8], tab[9]
     for l in range(nl):
         for c in range(3):
             OB[blk, c, l] = (e00 * ST[blk, c, l] + e10 * ST[blk, c + 3, l]
                              + e01 * ST1[blk, c, l] + e11 * ST1[blk, c + 3, l])
             OB[blk, c + 3, l] = (e00 * ST[blk, c + 3, l] + e10 * AC[blk, c, l]
                                  + e01 * ST1[blk, c + 3, l] + e11 * AC1[blk, c, l])
-        ux = OB[blk, 3, l] - LP[blk, _L_WX, l]
-        uy = OB[blk, 4, l] - LP[blk, _L_WY, l]
+        wx, wy, gx, gy, sw = _wind(OB[blk, 0, l], OB[blk, 2, l], blk, l, LP, WTO, wind_flat, w0, inv_dw, wmax)
+        ux = OB[blk, 3, l] - wx
+        uy = OB[blk, 4, l] - wy
         uz = OB[blk, 5, l] - LP[blk, _L_WZ, l]
         zi = min(max((OB[blk, 2, l] - z0) * inv_dz, 0.0), zmax)
         j = int(zi)
@@ -288,7 +357,7 @@ def _hermite_row(blk, nl, th, h, z0, inv_dz, zmax, LP, ATO, atm_flat, ST, AC, ST
 
 @njit(parallel=True, cache=True, **_OPTS)
 def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
-                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, nl, out, mach_out):
+                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, out, mach_out):
     """Integrate B trajectories with classic RK4 on a uniform step, cubic Hermite output.
 
     Parameters
@@ -319,6 +388,15 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     atm_idx : (B,) int64
     z0, dz : float
         Height grid origin and spacing [m].
+    wind_flat : (W * n_w * 2,) float64 or None
+        Horizontal wind (wx, wy) [m/s] on a uniform grid (w0, dw) of the coordinate
+        ``s = x par[b, P_WIND_AX_X] + z par[b, P_WIND_AX_Z]`` [m] (height, or downrange
+        distance), flattened from (W, n_w, 2); trajectory b uses table ``wind_idx[b]`` and adds
+        its constant wind ``par[b, P_WX:P_WY + 1]``. None: no trajectory has a wind profile
+        (compiled as its own specialisation, without the table reads).
+    wind_idx : (B,) int64
+    w0, dw : float
+        Wind grid origin and spacing [m].
     nl : int
         Lanes per block (:func:`lanes_per_block`).
     out : (B, N, 6) float64
@@ -328,9 +406,7 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     """
     B = y0.shape[0]
     N = out_step.shape[0]
-    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001)
-    inv_dz = 1.0 / dz
-    zmax = n_z - 1.000001
+    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001, w0, 1.0 / dw, n_w - 1.000001)
     h2 = 0.5 * h
     h6 = h / 6.0
     n_blk = (B + nl - 1) // nl
@@ -344,6 +420,7 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     LP = np.empty((n_blk, _N_L, nl))
     CDO = np.empty((n_blk, nl), dtype=np.int64)
     ATO = np.empty((n_blk, nl), dtype=np.int64)
+    WTO = np.empty((n_blk, nl), dtype=np.int64)
     ST = np.empty((n_blk, 7, nl))    # state at t_s (row 6: spin fraction q for the lift)
     AC = np.empty((n_blk, 4, nl))    # acceleration and dq/dt at t_s (first RK stage)
     K2 = np.empty((n_blk, 4, nl))
@@ -352,20 +429,23 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     ST1 = np.empty((n_blk, 7, nl))   # state at t_s + h
     AC1 = np.empty((n_blk, 4, nl))   # acceleration there (= next step's first stage)
     OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
+    WD = np.zeros((n_blk, 5, nl))    # last wind table read: wx, wy, their slopes, the coordinate
     for blk in prange(n_blk):
         n_real = min(B, blk * nl + nl) - blk * nl
-        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, n_cells, n_z, yaw, BL, LP, CDO, ATO, ST)
+        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
+                    ATO, WTO, ST)
         for l in range(nl):
+            wx, wy, gx, gy, sw = _wind(ST[blk, 0, l], ST[blk, 2, l], blk, l, LP, WTO, wind_flat, w0, 1.0 / dw,
+                                       n_w - 1.000001)
             AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
-                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l],
-                LP[blk, _L_F0, l],
-                blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l], wx, wy,
+                LP[blk, _L_F0, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
         o = 0
         for s in range(n_steps):
-            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, cd_flat, atm_flat, tab, ST, AC, K2, K3, K4, ST1,
-                      AC1)
+            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2,
+                      K3, K4, ST1, AC1, WD)
             while o < N and out_step[o] == s:
-                _hermite_row(blk, nl, out_theta[o], h, z0, inv_dz, zmax, LP, ATO, atm_flat, ST, AC, ST1, AC1, OB)
+                _hermite_row(blk, nl, out_theta[o], h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB)
                 for l in range(n_real):
                     b = BL[blk, l]
                     for c in range(6):

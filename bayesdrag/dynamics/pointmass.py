@@ -53,7 +53,7 @@ from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT
                      SPIN_DECAY, coriolis_matrix, lift_parameter)
 from .trajectory import DEFAULT_MAX_STEP, STEP_DRAG_FRACTION, Trajectory, output_schedule
 
-__all__ = ["PointMassModel", "atmosphere_table"]
+__all__ = ["PointMassModel", "atmosphere_table", "wind_tables"]
 
 
 
@@ -88,7 +88,10 @@ class PointMassModel:
     drag : DragModel
     atmosphere : Atmosphere
     wind : (3,) tuple, m/s
-        Constant wind ``(wx, wy, wz)`` in the track frame (x downrange, y right, z up; docs/formats.md) (direction the air moves).
+        Constant wind ``(wx, wy, wz)`` in the track frame (x downrange, y right, z up;
+        docs/formats.md) (direction the air moves). It adds to the atmosphere's wind profile
+        (``atmosphere.wind``, a :class:`~bayesdrag.atmosphere.WindProfile` by height or by
+        downrange distance), which the model flies when the atmosphere carries one.
     coriolis : (latitude_deg, azimuth_deg) or None
         Earth rotation on when given.
     gravity : float, m/s^2
@@ -219,7 +222,8 @@ class PointMassModel:
         curve = self.drag.curve(drag_params)
         atm = self.atmosphere.density_and_sound_speed
         kref = self.k_ref
-        wx, wy, wz = self.wind
+        wx0, wy0, wz = self.wind
+        wind_at, by_x, h_gun = _wind_lookup(self.atmosphere)
         g = self.gravity
         C = coriolis_matrix(*self.coriolis) if self.coriolis is not None else None
         cd_scale, yaw_amp, yaw_decay = self.cd_scale, self.yaw_amp, self.yaw_decay
@@ -231,6 +235,10 @@ class PointMassModel:
             # 6-element state is taken at full spin and gets a 6-element derivative
             vx, vy, vz = s[3], s[4], s[5]
             q = s[6] if len(s) > 6 else 1.0
+            wx, wy = wx0, wy0
+            if wind_at is not None:
+                px, py = wind_at(s[0] if by_x else s[2] + h_gun)
+                wx, wy = wx + px, wy + py
             ax_, ay_, az_ = vx - wx, vy - wy, vz - wz
             V = math.sqrt(ax_ * ax_ + ay_ * ay_ + az_ * az_)
             rho, a = atm(s[2])
@@ -261,6 +269,10 @@ class PointMassModel:
         """Mach number of states (..., 6) (tabulation-free)."""
         state = np.asarray(state, dtype=float)
         va = state[..., 3:] - np.asarray(self.wind)
+        prof = getattr(self.atmosphere, "wind", None)
+        if prof is not None:
+            s = state[..., 0] if prof.axis == "downrange" else state[..., 2] + self.atmosphere.gun_altitude
+            va = va - np.concatenate([prof.at(s), np.zeros(s.shape + (1,))], axis=-1)
         a = self.atmosphere.at_height(state[..., 2]).speed_of_sound
         return np.linalg.norm(va, axis=-1) / a
 
@@ -362,7 +374,7 @@ class PointMassModel:
             return None
         return sol.y[:6, -1].copy()
 
-    def kernel_inputs(self, drag_params, overrides=None, atmospheres=None, state0=None):
+    def kernel_inputs(self, drag_params, overrides=None, atmospheres=None, state0=None, winds=None):
         """Arrays for :func:`_kernel.integrate_batch` for B parameter sets.
 
         Parameters
@@ -377,6 +389,14 @@ class PointMassModel:
         state0 : (B, 6) array, optional
             Initial states; they set the lift constant (:meth:`lift_constant`) unless
             ``overrides`` gives ``P_LIFT``.
+        winds : sequence of WindProfile or None, length B, optional
+            Per-trajectory wind profiles (the ``wind_profile`` effect); by default each
+            trajectory's atmosphere's ``wind``. The constant wind (``P_WX, P_WY``) adds to them.
+
+        Returns
+        -------
+        tuple ``(par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind)`` with ``wind`` =
+        ``(tables (W, n_w, 2) or None, idx (B,), w0, dw)`` (:func:`wind_tables`).
         """
         drag_params = np.atleast_2d(np.asarray(drag_params, dtype=float))
         B = drag_params.shape[0]
@@ -389,6 +409,9 @@ class PointMassModel:
                 and state0 is not None:
             par[:, K.P_LIFT_VERT] = self.lift_vertical_speed(state0)
         for col, val in (overrides or {}).items():
+            if not isinstance(col, (int, np.integer)):
+                raise ValueError(f"override {col!r} is not a kernel column: the {col[0]} effect needs its model "
+                                 f"around this one (bayesdrag.effects.static_model)")
             par[:, col] = val
         grid = self.mach_grid
         if self.drag.n_params == 0:
@@ -397,6 +420,13 @@ class PointMassModel:
         else:
             first, cd_idx = distinct_rows(drag_params)
             cd_tabs = self.drag.kernel_table(drag_params[first], grid)
+        if winds is None:
+            winds = ([getattr(a, "wind", None) for a in atmospheres]
+                     if atmospheres is not None and not isinstance(atmospheres, np.ndarray)
+                     else [getattr(self.atmosphere, "wind", None)] * B)
+        elif len(winds) != B:
+            raise ValueError(f"winds must give one wind profile (or None) per trajectory: {len(winds)} for {B}")
+        wind = wind_tables(winds, self.atmosphere.gun_altitude, par)
         if isinstance(atmospheres, np.ndarray):
             # tables on the nominal atmosphere's grid (density, 1 / speed of sound), one per
             # trajectory: a continuous temperature offset without an Atmosphere per trajectory
@@ -404,7 +434,7 @@ class PointMassModel:
             if atmospheres.shape != (B,) + tab0.shape:
                 raise ValueError(f"atmosphere tables must be (B, {tab0.shape[0]}, 2), got {atmospheres.shape}")
             return (par, cd_tabs, cd_idx, grid, np.ascontiguousarray(atmospheres), np.arange(B, dtype=np.int64),
-                    z0, dz)
+                    z0, dz, wind)
         atms = [self.atmosphere] * B if atmospheres is None else list(atmospheres)
         keys = {}
         atm_idx = np.empty(B, dtype=np.int64)
@@ -416,10 +446,10 @@ class PointMassModel:
                 tabs.append(tab)
             atm_idx[i] = keys[a]
         atm_tabs = np.ascontiguousarray(np.stack(tabs))
-        return par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz
+        return par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind
 
     def simulate_batch(self, drag_params, state0, t_out, *, t_start=0.0, overrides=None,
-                       atmospheres=None, max_step=None):
+                       atmospheres=None, max_step=None, winds=None):
         """Integrate B trajectories at once with the compiled kernel.
 
         Parameters
@@ -428,7 +458,7 @@ class PointMassModel:
         state0 : array_like, shape (B, 6)
         t_out : array_like, shape (N,)
             Common output times [s], >= ``t_start``.
-        overrides, atmospheres : see :meth:`kernel_inputs`.
+        overrides, atmospheres, winds : see :meth:`kernel_inputs`.
         max_step : float, optional
             Largest RK4 step [s]; default :attr:`kernel_step`.
 
@@ -446,8 +476,9 @@ class PointMassModel:
             raise ValueError(f"state0 (B, 6) and drag_params (B, P) disagree: {state0.shape} vs {drag_params.shape}")
         t_out = np.asarray(t_out, dtype=float)
         h, n_steps, out_step, out_theta = output_schedule(t_out, t_start, max_step or self.kernel_step)
-        par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz = self.kernel_inputs(
-            drag_params, overrides, atmospheres, state0)
+        par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind = self.kernel_inputs(
+            drag_params, overrides, atmospheres, state0, winds)
+        w_tabs, w_idx, w0, dw = wind
         B = state0.shape[0]
         if n_steps > MAX_KERNEL_STEPS:
             raise FitError(f"the trajectory from t = {t_start:g} to {t_out[-1]:g} s needs {n_steps} RK4 steps of "
@@ -459,13 +490,17 @@ class PointMassModel:
         # as in one call): a Ctrl-C is then seen between two of them, within a second or so,
         # instead of after minutes inside compiled code
         per_call = max(1, CHUNK_LANE_STEPS // max(n_steps, 1))
-        for b0 in range(0, B, per_call if B * n_steps > CHUNK_LANE_STEPS else B):
-            b1 = min(B, b0 + (per_call if B * n_steps > CHUNK_LANE_STEPS else B))
+        step = per_call if B * n_steps > CHUNK_LANE_STEPS else B
+        w_flat = None if w_tabs is None else w_tabs.reshape(-1)
+        w_cols = 2 if w_tabs is None else w_tabs.shape[1]
+        for b0 in range(0, B, step):
+            b1 = min(B, b0 + step)
             nb = b1 - b0
             run = K.integrate_batch_serial if nb < K.LANE_WIDTH else K.integrate_batch
             run(state0[b0:b1], float(t_start), h, n_steps, out_step, out_theta, par[b0:b1],
                 cd_tabs.reshape(-1), cd_tabs.shape[1], cd_idx[b0:b1], grid.m0, grid.dm,
                 atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx[b0:b1], z0, dz,
+                w_flat, w_cols, w_idx[b0:b1], w0, dw,
                 K.lanes_per_block(nb, numba.get_num_threads()), out[b0:b1], mach[b0:b1])
         # a NaN or inf propagates to the last sample, so checking that row is enough
         ok = bool(np.all(np.isfinite(out[:, -1])))
@@ -522,3 +557,81 @@ def _atmosphere_table(atm):
     tab.setflags(write=False)
     return z0, dz, tab
 
+
+
+#: grid spacing [m] of a wind profile's kernel table (height or downrange distance): a step in
+#: the wind becomes a ramp over one cell, which a shell crosses in milliseconds
+WIND_GRID_STEP = 5.0
+#: most rows of a wind table (a longer span gets a coarser grid)
+WIND_GRID_MAX_ROWS = 20001
+
+
+def _wind_lookup(atmosphere):
+    """The scipy reference's wind profile: ``(at_scalar, by_downrange, gun_altitude)`` or
+    ``(None, False, 0.0)`` without one."""
+    prof = getattr(atmosphere, "wind", None)
+    if prof is None:
+        return None, False, 0.0
+    return prof.at_scalar, prof.axis == "downrange", float(atmosphere.gun_altitude)
+
+
+def wind_tables(winds, gun_altitude, par):
+    """The kernel's wind tables of a batch: one table per distinct profile on one grid.
+
+    Sets the axis columns ``P_WIND_AX_X, P_WIND_AX_Z`` of ``par`` (in place): (0, 1) for a wind
+    by height, (1, 0) by downrange distance, (0, 0) for a trajectory without a profile (its
+    table is zeros).
+
+    Parameters
+    ----------
+    winds : sequence of WindProfile or None, length B
+        The profiles of a batch share their axis.
+    gun_altitude : float, m
+        Height of the gun above sea level (a profile by altitude is tabulated in heights above
+        the gun, the kernel's z).
+    par : (B, N_PAR) array
+
+    Returns
+    -------
+    (tables (W, n_w, 2) or None, idx (B,) int64, w0, dw)
+        Wind (wx, wy) [m/s] at ``w0 + dw * i`` [m] of the coordinate; None when no trajectory
+        has a profile (the kernel then compiles without the table reads).
+
+    Raises
+    ------
+    ValueError
+        Profiles by different axes in one batch.
+    """
+    B = len(winds)
+    idx = np.zeros(B, dtype=np.int64)
+    present = [w for w in winds if w is not None]
+    if not present:
+        return None, idx, 0.0, 1.0
+    axes = {w.axis for w in present}
+    if len(axes) > 1:
+        raise ValueError(f"one batch cannot fly winds by {' and by '.join(sorted(axes))}")
+    axis = axes.pop()
+    off = 0.0 if axis == "downrange" else float(gun_altitude)
+    lo = min(w.levels[0] for w in present) - off
+    hi = max(w.levels[-1] for w in present) - off
+    dw = max(WIND_GRID_STEP, (hi - lo) / (WIND_GRID_MAX_ROWS - 1))
+    n = max(int(np.ceil((hi - lo) / dw)) + 1, 2)
+    keys, tabs = {}, [np.zeros((n, 2))]
+    for b, w in enumerate(winds):
+        if w is None:
+            continue
+        if w not in keys:
+            keys[w] = len(tabs)
+            tabs.append(_wind_table(w, lo + off, dw, n))
+        idx[b] = keys[w]
+        par[b, K.P_WIND_AX_X] = 1.0 if axis == "downrange" else 0.0
+        par[b, K.P_WIND_AX_Z] = 0.0 if axis == "downrange" else 1.0
+    return np.ascontiguousarray(np.stack(tabs)), idx, float(lo), float(dw)
+
+
+@lru_cache(maxsize=256)
+def _wind_table(profile, s0, ds, n):
+    """(n, 2) wind of a profile at ``s0 + ds * i`` of its own coordinate (memoised by value)."""
+    tab = profile.at(s0 + ds * np.arange(n))
+    tab.setflags(write=False)
+    return tab

@@ -187,7 +187,22 @@ def _cd0_lookup(mach, cd_tab, m0, dm):
 
 
 @njit(cache=True, fastmath=False)
-def _rhs(t, y, par, atm, z0, inv_dz, cd_tab, m0, dm, aero):
+def _wind_lookup(x, z, wtab, w0, inv_dw, wax, waz):
+    """Wind (internal frame, y left) of a wind profile's table at downrange x and height z [m]:
+    its coordinate is ``x wax + z waz`` (zeros without a profile)."""
+    n = wtab.shape[0]
+    si = (x * wax + z * waz - w0) * inv_dw
+    if si <= 0.0:
+        return wtab[0, 0], wtab[0, 1]
+    j = int(si)
+    if j >= n - 1:
+        return wtab[n - 1, 0], wtab[n - 1, 1]
+    f = si - j
+    return wtab[j, 0] + f * (wtab[j + 1, 0] - wtab[j, 0]), wtab[j, 1] + f * (wtab[j + 1, 1] - wtab[j, 1])
+
+
+@njit(cache=True, fastmath=False)
+def _rhs(t, y, par, atm, z0, inv_dz, cd_tab, m0, dm, aero, wtab, w0, inv_dw, wax, waz):
     """State y = [r(3), u(3), x_hat(3), w(3)] in the internal right-handed frame
     (x downrange, y LEFT, z up); returns dy/dt."""
     out = np.empty(12)
@@ -203,9 +218,10 @@ def _rhs(t, y, par, atm, z0, inv_dz, cd_tab, m0, dm, aero):
     ay /= nrm
     az /= nrm
     wx, wy, wz = y[9], y[10], y[11]
-    # air-relative velocity
-    Vx = y[3] - par[_P_WX]
-    Vy = y[4] - par[_P_WY]
+    # air-relative velocity (the constant wind plus the atmosphere's wind profile)
+    pwx, pwy = _wind_lookup(y[0], y[2], wtab, w0, inv_dw, wax, waz)
+    Vx = y[3] - par[_P_WX] - pwx
+    Vy = y[4] - par[_P_WY] - pwy
     Vz = y[5] - par[_P_WZ]
     V = math.sqrt(Vx * Vx + Vy * Vy + Vz * Vz)
     vx, vy, vz = Vx / V, Vy / V, Vz / V
@@ -364,11 +380,23 @@ def _launch_state(shell, velocity, elevation_deg, azimuth_deg, spin_rate, initia
     return np.concatenate([np.zeros(3), velocity * e_v, x_hat, w])
 
 
+def _profile_wind(atmosphere, r):
+    """The atmosphere's wind profile at positions r (N, 3) of the internal frame, in that frame
+    (zeros without a profile)."""
+    prof = getattr(atmosphere, "wind", None)
+    out = np.zeros_like(r)
+    if prof is not None:
+        s = r[:, 0] if prof.axis == "downrange" else r[:, 2] + atmosphere.gun_altitude
+        w = prof.at(s)
+        out[:, 0], out[:, 1] = w[:, 0], -w[:, 1]
+    return out
+
+
 def _derived(shell, ys, atmosphere, wind_int):
     """Derived outputs for states ys (N, 12) in the internal frame."""
     r, u, xh, w = ys[:, 0:3], ys[:, 3:6], ys[:, 6:9], ys[:, 9:12]
     xh = xh / np.linalg.norm(xh, axis=1, keepdims=True)
-    Vrel = u - wind_int
+    Vrel = u - wind_int - _profile_wind(atmosphere, r)
     V = np.linalg.norm(Vrel, axis=1)
     cosd = np.clip(np.sum(Vrel * xh, axis=1) / V, -1.0, 1.0)
     sind = np.linalg.norm(np.cross(Vrel / V[:, None], xh), axis=1)
@@ -407,7 +435,9 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
     atmosphere : Atmosphere, optional
         Default: ICAO standard atmosphere with the gun at sea level.
     wind : (wx, wy, wz), m/s
-        Constant wind, track frame (wx > 0 tailwind, wy > 0 blows toward +y = right, wz up).
+        Constant wind, track frame (wx > 0 tailwind, wy > 0 blows toward +y = right, wz up). It
+        adds to the atmosphere's wind profile (``atmosphere.wind``, by height or by downrange
+        distance), which the shell flies when there is one.
     spin_rate : float, rad/s, optional
         Muzzle spin; default ``2 pi velocity / (twist_calibres d)`` (right-hand twist).
         Negative for a left-hand twist.
@@ -482,7 +512,7 @@ def simulate_6dof(shell, velocity, elevation_deg, t_out=None, dt=0.027, atmosphe
         sol, y0, t_req, stop_at_impact, max_time)
     xh, V, yaw, spin, mach, sg = _derived(shell, ys, atmosphere, wind_int)
     air0 = atmosphere.at_height(0.0)
-    V0 = float(np.linalg.norm(y0[3:6] - wind_int))
+    V0 = float(np.linalg.norm(y0[3:6] - wind_int - _profile_wind(atmosphere, y0[None, :3])[0]))
     sg0 = gyroscopic_stability(shell, V0, spin_rate, float(air0.density),
                                V0 / float(air0.speed_of_sound))
     if np.max(yaw) > MAX_VALID_YAW:
@@ -544,7 +574,19 @@ def _rhs_tables(shell, atmosphere, wind_int):
     par[_P_MASS], par[_P_D], par[_P_S] = shell.mass, shell.diameter, shell.area
     par[_P_IX], par[_P_IY], par[_P_G] = shell.Ix, shell.Iy, G0
     par[_P_WX:_P_WZ + 1] = wind_int
-    args = (par, np.ascontiguousarray(atm), float(z0), 1.0 / dz, cd_tab, grid.m0, grid.dm, shell.aero.table())
+    wtab, w0, inv_dw, wax, waz = np.zeros((2, 2)), 0.0, 1.0, 0.0, 0.0
+    prof = getattr(atmosphere, "wind", None)
+    if prof is not None:  # the profile tabulated as the point-mass kernel does, in the internal frame
+        from .kernel import N_PAR
+        from .pointmass import wind_tables
+
+        kpar = np.zeros((1, N_PAR))
+        tabs, _, w0, dw = wind_tables([prof], atmosphere.gun_altitude, kpar)
+        wtab = np.ascontiguousarray(tabs[1] * np.array([1.0, -1.0]))
+        inv_dw = 1.0 / dw
+        wax, waz = (1.0, 0.0) if prof.axis == "downrange" else (0.0, 1.0)
+    args = (par, np.ascontiguousarray(atm), float(z0), 1.0 / dz, cd_tab, grid.m0, grid.dm, shell.aero.table(),
+            wtab, float(w0), float(inv_dw), wax, waz)
     return args, z0, z_top
 
 

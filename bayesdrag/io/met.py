@@ -1,5 +1,17 @@
-"""Met profile files (CSV): the air a round flew through, level by level (altitude, temperature,
-pressure, optional wind), read into :class:`bayesdrag.atmosphere.MetProfile`."""
+"""Met profile files: the air a round flew through, level by level, read into
+:class:`bayesdrag.atmosphere.MetProfile` (or, for a file of winds by downrange distance, an
+:class:`bayesdrag.atmosphere.Atmosphere` carrying that wind).
+
+Three forms, told apart by the file's first line that is not a comment:
+
+* a met CSV ``altitude,temperature,pressure[,wind_x,wind_y]`` (SI; winds in the track frame,
+  linear in altitude between levels; an altitude repeated with its temperature and pressure is a
+  step in the wind);
+* a wind CSV ``downrange,wind_x,wind_y``: winds that change with downrange distance from the
+  gun (layers as repeated rows), for the standard atmosphere of the round's offsets -- what
+  ``bayesdrag diagnose`` writes when the data prefer a wind by downrange distance;
+* a computer met message (METCM text, :mod:`bayesdrag.io.metcm`).
+"""
 from __future__ import annotations
 
 import re
@@ -7,39 +19,80 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atmosphere import MetProfile
+from ..atmosphere import Atmosphere, MetProfile
+from ..wind import WindProfile
 from ..errors import InputError
-from .csv import read_table
+from .csv import read_bytes, read_table
+from .metcm import is_metcm, read_metcm
 
-__all__ = ["read_met_profile", "write_met_profile", "PROFILE_COLUMNS", "PROFILE_OPTIONAL_COLUMNS"]
+__all__ = ["read_met_profile", "write_met_profile", "write_wind_profile", "met_file_kind", "PROFILE_COLUMNS",
+           "PROFILE_OPTIONAL_COLUMNS", "WIND_COLUMNS"]
 
 
 #: columns of a met profile CSV: required, then optional
 PROFILE_COLUMNS = ("altitude", "temperature", "pressure")
 PROFILE_OPTIONAL_COLUMNS = ("wind_x", "wind_y")
+#: columns of a wind CSV by downrange distance
+WIND_COLUMNS = ("downrange", "wind_x", "wind_y")
+#: bytes read to tell the forms apart
+_SNIFF_BYTES = 64 << 10
 
 
-def read_met_profile(path, gun_altitude=0.0, **offsets):
-    """Read a met profile CSV into a :class:`MetProfile`.
+def met_file_kind(path):
+    """``"metcm"``, ``"downrange"`` (a wind CSV by downrange distance) or ``"csv"`` (a met CSV by
+    altitude), from the file's first line that is neither blank nor a comment."""
+    head = read_bytes(path, "met profile", _SNIFF_BYTES, head=True).decode("utf-8", "replace")
+    if is_metcm(head):
+        return "metcm"
+    for ln in head.splitlines():
+        s = ln.strip()
+        if s and not s.startswith("#"):
+            names = [c.strip().lower() for c in s.split(",")]
+            return "downrange" if "downrange" in names else "csv"
+    return "csv"
 
-    Format (the track CSV rules: ``#`` comments, a header row, one row of numbers per level):
-    columns ``altitude`` [m above sea level, geometric], ``temperature`` [K], ``pressure`` [Pa],
-    optional ``wind_x``, ``wind_y`` [m/s, track frame]; rows in increasing altitude.
+
+def read_met_profile(path, gun_altitude=0.0, *, azimuth_deg=None, zones=None, **offsets):
+    """Read a met profile (met CSV, wind CSV by downrange distance, or METCM message).
+
+    Format of the met CSV (the track CSV rules: ``#`` comments, a header row, one row of numbers
+    per level): columns ``altitude`` [m above sea level, geometric], ``temperature`` [K],
+    ``pressure`` [Pa], optional ``wind_x``, ``wind_y`` [m/s, track frame]; rows in increasing
+    altitude (an altitude may repeat once, with its temperature and pressure, where the wind
+    steps). A wind CSV has ``downrange`` [m from the gun] with ``wind_x``, ``wind_y`` instead.
 
     Parameters
     ----------
     path : str or os.PathLike
     gun_altitude : float, m
+    azimuth_deg : float, optional
+        Firing azimuth [deg from true north]; needed by a METCM message (its winds are by
+        direction from north).
+    zones : path, optional
+        METCM zone table (``[atmosphere] metcm_zones``); None: the shipped one.
     **offsets
         ``temperature_offset``, ``pressure_ratio``, ``density_ratio`` as in :class:`MetProfile`.
+
+    Returns
+    -------
+    MetProfile, or Atmosphere with ``wind`` for a wind CSV by downrange distance.
 
     Raises
     ------
     bayesdrag.errors.InputError
-        Everything the CSV reader rejects, unknown columns, and every :class:`MetProfile`
-        validation failure (the message names the file and, where it concerns one level, its
-        line).
+        Everything the CSV reader rejects, unknown columns, every :class:`MetProfile` or
+        :class:`WindProfile` validation failure (the message names the file and, where it
+        concerns one level, its line), a METCM message without ``azimuth_deg``, and every METCM
+        format error (:func:`bayesdrag.io.metcm.read_metcm`).
     """
+    kind = met_file_kind(path)
+    if kind == "metcm":
+        if azimuth_deg is None:
+            raise InputError(f"{path}: a METCM message gives winds by direction from north; the firing azimuth "
+                             f"is needed to turn them into the firing frame")
+        return read_metcm(path, azimuth_deg, zones=zones, gun_altitude=gun_altitude, **offsets)
+    if kind == "downrange":
+        return _read_downrange_winds(path, gun_altitude, **offsets)
     path, names, data, line_no = read_table(
         path, "met profile", required=PROFILE_COLUMNS,
         allowed=PROFILE_COLUMNS + PROFILE_OPTIONAL_COLUMNS, quote=False)
@@ -50,28 +103,125 @@ def read_met_profile(path, gun_altitude=0.0, **offsets):
                           None if "wind_y" not in cols else tuple(cols["wind_y"]),
                           gun_altitude=gun_altitude, source=str(Path(path)), **offsets)
     except ValueError as exc:
-        msg = str(exc)
-        # name the file line of the level the message quotes, when it quotes one
-        m = re.search(r"altitude (-?[0-9.e+]+) m", msg)
-        where = ""
-        if m:
-            try:
-                hit = np.flatnonzero(np.isclose(cols["altitude"], float(m.group(1)), rtol=1e-5, atol=0.5))
-            except ValueError:
-                hit = []
-            if len(hit):
-                where = f"line {line_no[hit[-1] if 'repeats' in msg or 'below the previous' in msg else hit[0]]}: "
-        raise InputError(f"{path}: {where}{msg}") from None
+        raise InputError(f"{path}: {_where(exc, cols['altitude'], line_no)}{exc}") from None
 
 
-def write_met_profile(path, profile, comment=None):
-    """Write a :class:`MetProfile`'s levels as CSV that :func:`read_met_profile` reads back."""
-    cols = [("altitude", profile.altitude), ("temperature", profile.temperature),
-            ("pressure", profile.pressure)]
-    for k in ("wind_x", "wind_y"):
-        if getattr(profile, k) is not None:
-            cols.append((k, getattr(profile, k)))
+def _where(exc, levels, line_no):
+    """``"line N: "`` of the level an error message quotes, when it quotes one."""
+    msg = str(exc)
+    m = re.search(r"(?:altitude|downrange|level) (-?[0-9.e+]+) m", msg)
+    if not m:
+        return ""
+    try:
+        hit = np.flatnonzero(np.isclose(levels, float(m.group(1)), rtol=1e-5, atol=0.5))
+    except ValueError:
+        return ""
+    if not len(hit):
+        return ""
+    later = "repeats" in msg or "below the previous" in msg
+    return f"line {line_no[hit[-1] if later else hit[0]]}: "
+
+
+def _read_downrange_winds(path, gun_altitude, **offsets):
+    path, names, data, line_no = read_table(path, "met profile", required=("downrange",), allowed=WIND_COLUMNS,
+                                            quote=False)
+    cols = {n: data[:, k] for k, n in enumerate(names)}
+    if "wind_x" not in cols and "wind_y" not in cols:
+        raise InputError(f"{path}: a wind file by downrange distance needs wind_x and/or wind_y (m/s) beside "
+                         f"downrange (m)")
+    zero = np.zeros(len(cols["downrange"]))
+    try:
+        wind = WindProfile("downrange", tuple(cols["downrange"]), tuple(cols.get("wind_x", zero)),
+                           tuple(cols.get("wind_y", zero)))
+        return Atmosphere(gun_altitude=gun_altitude, wind=wind, source=str(path), **offsets)
+    except ValueError as exc:
+        raise InputError(f"{path}: {_where(exc, cols['downrange'], line_no)}{exc}") from None
+
+
+def _rows_with_steps(levels, wind):
+    """(altitude, wind_x, wind_y) rows: every level of ``levels`` and of ``wind`` (a step as two
+    rows at its level)."""
+    lv = sorted(set(levels) | set(wind.levels))
+    out = []
+    steps = {wind.levels[i] for i in range(len(wind.levels) - 1) if wind.levels[i] == wind.levels[i + 1]}
+    for v in lv:
+        if v in steps:
+            i = next(i for i in range(len(wind.levels) - 1) if wind.levels[i] == wind.levels[i + 1] == v)
+            out.append((v, wind.wind_x[i], wind.wind_y[i]))
+            out.append((v, wind.wind_x[i + 1], wind.wind_y[i + 1]))
+        else:  # the level's own value (not the smoothing of a step near it: the file's rows define the steps)
+            wx, wy = wind.at_level(v)
+            out.append((v, float(wx), float(wy)))
+    return out
+
+
+def write_met_profile(path, profile, comment=None, levels=()):
+    """Write a :class:`MetProfile` (or an atmosphere with a wind by altitude) as a met CSV that
+    :func:`read_met_profile` reads back to the same air and wind.
+
+    The rows are the profile's levels, its wind's levels (a wind step as two rows at one
+    altitude) and ``levels``, each with the temperature and pressure the profile has there
+    without its offsets (a met file holds the measured air; the round's offsets apply on
+    reading): a MetProfile's own numbers at its own levels, elsewhere its layers' values, so
+    reading the file back gives the same air.
+
+    Parameters
+    ----------
+    path : path
+    profile : MetProfile or Atmosphere
+    comment : str, optional
+        Written first as ``#`` lines.
+    levels : sequence of float, m above sea level
+        Further altitudes to write (an :class:`Atmosphere` without other levels is written at
+        the gun and 1000 m above it).
+    """
+    wind = getattr(profile, "wind", None)
+    if wind is not None and wind.axis != "altitude":
+        raise ValueError("a met CSV holds winds by altitude; write a wind by downrange distance with "
+                         "write_wind_profile")
+    own = {}
+    if isinstance(profile, MetProfile):
+        own = {z: (T, p) for z, T, p in zip(profile.altitude, profile.temperature, profile.pressure)}
+    base = list(own) + [float(v) for v in levels]
+    if len(set(base) | set(wind.levels if wind is not None else ())) < 2:
+        base += [profile.gun_altitude, profile.gun_altitude + 1000.0]
+    if wind is None:
+        rows = [(z, None, None) for z in sorted(set(base))]
+    else:
+        rows = _rows_with_steps(base, wind)
+    plain = _unshifted(profile)
+    with_wind = wind is not None
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
-    head += "# units: m above sea level, K, Pa, m/s\n" + ",".join(k for k, _ in cols) + "\n"
-    body = "".join(",".join(repr(float(c[i])) for _, c in cols) + "\n" for i in range(len(profile.altitude)))
+    head += "# units: m above sea level, K, Pa, m/s\n"
+    head += "altitude,temperature,pressure" + (",wind_x,wind_y" if with_wind else "") + "\n"
+    body = ""
+    for z, wx, wy in rows:
+        if z in own:
+            T, p = own[z]
+        else:
+            st = plain.at_height(np.array([z - plain.gun_altitude]))
+            T, p = float(st.temperature[0]), float(st.pressure[0])
+        vals = [z, T, p] + ([wx, wy] if with_wind else [])
+        body += ",".join(repr(float(v)) for v in vals) + "\n"
+    Path(path).write_text(head + body, encoding="utf-8")
+
+
+def _unshifted(profile):
+    """The profile without its offsets (a met file holds the measured air; the round's offsets
+    are applied on reading)."""
+    from dataclasses import replace
+
+    return replace(profile, temperature_offset=0.0, pressure_ratio=1.0, density_ratio=1.0)
+
+
+def write_wind_profile(path, wind, comment=None):
+    """Write a wind by downrange distance as a wind CSV (``downrange,wind_x,wind_y``; a step as
+    two rows at one distance) that :func:`read_met_profile` reads back."""
+    if wind.axis != "downrange":
+        raise ValueError("write_wind_profile writes winds by downrange distance; a wind by altitude goes into a "
+                         "met CSV (write_met_profile)")
+    head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
+    head += "# units: m downrange from the gun, m/s (track frame)\ndownrange,wind_x,wind_y\n"
+    body = "".join(f"{float(s)!r},{float(x)!r},{float(y)!r}\n"
+                   for s, x, y in zip(wind.levels, wind.wind_x, wind.wind_y))
     Path(path).write_text(head + body, encoding="utf-8")

@@ -20,7 +20,7 @@ from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELO
 from ..validate import number, type_name
 from .csv import read_toml
 from .drag_tables import read_drag_table
-from .met import read_met_profile, write_met_profile
+from .met import met_file_kind, read_met_profile, write_met_profile, write_wind_profile
 
 __all__ = ["read_round", "write_round", "round_files"]
 
@@ -30,9 +30,9 @@ _SCHEMA = {
                    "reference_extrapolate": "boolean", "mass_sd": "kg", "diameter_sd": "m"},
     "launch": {"elevation": "deg", "velocity": "m/s", "azimuth": "deg", "latitude": "deg",
                "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
-    "atmosphere": {"model": "text", "profile": "CSV path", "temperature_offset": "K",
-                   "pressure_ratio": "-", "density_ratio": "-", "density_sd": "relative",
-                   "temperature_sd": "K"},
+    "atmosphere": {"model": "text", "profile": "CSV or METCM path", "metcm_zones": "CSV path",
+                   "temperature_offset": "K", "pressure_ratio": "-", "density_ratio": "-",
+                   "density_sd": "relative", "temperature_sd": "K", "wind_sd": "m/s"},
     "radar": {"sigma": "table", "position_scale_sd": "relative", "velocity_scale_sd": "relative",
               "time_offset_sd": "s"},
 }
@@ -89,6 +89,60 @@ def _check_reference_reach(path, pt, ref, launch, atmosphere):
             f"reference_extrapolate = true to hold Cd at its last value beyond the table")
 
 
+def _met_path(path, at, key):
+    """The file a ``[atmosphere]`` path key names, relative to the round file (None if absent)."""
+    if key not in at:
+        return None
+    rel = at[key]
+    if not isinstance(rel, str) or not rel.strip():
+        what = " or METCM message" if key == "profile" else ""
+        raise InputError(f"{path}: [atmosphere] {key} must be a CSV file path{what} (string), got {type_name(rel)}")
+    return Path(os.path.normpath(path.parent / rel))
+
+
+def _read_atmosphere(path, at, lt, launch):
+    """The round's atmosphere from its ``[atmosphere]`` table ``at`` (``lt``: the ``[launch]``
+    table, to know whether ``azimuth`` was given): the standard atmosphere with its offsets, or
+    the met profile, wind file or METCM message of ``profile``."""
+    model = at.get("model", "profile" if "profile" in at else "icao")
+    if not isinstance(model, str) or model.lower() not in ATMOSPHERE_MODELS:
+        raise InputError(f"{path}: [atmosphere] model = {model!r} is not supported; allowed: "
+                         f"{', '.join(repr(m) for m in ATMOSPHERE_MODELS)}")
+    model = model.lower()
+    if model == "profile" and "profile" not in at:
+        raise InputError(f"{path}: [atmosphere] model = 'profile' needs profile = \"met.csv\" "
+                         f"(CSV altitude,temperature,pressure[,wind_x,wind_y], or a METCM message)")
+    if model == "icao" and "profile" in at:
+        raise InputError(f"{path}: [atmosphere] model = 'icao' contradicts profile = {at['profile']!r}; "
+                         f"use model = 'profile' (or leave model out) to fly through the profile, "
+                         f"or drop profile for the standard atmosphere")
+    vals = {k: number(k, at.get(k, d), _SCHEMA["atmosphere"][k])
+            for k, d in (("temperature_offset", 0.0), ("pressure_ratio", 1.0), ("density_ratio", 1.0))}
+    _check_air_ratios(vals)
+    zones = _met_path(path, at, "metcm_zones")
+    if model != "profile":
+        if zones is not None:
+            raise InputError(f"{path}: [atmosphere] metcm_zones needs profile = a METCM message")
+        return Atmosphere(**vals, gun_altitude=launch.altitude)
+    rel = at["profile"]
+    prof_path = _met_path(path, at, "profile")
+    try:
+        kind = met_file_kind(prof_path)
+        if kind == "metcm" and "azimuth" not in lt:
+            raise InputError(f"{path}: [launch] azimuth is missing: [atmosphere] profile = {rel!r} is a METCM "
+                             f"message, whose winds are given by direction from true north; give the firing "
+                             f"azimuth (deg clockwise from true north) to turn them into the firing frame")
+        if zones is not None and kind != "metcm":
+            raise InputError(f"{path}: [atmosphere] metcm_zones is given but profile = {rel!r} is not a METCM "
+                             f"message; drop metcm_zones or give the METCM file")
+        return read_met_profile(prof_path, gun_altitude=launch.altitude, azimuth_deg=launch.azimuth_deg,
+                                zones=zones, **vals)
+    except InputError as exc:
+        if str(exc).startswith(f"{path}:"):
+            raise
+        raise InputError(f"{path}: [atmosphere] profile = {rel!r}: {exc}") from None
+
+
 def read_round(path: str | os.PathLike[str]) -> Round:
     """Read and validate a round TOML file.
 
@@ -104,11 +158,15 @@ def read_round(path: str | os.PathLike[str]) -> Round:
     - ``[launch]`` elevation [deg], velocity [m/s], azimuth [deg, default 0], latitude [deg],
       altitude [m, default 0], velocity_sd [m/s, default 5], elevation_sd [deg, default 0.2],
       position_sd [m, default 1]
-    - ``[atmosphere]`` model (``"icao"``, default, or ``"profile"``), profile (CSV met
-      profile ``altitude,temperature,pressure[,wind_x,wind_y]``, path relative to the TOML file,
-      read with :func:`bayesdrag.io.met.read_met_profile`; giving it implies
-      ``model = "profile"``, and ``model = "icao"`` with a profile is a contradiction),
-      temperature_offset [K], pressure_ratio, density_ratio (applied on top of a profile too)
+    - ``[atmosphere]`` model (``"icao"``, default, or ``"profile"``), profile (path relative to
+      the TOML file, read with :func:`bayesdrag.io.met.read_met_profile`: a met CSV
+      ``altitude,temperature,pressure[,wind_x,wind_y]``, a wind CSV
+      ``downrange,wind_x,wind_y``, or a computer met message, METCM text, which needs
+      ``[launch] azimuth``; giving it implies ``model = "profile"``, and ``model = "icao"``
+      with a profile is a contradiction), metcm_zones (CSV ``zone,bottom,top`` replacing the
+      shipped METCM zone table), temperature_offset [K], pressure_ratio, density_ratio
+      (applied on top of a profile too), wind_sd [m/s] (how well the winds are known per
+      layer, :attr:`bayesdrag.round.Systematics.wind_profile`)
     - ``[radar]`` sigma = {x, y, z [m], v [m/s]}
     - systematic sources (optional; each declared sd makes that quantity a nuisance parameter
       of the fit, see :class:`bayesdrag.round.Systematics`): ``[projectile]`` mass_sd [kg],
@@ -183,44 +241,16 @@ def read_round(path: str | os.PathLike[str]) -> Round:
         lt.get("altitude", 0.0), lt.get("velocity_sd", DEFAULT_VELOCITY_SD),
         lt.get("elevation_sd", DEFAULT_ELEVATION_SD_DEG), lt.get("position_sd", DEFAULT_POSITION_SD)))
 
-    at = tables["atmosphere"]
-    model = at.get("model", "profile" if "profile" in at else "icao")
-    if not isinstance(model, str) or model.lower() not in ATMOSPHERE_MODELS:
-        raise InputError(f"{path}: [atmosphere] model = {model!r} is not supported; allowed: "
-                         f"{', '.join(repr(m) for m in ATMOSPHERE_MODELS)}")
-    model = model.lower()
-    if model == "profile" and "profile" not in at:
-        raise InputError(f"{path}: [atmosphere] model = 'profile' needs profile = \"met.csv\" "
-                         f"(CSV altitude,temperature,pressure[,wind_x,wind_y])")
-    if model == "icao" and "profile" in at:
-        raise InputError(f"{path}: [atmosphere] model = 'icao' contradicts profile = {at['profile']!r}; "
-                         f"use model = 'profile' (or leave model out) to fly through the profile, "
-                         f"or drop profile for the standard atmosphere")
-
-    def make_atmosphere():
-        vals = {k: number(k, at.get(k, d), _SCHEMA["atmosphere"][k])
-                for k, d in (("temperature_offset", 0.0), ("pressure_ratio", 1.0), ("density_ratio", 1.0))}
-        _check_air_ratios(vals)
-        if model == "profile":
-            rel = at["profile"]
-            if not isinstance(rel, str) or not rel.strip():
-                raise InputError(f"{path}: [atmosphere] profile must be a CSV file path (string), "
-                                 f"got {type_name(rel)}")
-            prof_path = Path(os.path.normpath(path.parent / rel))
-            try:
-                return read_met_profile(prof_path, gun_altitude=launch.altitude, **vals)
-            except InputError as exc:
-                raise InputError(f"{path}: [atmosphere] profile = {rel!r}: {exc}") from None
-        return Atmosphere(**vals, gun_altitude=launch.altitude)
-
-    atmosphere = build("atmosphere", make_atmosphere)
+    atmosphere = build("atmosphere", lambda: _read_atmosphere(path, tables["atmosphere"], lt, launch))
     _check_reference_reach(path, pt, ref, launch, atmosphere)
     radar = build("radar", lambda: Radar(tables["radar"].get("sigma", {})))
     _check_sigma(path, radar)
     sds = {stem: tables[sec].get(f"{stem}_sd") for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items()}
     for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items():     # each error names its own section
         build(sec, lambda: Systematics(**{stem: sds[stem]}))
-    systematics = Systematics(**sds)
+    wind_sd = tables["atmosphere"].get("wind_sd")
+    build("atmosphere", lambda: Systematics(wind_profile=wind_sd))
+    systematics = Systematics(**sds, wind_profile=wind_sd)
     return build("projectile", lambda: Round(projectile, launch, atmosphere, radar, str(path), systematics))
 
 
@@ -247,6 +277,9 @@ def round_files(path, rnd):
     prof = getattr(rnd.atmosphere, "source", "")
     if prof and Path(prof).is_file():
         files["met_profile"] = Path(prof)
+    zones = getattr(rnd.atmosphere, "zones", "")
+    if zones and Path(zones).is_file():
+        files["metcm_zones"] = Path(zones)
     return files
 
 
@@ -291,16 +324,18 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
     launch.update(altitude=la.altitude, velocity_sd=la.velocity_sd, elevation_sd=la.elevation_sd_deg,
                   position_sd=la.position_sd)
     atm = {"model": "icao"}
-    if isinstance(at, MetProfile):
+    if isinstance(at, MetProfile) or getattr(at, "wind", None) is not None:
         prof = Path(at.source) if at.source else None
         if prof is None or not prof.is_file():
-            prof = path.with_name(f"{path.stem}_met.csv")
-            write_met_profile(prof, at, comment=f"met profile of {p.name}")
-        try:
-            rel = os.path.relpath(prof.resolve(), path.resolve().parent)
-        except ValueError:  # other drive (Windows)
-            rel = str(prof.resolve())
-        atm = {"model": "profile", "profile": Path(rel).as_posix()}
+            if at.wind is not None and at.wind.axis == "downrange":
+                prof = path.with_name(f"{path.stem}_wind.csv")
+                write_wind_profile(prof, at.wind, comment=f"winds by downrange distance of {p.name}")
+            else:
+                prof = path.with_name(f"{path.stem}_met.csv")
+                write_met_profile(prof, at, comment=f"met profile of {p.name}")
+        atm = {"model": "profile", "profile": _relative(prof, path)}
+        if getattr(at, "zones", ""):
+            atm["metcm_zones"] = _relative(Path(at.zones), path)
     atm.update(temperature_offset=float(at.temperature_offset), pressure_ratio=float(at.pressure_ratio),
                density_ratio=float(at.density_ratio))
     doc = {"projectile": proj, "launch": launch, "atmosphere": atm}
@@ -308,6 +343,17 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
         doc["radar"] = {"sigma": dict(rnd.radar.sigma)}
     for stem, sd in rnd.systematics.declared().items():
         doc.setdefault(SYSTEMATIC_SOURCES[stem][0], {})[f"{stem}_sd"] = float(sd)
+    if rnd.systematics.wind_profile is not None:
+        doc["atmosphere"]["wind_sd"] = float(rnd.systematics.wind_profile)
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
     head += "# units: kg, m, deg, m/s, K\n"
     path.write_text(head + tomli_w.dumps(doc), encoding="utf-8")
+
+
+def _relative(target, round_path):
+    """``target`` relative to the round file's folder (absolute on another drive)."""
+    try:
+        rel = os.path.relpath(Path(target).resolve(), Path(round_path).resolve().parent)
+    except ValueError:  # other drive (Windows)
+        rel = str(Path(target).resolve())
+    return Path(rel).as_posix()

@@ -8,23 +8,27 @@ confusion matrix.
 """
 import pytest
 
-from acceptance.cases import EFFECT_CASES, NULL_CASES, SIXDOF_NULL, SMALL, run_case
+from acceptance.cases import (EFFECT_CASES, NULL_CASES, PROFILE_CASES, PROFILE_HOLDOUT, SIXDOF_NULL, SMALL,
+                              SMALL_PROFILE, run_case)
 from acceptance.run_suite import summarise
 
 #: acceptance (issue 6)
 TOP1_MIN, MAG_MIN, SHRINK_MIN, FA_MAX = 0.90, 1.0, 0.9, 0.05
 
 
-@pytest.mark.parametrize("case", SMALL, ids=lambda c: c.id)
+@pytest.mark.parametrize("case", SMALL + SMALL_PROFILE, ids=lambda c: c.id)
 def test_small_suite_case(case):
     r = run_case(case)
     assert r["correct"], r
     # issue 26: the fit's origin check fires on the radar-clock case and on nothing else
     assert r["origin_alarm"] == (case.effect == "radar_time"), r
+    assert r["text_numbers_not_in_json"] == [], r["paragraph"]
     if r["magnitude_ok"] is not None:
         assert r["magnitude_ok"], r
     if case.effect:
         assert r["shrink"] >= SHRINK_MIN, r
+    if r["profile"] is not None:
+        assert r["profile"]["ok"], r
 
 
 @pytest.mark.slow
@@ -41,3 +45,17 @@ def test_full_suite_meets_the_acceptance():
     assert s["magnitude_rate"] >= 0.9, s
     found, n_clock = (int(v) for v in s["radar_clock_origin_found"].split("/"))
     assert s["false_origin_alarms"] == 0 and found == n_clock > 0, s
+    # every number the paragraph and the console summary print is one of diagnosis.json's
+    assert all(r["text_numbers_not_in_json"] == [] for r in results), \
+        [(r["id"], r["text_numbers_not_in_json"]) for r in results if r["text_numbers_not_in_json"]]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", PROFILE_CASES + PROFILE_HOLDOUT, ids=lambda c: c.id)
+def test_winds_that_change_along_the_flight_are_named_first(case):
+    """Issue 29: the verdict names a wind first (never density or drag shape as the cause of the
+    wind's signature), the wind named removes >= 90 % of the gap, a warm or cold day is found
+    within 25 % of its size, and every number of the texts is the JSON's."""
+    r = run_case(case)
+    assert r["profile"]["ok"], r
+    assert r["text_numbers_not_in_json"] == [], r["paragraph"]

@@ -835,4 +835,4 @@ def test_every_figure_of_the_paragraph_comes_from_the_verdicts_joint_fit():
     text = summary_paragraph(s)
     assert "wx = -0.52" in text and "dT = 15.1" in text
     assert "7.9" not in text and "dT = 18" not in text
-    assert "Cd shift 0.4 %" in text and "Cd shift 19 %" in text
+    assert "shift by up to 0.004 (relative)" in text and "shift by up to 0.19 (relative)" in text

@@ -298,7 +298,7 @@ def test_materiality_thresholds_move_a_small_clock_offset_out_of_the_verdict():
     row = next(r for r in big["effects"] if r["name"] == "radar_time")
     assert row["material"] is False and row["materiality"].startswith("immaterial")
     text = summary_paragraph(big)
-    assert "Detectable but immaterial: radar_time (Cd shift" in text and "noise sd)" in text
+    assert "Detectable but immaterial: radar_time (if ignored, Cd would shift" in text and "noise sd)" in text
     assert "Found" not in text
     small = diagnose(tr, rnd, material_cd_shift=0.1 * rt["cd_shift_max"], material_end_sd=1e9).summary
     assert small["verdict"] == ["radar_time"] and small["immaterial"] == []
@@ -320,3 +320,63 @@ def test_a_verdict_members_impact_comes_from_the_joint_fit():
 
 #: the 40 ms clock moves the end of a 10 deg track by ~13 noise sd, the drift by ~90
 MATERIAL_END_SD_FOR_TEST = 3.0
+
+
+def _summary_doc():
+    """A diagnosis.json with two verdict effects beside a table of another shell's shape judged
+    immaterial (hand-made: every wording branch the texts have)."""
+    wind = {"name": "wind", "params": {"wx": 7.9, "wy": 0.1}, "sd": {"wx": 0.2, "wy": 0.3},
+            "params_joint": {"wx": -0.52, "wy": 0.08}, "sd_joint": {"wx": 0.05, "wy": 0.04},
+            "shrink": 0.9, "shrink_given_others": 0.1, "confounded_with": [], "cd_shift_max": 0.004,
+            "end_shift_sd": 4.2, "remaining_gap_fraction": 0.0, "judged_against": "fitted Cd"}
+    dens = dict(wind, name="density", params={"ratio": 1.0705}, sd={"ratio": 0.001},
+                params_joint={"ratio": 1.082}, sd_joint={"ratio": 0.0016}, shrink_given_others=0.95,
+                cd_shift_max=0.07, judged_against=None)
+    shape = dict(dens, name="drag_shape", params={"s1": 0.1}, sd={"s1": 0.01})
+    return {"baseline": {"chi2_per_sample": 40.0, "gap": 5000.0}, "reference_drag": True,
+            "effects": [dens, wind, shape], "verdict": ["density", "wind"], "immaterial": ["drag_shape"],
+            "joint": {"effects": ["density", "wind"], "shrink": 0.99, "remaining_gap_fraction": 0.01,
+                      "strongly_correlated": [{"params": ["density.ratio", "wind.wx"], "corr": -0.97}]},
+            "materiality": {"cd_shift": 0.001, "end_sd": 3.0}, "tests": {"alpha": 0.05},
+            "where": [{"channel": "x", "t_start": 12.345, "t_end": 20.1, "phase": "descent", "share": 0.61}],
+            "absorbed": []}
+
+
+def test_the_paragraph_and_console_print_only_the_jsons_numbers():
+    """Issue 29: the texts come from diagnosis.json alone -- every number printed is one of the
+    file's (the joint fit's density 1.082, not the lone fit's 1.0705, and no percentages made up
+    from fractions), one console line per verdict effect, and nothing about another shell's shape
+    while drag_shape is not in the verdict."""
+    from bayesdrag.diagnosis.summary import console_summary, summary_paragraph
+    from support.text_figures import unmatched_numbers
+
+    doc = _summary_doc()
+    text = summary_paragraph(doc)
+    lines = console_summary(doc)
+    assert unmatched_numbers(text, doc) == [] and all(unmatched_numbers(ln, doc) == [] for ln in lines)
+    assert "ratio = 1.082 ± 0.0016" in text and "1.0705" not in text and "%" not in text
+    assert "another shell" not in text + " ".join(lines)
+    assert [ln.split(":")[0].strip() for ln in lines[1:3]] == ["Found", "Also"] and len(lines) == 4
+    assert lines[1].startswith("  Found: density") and lines[2].startswith("  Also: wind")
+    shaped = dict(doc, verdict=["drag_shape", "wind"], immaterial=[])
+    assert "another shell" in summary_paragraph(shaped)
+    # the checker itself catches a figure the JSON does not hold
+    assert unmatched_numbers("ratio = 1.083, wx_1 = 2", doc) == ["1.083", "2"]
+
+
+def test_the_console_summary_is_the_written_files(tmp_path, capsys):
+    """``bayesdrag diagnose`` prints, line by line, the console summary of the diagnosis.json it
+    wrote."""
+    from bayesdrag.diagnosis.summary import console_summary
+
+    rnd = _round(el=30.0)
+    write_track(tmp_path / "t.csv", _track(rnd, seed=8, wind=(-5.0, 2.0, 0.0)))
+    write_round(tmp_path / "r.toml", rnd)
+    code = main(["diagnose", str(tmp_path / "t.csv"), str(tmp_path / "r.toml"), "-o", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert doc["verdict"] == ["wind"]
+    printed = [ln[len("bayesdrag: diagnosis: "):] for ln in err.splitlines() if ln.startswith("bayesdrag: diagnosis: ")]
+    assert printed == console_summary(doc)
+    assert len(printed) >= 1 + len(doc["verdict"])

@@ -15,11 +15,11 @@ MAX_FUNCTION_LINES = 150
 LAYERS = [
     ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads", "bayesdrag._signals", "bayesdrag._gc", "bayesdrag._numba_cache",
      "bayesdrag._numba_setup", "bayesdrag._user_cache"],
-    ["bayesdrag.atmosphere", "bayesdrag.drag"],
+    ["bayesdrag.wind", "bayesdrag.atmosphere", "bayesdrag.drag"],
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],
     ["bayesdrag.dynamics"],
-    ["bayesdrag.effects", "bayesdrag.effect_inputs"],
+    ["bayesdrag.effects", "bayesdrag.effect_inputs", "bayesdrag.wind_layers"],
     ["bayesdrag.synthetic"],
     ["bayesdrag.estimate"],
     ["bayesdrag.results"],

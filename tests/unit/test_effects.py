@@ -8,6 +8,8 @@ from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.effects import (DRAG_SHAPE_MAX, EFFECTS, K_YAW, EffectContext, ShapedTable, drag_shape_knots,
                                drag_shape_model, get_effect, level_free_offsets, simulate_with_effects)
+from bayesdrag.wind import WindProfile
+from bayesdrag.wind_layers import WIND_LAYERS_MAX, WindLayers
 
 V0, EL = 818.0, 30.0
 T = np.linspace(0.0, 40.0, 401)
@@ -22,8 +24,13 @@ def model():
     return PointMassModel(42.6, 0.155, load_m101(), Atmosphere())
 
 
+LAYERS = WindLayers("altitude", (0.0, 2000.0, 4000.0, 8000.0))
+
+
 def _ctx(**kw):
-    """The effect context of the test flight (drag_shape needs the table's shaped drag)."""
+    """The effect context of the test flight (drag_shape needs the table's shaped drag,
+    wind_profile its layers)."""
+    kw.setdefault("wind_layers", LAYERS)
     return EffectContext(v0=V0, drag_shape=drag_shape_model(load_m101(), SPAN), **kw)
 
 
@@ -181,3 +188,25 @@ def test_level_free_offsets_make_the_shape_orthogonal_to_a_constant_factor():
     assert np.max(np.abs(P[:, 1:].T @ P[:, 0])) < 1e-9 * np.linalg.norm(P[:, 0]) ** 2
     with pytest.raises(ValueError, match="offsets must be"):
         ShapedTable(load_m101(), shape.knots, offsets=(0.1,))
+
+
+def test_wind_profile_flies_its_layers_as_a_wind_profile_of_the_atmosphere(model):
+    """The effect's layer winds (wx_1, wy_1, wx_2, ...) are a layered WindProfile added to the
+    round's own wind, by height or by downrange distance; unused layers are ignored."""
+    vals = np.zeros(2 * WIND_LAYERS_MAX)
+    vals[:6] = [4.0, -1.0, -3.0, 2.0, -9.0, 5.0]
+    assert [p.name for p in EFFECTS["wind_profile"].params][:4] == ["wx_1", "wy_1", "wx_2", "wy_2"]
+    got = _run(model, ["wind_profile"], vals)
+    want = WindProfile.layered("altitude", LAYERS.edges, (4.0, -3.0, -9.0), (-1.0, 2.0, 5.0))
+    st, _ = simulate_with_effects(model.with_(atmosphere=Atmosphere(wind=want)), (), initial_state(V0, EL), T)
+    assert np.max(np.abs(got - st)) < TINY_M
+    base = WindProfile("downrange", (0.0, 20000.0), (1.0, 1.0), (0.0, 2.0))
+    by_x = WindLayers("downrange", (0.0, 6000.0, 12000.0, 18000.0), base=base)
+    got = _run(model, ["wind_profile"], vals, _ctx(wind_layers=by_x))
+    want = WindProfile.layered("downrange", by_x.edges, (4.0, -3.0, -9.0), (-1.0, 2.0, 5.0)).plus(base)
+    st, _ = simulate_with_effects(model.with_(atmosphere=Atmosphere(wind=want)), (), initial_state(V0, EL), T)
+    assert np.max(np.abs(got - st)) < TINY_M and np.max(np.abs(got - _run(model))) > 10.0
+    with pytest.raises(ValueError, match="needs its layers"):
+        _run(model, ["wind_profile"], vals, _ctx(wind_layers=None))
+    with pytest.raises(ValueError, match="the base wind is by altitude, the layers by downrange"):
+        WindLayers("downrange", (0.0, 1.0), base=WindProfile("altitude", (0.0,), (1.0,), (0.0,)))

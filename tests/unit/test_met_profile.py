@@ -110,12 +110,28 @@ def test_trajectory_through_icao_profile_matches_standard():
     assert np.abs(got.state[:, :3] - ref.state[:, :3]).max() < 0.05  # m over a 40 s flight
 
 
-def test_wind_is_data():
+def test_per_level_winds_make_the_profiles_wind_by_altitude():
     prof = MetProfile((0.0, 1000.0, 2000.0), (288.0, 281.5, 275.0), (101325.0, 89875.0, 79495.0),
                       wind_x=(2.0, 6.0, 10.0), wind_y=(-1.0, -1.0, 3.0))
     assert prof.has_wind and not icao_profile().has_wind
-    np.testing.assert_allclose(prof.wind_at([500.0, 1500.0, 5000.0]), [[4.0, -1.0], [8.0, 1.0], [10.0, 3.0]])
-    assert prof.mean_wind(2000.0)[0] == pytest.approx(6.0, abs=0.05)
+    assert prof.wind.axis == "altitude" and prof.wind.levels == prof.altitude
+    np.testing.assert_allclose(prof.wind.at([500.0, 1500.0, 5000.0, -100.0]),
+                               [[4.0, -1.0], [8.0, 1.0], [10.0, 3.0], [2.0, -1.0]])
+
+
+def test_a_repeated_altitude_is_a_step_in_the_wind():
+    """Layers of constant wind in a met CSV: the altitude of a step repeats with its temperature
+    and pressure; the air keeps the distinct levels."""
+    T, p = (288.0, 281.5, 275.0), (101325.0, 89875.0, 79495.0)
+    prof = MetProfile((0.0, 1000.0, 1000.0, 2000.0), (T[0], T[1], T[1], T[2]), (p[0], p[1], p[1], p[2]),
+                      wind_x=(2.0, 2.0, -5.0, -5.0))
+    assert prof.altitude == (0.0, 1000.0, 2000.0) and prof.wind_x is None
+    np.testing.assert_allclose(prof.wind.at([900.0, 1000.0, 1100.0, 1500.0])[:, 0], [2.0, -1.5, -5.0, -5.0])
+    plain = MetProfile((0.0, 1000.0, 2000.0), T, p)
+    assert prof.at_height(700.0).density == plain.at_height(700.0).density
+    with pytest.raises(ValueError, match="repeats with another temperature or pressure"):
+        MetProfile((0.0, 1000.0, 1000.0, 2000.0), (T[0], T[1], T[1] + 1, T[2]), (p[0], p[1], p[1], p[2]),
+                   wind_x=(2.0, 2.0, -5.0, -5.0))
 
 
 def test_round_with_profile_roundtrip(tmp_path):
