@@ -390,7 +390,7 @@ def run_case(case, origin=True):
     track, rnd = make_track(case), diagnosis_round(case)
     d = diagnose(track, rnd)
     s = d.summary
-    doc = DiagnosisResult(d, track, rnd).to_dict()
+    doc = DiagnosisResult(dict(s, summary=summary_paragraph(s)), d, track, rnd).to_dict()
     texts = [summary_paragraph(doc)] + console_summary(doc)
     rows = {r["name"]: r for r in s["effects"]}
     verdict = s["verdict"]
