@@ -85,9 +85,35 @@ def fit_case(name):
     return res.to_dict()
 
 
+def environment():
+    """What the last bits of a fit depend on besides the package: the numerical libraries, the
+    processor and the BLAS kernel chosen for it. The golden files hold the one they were
+    written in (``expected/environment.json``)."""
+    import os
+    import platform
+
+    import llvmlite
+    import numba
+    import numpy
+    import scipy
+
+    cpu = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        cpu = platform.processor()
+    return {"python": platform.python_version(), "numpy": numpy.__version__, "scipy": scipy.__version__,
+            "numba": numba.__version__, "llvmlite": llvmlite.__version__, "machine": platform.machine(),
+            "cpu": cpu, "openblas_coretype": os.environ.get("OPENBLAS_CORETYPE", "")}
+
+
 def main(names):
     copy_inputs()
     EXPECTED.mkdir(exist_ok=True)
+    (EXPECTED / "environment.json").write_text(json.dumps(environment(), indent=1, sort_keys=True) + "\n")
     for name in names or FITS:
         d = fit_case(name)
         (EXPECTED / f"{name}.json").write_text(json.dumps(d, indent=1, sort_keys=True) + "\n")

@@ -9,7 +9,13 @@ Comparison (decisions):
 
 * Numbers: within :data:`REL_TOL` relative (:data:`ABS_TOL` near zero). The fit is deterministic
   on one machine (one BLAS thread, one trajectory per kernel thread), so the files agree to
-  rounding.
+  rounding — in the environment they were written in (``expected/environment.json``: numpy,
+  scipy, numba, llvmlite, processor, BLAS kernel). In another environment the last bits of every
+  kernel step differ, the fit stops at its convergence test a few ulps elsewhere, and values that
+  ``result.json`` rounds to 6 significant digits can flip their last digit: there the numbers are
+  compared within :data:`CROSS_ENV_REL_TOL` (measured: worst 9.9e-6 relative, a 6-digit budget
+  value, between the files' first environment and numpy 2.4.6, numba 0.68.1 on an AMD EPYC). A
+  change of the method moves results by far more.
 * Text: the words exactly, the numbers inside it as printed (half a unit in the last digit).
 * Keys: every expected key must be present (new keys are allowed).
 * Timing keys (``seconds``) are not compared.
@@ -34,6 +40,10 @@ import make_golden  # noqa: E402
 REL_TOL = 1e-9
 #: absolute tolerance for numbers near zero (Cd, metres, seconds: all far above it where they matter)
 ABS_TOL = 1e-12
+#: relative tolerance when the environment differs from the one the files were written in
+CROSS_ENV_REL_TOL = 3e-5
+#: absolute tolerance then: initial positions near zero [m] move by the fit's convergence step
+CROSS_ENV_ABS_TOL = 1e-6
 #: combined Monte-Carlo standard errors a posterior summary may move
 MCSE_K = 4.0
 #: MCSE of a 5 % / 95 % quantile in units of sd / sqrt(ESS) (Gaussian: sqrt(p (1 - p)) / phi(z_p))
@@ -48,8 +58,19 @@ CHAIN_KEYS = {"mcmc", "posterior"}
 _NUM = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
 
-def _close(a, b, rel=REL_TOL):
-    return math.isclose(a, b, rel_tol=rel, abs_tol=ABS_TOL)
+def _same_environment():
+    path = make_golden.EXPECTED / "environment.json"
+    return path.exists() and json.loads(path.read_text()) == make_golden.environment()
+
+
+if _same_environment():
+    TOL = (REL_TOL, ABS_TOL)
+else:
+    TOL = (CROSS_ENV_REL_TOL, CROSS_ENV_ABS_TOL)
+
+
+def _close(a, b):
+    return math.isclose(a, b, rel_tol=TOL[0], abs_tol=TOL[1])
 
 
 def _compare_text(path, got, want, errors):
@@ -57,7 +78,7 @@ def _compare_text(path, got, want, errors):
         errors.append(f"{path}: text {got!r} != {want!r}")
         return
     for g, w in zip(_NUM.findall(got), _NUM.findall(want)):
-        if g != w and abs(float(g) - float(w)) > _half_ulp(w) + REL_TOL * abs(float(w)):
+        if g != w and abs(float(g) - float(w)) > _half_ulp(w) + TOL[0] * abs(float(w)) + TOL[1]:
             errors.append(f"{path}: number {g} in {got!r} != {w} in {want!r}")
 
 
@@ -140,7 +161,7 @@ def test_sampled_fit_matches_golden_within_mcse():
 def test_compare_finds_a_changed_number_and_a_missing_key():
     want = {"a": 1.0, "b": {"c": [1, 2]}, "t": "Cd 0.3124 at Mach 1.20", "seconds": 3.0}
     assert compare({"a": 1.0, "b": {"c": [1, 2]}, "t": "Cd 0.3124 at Mach 1.20", "seconds": 9.0}, want) == []
-    assert compare({"a": 1.0 + 1e-6, "b": {"c": [1, 2]}, "t": "Cd 0.3124 at Mach 1.20"}, want)
+    assert compare({"a": 1.0 + 1e-3, "b": {"c": [1, 2]}, "t": "Cd 0.3124 at Mach 1.20"}, want)
     assert compare({"a": 1.0, "b": {}, "t": "Cd 0.3124 at Mach 1.20"}, want) == [".b.c: missing"]
     assert compare({"a": 1.0, "b": {"c": [1, 2]}, "t": "Cd 0.3125 at Mach 1.20"}, want)
     assert compare({"a": 1.0, "b": {"c": [1, 2]}, "t": "Cd 0.3124 at Mach 1.21"}, want)
