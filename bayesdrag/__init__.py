@@ -49,13 +49,13 @@ _API = {
     "MetProfile": "bayesdrag.atmosphere",
     "ReferenceTable": "bayesdrag.drag",
     # the work
-    "fit": "bayesdrag.commands.fit",
+    "fit": "bayesdrag.pipeline",
     "simulate": "bayesdrag.commands.simulate",
-    "diagnose": "bayesdrag.commands.diagnose",
+    "diagnose": "bayesdrag.pipeline",
     "plan": "bayesdrag.commands.plan",
-    "FitOptions": "bayesdrag.commands.options",
-    "PlanOptions": "bayesdrag.commands.options",
-    "SimulateOptions": "bayesdrag.commands.options",
+    "FitOptions": "bayesdrag.options",
+    "PlanOptions": "bayesdrag.options",
+    "SimulateOptions": "bayesdrag.options",
     # results
     "FitResult": "bayesdrag.results",
     "CdTable": "bayesdrag.results",
@@ -79,9 +79,9 @@ from typing import TYPE_CHECKING, Any  # noqa: E402  (here, beside the names it 
 
 if TYPE_CHECKING:
     from .atmosphere import Atmosphere, MetProfile
-    from .commands.diagnose import diagnose
-    from .commands.fit import fit
-    from .commands.options import FitOptions, PlanOptions, SimulateOptions
+    from .pipeline import diagnose
+    from .pipeline import fit
+    from .options import FitOptions, PlanOptions, SimulateOptions
     from .commands.plan import plan
     from .commands.simulate import simulate
     from .drag import ReferenceTable

@@ -1,6 +1,6 @@
 """Command line: ``bayesdrag simulate | fit | diagnose | batch | plan | demo``.
 
-This module only parses arguments into the options of :mod:`bayesdrag.commands.options`, calls
+This module only parses arguments into the options of :mod:`bayesdrag.options`, calls
 the command and maps what happened to the exit status: 0 success; 2 bad input, with
 one line on stderr naming the file, row or key, what was found and what is allowed (no
 traceback); 1 an internal failure, a fit that has no solution or an output folder that could not
@@ -110,7 +110,7 @@ def _non_negative_float(value):
 
 
 def _add_plan_parser(sub):
-    from .commands.options import PLAN_ELEVATION_RANGE, PLAN_VELOCITY_MAX, PlanOptions
+    from .options import PLAN_ELEVATION_RANGE, PLAN_VELOCITY_MAX, PlanOptions
 
     po = PlanOptions()
     p = sub.add_parser("plan", help="predict, before firing, the Cd accuracy (sd by Mach) of planned cases "
@@ -142,7 +142,7 @@ def _add_plan_parser(sub):
 
 def _add_fit_options(p, batch=False):
     """The options that change a fit's result (shared by ``fit`` and ``batch``)."""
-    from .commands.options import LIKELIHOODS, MOVES, NOISE_MODELS, FitOptions
+    from .options import LIKELIHOODS, MOVES, NOISE_MODELS, FitOptions
     from .drag import DRAG_MODEL_NAMES
 
     d = FitOptions()
@@ -185,7 +185,7 @@ def _add_fit_options(p, batch=False):
 
 
 def build_parser():
-    from .commands.options import SIMULATION_MODELS, SimulateOptions
+    from .options import SIMULATION_MODELS, SimulateOptions
 
     p = _Parser(prog="bayesdrag", description=DESCRIPTION)
     p.add_argument("--version", action="version", version=_version())
@@ -303,7 +303,7 @@ def _version():
 
 def _fit_options(args):
     """FitOptions from the parsed ``fit`` (or ``batch``) arguments."""
-    from .commands.options import FitOptions
+    from .options import FitOptions
 
     kw = {"drag": args.drag, "mcmc": not args.no_mcmc, "fix_ic": args.fix_ic, "seed": args.seed}
     if args.channels is not None:
@@ -321,7 +321,7 @@ def _fit_options(args):
 
 
 def cmd_simulate(args):
-    from .commands.options import SimulateOptions
+    from .options import SimulateOptions
     from .commands.simulate import run_simulate
 
     if args.seed is not None and not args.noise:
@@ -366,7 +366,7 @@ def cmd_fit(args):
 
 def cmd_batch(args):
     from .commands.batch import run_campaign, summarise
-    from .commands.options import BatchOptions
+    from .options import BatchOptions
 
     jobs = tuple(j.strip() for j in args.jobs.split(",") if j.strip())
     b = BatchOptions(jobs=jobs, fit=_fit_options(args), scheduler=args.scheduler, workers=args.workers,
@@ -382,7 +382,7 @@ def cmd_batch(args):
 def cmd_diagnose(args):
     from .commands.diagnose import run_diagnose
 
-    from .commands.options import DiagnoseOptions
+    from .options import DiagnoseOptions
 
     kw = {}
     if args.material_cd is not None:
@@ -395,7 +395,7 @@ def cmd_diagnose(args):
 
 
 def cmd_plan(args):
-    from .commands.options import PlanOptions
+    from .options import PlanOptions
     from .commands.plan import run_plan
 
     opts = PlanOptions(elevations=args.elevations, velocities=args.velocities, dt=args.dt, rounds=args.rounds,

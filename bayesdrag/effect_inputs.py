@@ -1,7 +1,7 @@
 """What an unmodelled effect hands the simulation: the extra parameters appended after the
 initial state (:class:`ExtraParam`) and what a batch of their values does to the point-mass
 kernel (:class:`SimInputs`). The effect library (:mod:`bayesdrag.effects`) builds them; the
-output-error problem (:mod:`bayesdrag.estimate.problem`) fits them. Plain values, no physics.
+output-error problem (:mod:`bayesdrag.estimate.model.problem`) fits them. Plain values, no physics.
 """
 from __future__ import annotations
 

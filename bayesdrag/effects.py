@@ -6,7 +6,7 @@ bounds, finite-difference steps and a "no effect" value), a short physical expla
 mapping of a batch of parameter values (B, k) onto the batched point-mass kernel
 (:meth:`PointMassModel.simulate_batch`): kernel override columns, per-trajectory atmospheres or
 a radar clock offset. Effects compose: :func:`effect_fn` turns a list of effects into the
-``effect_fn`` of :class:`bayesdrag.estimate.problem.OutputErrorProblem`, whose extra parameters are
+``effect_fn`` of :class:`bayesdrag.estimate.model.problem.OutputErrorProblem`, whose extra parameters are
 the effects' parameters side by side.
 
 =============  =====================  ========================================================

@@ -11,9 +11,9 @@ import math
 import re
 from dataclasses import asdict, dataclass, fields
 
-from ..drag import DRAG_MODEL_NAMES
-from ..errors import InputError
-from ..track import CHANNELS
+from .drag import DRAG_MODEL_NAMES
+from .errors import InputError
+from .track import CHANNELS
 
 __all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "PlanOptions", "LIKELIHOODS", "MOVES",
            "SIMULATION_MODELS", "JOBS"]
@@ -88,7 +88,7 @@ class FitOptions:
         ``white``: independent samples (Eq. 19); ``ar1``: white noise plus an AR(1) model-error
         process per channel, so residuals that model error has made correlated widen the
         bands; ``auto`` (default): ``ar1`` for the channels whose white-noise residuals show
-        such a process (:func:`bayesdrag.estimate.scheme1.choose_noise_model`).
+        such a process (:func:`bayesdrag.estimate.scheme1.fit.choose_noise_model`).
     sample_ar : bool
         Sample the AR(1) model-error coefficients (``log(1 - rho)``, ``log q`` per ``ar1``
         channel) in the posterior instead of holding them at their ML values (default False:
@@ -103,7 +103,7 @@ class FitOptions:
         Scheme 2: samples per window (default 50) and shared by consecutive windows (0).
     walkers : int or None
         emcee walkers (default: 16 with the ``auto`` moves, 128 when a declared ``temperature_sd``
-        is sampled, else 2 x parameters + 2; :func:`bayesdrag.estimate.sampler.default_walkers`).
+        is sampled, else 2 x parameters + 2; :func:`bayesdrag.estimate.bayes.sampler.default_walkers`).
     max_steps : int
         Hard limit of sampler steps (the run stops earlier at convergence); at least
         :data:`MIN_MAX_STEPS`.
@@ -151,7 +151,7 @@ class FitOptions:
         if isinstance(self.with_effects, (list, tuple)) and len(self.with_effects) == 0:
             object.__setattr__(self, "with_effects", ())
         elif self.with_effects not in (None, "auto"):
-            from ..effects import EFFECTS
+            from .effects import EFFECTS
 
             w = self.with_effects
             names = tuple(c.strip() for c in w.split(",") if c.strip()) if isinstance(w, str) else tuple(w)
@@ -203,7 +203,7 @@ class FitOptions:
         """Refuse (:class:`~bayesdrag.errors.InputError`) a Scheme 2 fit of a track of
         ``n_samples`` samples that would make more than :data:`MAX_WINDOWS` windows, before any
         is fitted."""
-        from ..estimate.scheme2 import window_slices
+        from .estimate.scheme2 import window_slices
 
         n = len(window_slices(int(n_samples), self.window, self.overlap))
         if n > MAX_WINDOWS:

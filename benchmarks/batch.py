@@ -37,7 +37,7 @@ def main(argv=None):
     n = 10 if a.quick else a.rounds
     workers = [int(w) for w in a.workers.split(",")]
 
-    from bayesdrag.commands.options import FitOptions
+    from bayesdrag.options import FitOptions
 
     from bayesdrag.commands.batch import _Dask, round_task
     from bayesdrag.io.campaign import read_campaign

@@ -49,9 +49,11 @@ def truth_model():
 def replicate(i, dm, c_true, m101, duration, seed0=1000):
     from bayesdrag.dynamics.pointmass import PointMassModel
     from bayesdrag.dynamics.trajectory import initial_state
-    from bayesdrag.estimate.posterior import LogPosterior
-    from bayesdrag.estimate.sampler import cd_draws, sample_posterior
-    from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
+    from bayesdrag.estimate.bayes.posterior import LogPosterior
+    from bayesdrag.estimate.bayes.draws import cd_draws
+    from bayesdrag.estimate.bayes.sampler import sample_posterior
+    from bayesdrag.estimate.cd.table import cd_table
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
     from bayesdrag.synthetic import add_noise
     from bayesdrag.round import Launch, Projectile, Radar, Round
     from bayesdrag.track import RadarTrack

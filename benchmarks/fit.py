@@ -127,7 +127,8 @@ def demo_posterior(result):
     (ArviZ's mean and quantile MCSE on the walkers as chains), plus r_hat."""
     import arviz as az
 
-    from bayesdrag.estimate.sampler import cd_draws, split_rank_rhat
+    from bayesdrag.estimate.bayes.draws import cd_draws
+    from bayesdrag.estimate.bayes.sampler import split_rank_rhat
 
     f1 = result.scheme1
     cd = cd_draws(result.posterior, f1.drag_model, np.array(REFERENCE_MACH), f1.problem.P)   # (W, S, M)
@@ -165,8 +166,8 @@ def compare_posterior(new, ref):
 def time_demo_bayes(seed=DEMO_SEED):
     """The DESIGN.md ``bayes_spline`` benchmark: ``bayesdrag.fit`` of the shipped demo track
     with the default options (spline, ML + sampling to convergence), the second of two runs."""
-    from bayesdrag.commands.fit import fit
-    from bayesdrag.commands.options import FitOptions
+    from bayesdrag.pipeline import fit
+    from bayesdrag.options import FitOptions
 
     track, rnd = demo_round_and_track()
     fit(track, rnd, FitOptions(seed=seed))
@@ -211,7 +212,7 @@ def round_and_track(dt=0.0217):
 
 
 def time_ml(track, rnd, drag):
-    from bayesdrag.estimate.scheme1 import fit_scheme1
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
 
     fit_scheme1(track, rnd, drag=drag)
     t = time.perf_counter()
@@ -222,9 +223,9 @@ def time_ml(track, rnd, drag):
 
 def time_bayes(track, rnd, drag, seed=1):
     """ML + LogPosterior + sampling to convergence; returns (seconds, BayesResult, n params)."""
-    from bayesdrag.estimate.posterior import LogPosterior
-    from bayesdrag.estimate.sampler import sample_posterior
-    from bayesdrag.estimate.scheme1 import fit_scheme1
+    from bayesdrag.estimate.bayes.posterior import LogPosterior
+    from bayesdrag.estimate.bayes.sampler import sample_posterior
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
 
     def once():
         t = time.perf_counter()
@@ -239,9 +240,9 @@ def time_bayes(track, rnd, drag, seed=1):
 
 
 def compare_moves(track, rnd, steps):
-    from bayesdrag.estimate.posterior import LogPosterior
-    from bayesdrag.estimate.sampler import sample_posterior
-    from bayesdrag.estimate.scheme1 import fit_scheme1
+    from bayesdrag.estimate.bayes.posterior import LogPosterior
+    from bayesdrag.estimate.bayes.sampler import sample_posterior
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
 
     f1 = fit_scheme1(track, rnd, drag="poly2-split")
     res, prob = f1.ml, f1.problem

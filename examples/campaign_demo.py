@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesdrag.commands.options import FitOptions
+from bayesdrag.options import FitOptions
 
 from bayesdrag.commands.batch import run_campaign
 from bayesdrag.campaign.pooling import campaign_json, pool_rounds

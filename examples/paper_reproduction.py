@@ -36,8 +36,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.estimate.problem import OutputErrorProblem
-from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
+from bayesdrag.estimate.model.problem import OutputErrorProblem
+from bayesdrag.estimate.cd.table import cd_table
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.estimate.scheme2 import fit_scheme2
 from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.io.rounds import read_round

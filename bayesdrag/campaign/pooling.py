@@ -99,7 +99,7 @@ def pooling_input(res, drag_model, reference=None, covariance="colored", name=""
 
     Parameters
     ----------
-    res : bayesdrag.estimate.ml.MLResult
+    res : bayesdrag.estimate.model.ml.MLResult
     drag_model : bayesdrag.drag.DragModel
         The model of the fit (``prob.model.drag``).
     reference : ReferenceTable, optional

@@ -39,7 +39,7 @@ from ..errors import InputError
 from ..io.csv import read_toml
 from ..io.outputs import OutputRun, read_json, sha256_file, write_json
 from ..io.tracks import read_track
-from .options import JOBS, FitOptions
+from ..options import JOBS, FitOptions
 
 __all__ = ["run_campaign", "round_task", "pool_campaign", "summarise", "fingerprint", "job_done"]
 #: environment of every worker process: one thread per numeric library

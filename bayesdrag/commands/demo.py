@@ -19,7 +19,7 @@ from .._numba_cache import compile_summary
 from ..errors import InputError
 from ..io.outputs import write_figure, write_json
 from .fit import run_fit
-from .options import FitOptions
+from ..options import FitOptions
 from .runs import output_run
 
 __all__ = ["demo_inputs", "run_demo"]

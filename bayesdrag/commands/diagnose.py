@@ -1,56 +1,15 @@
-"""The diagnosis as a command: :func:`diagnose` (Python API, ``bayesdrag.diagnose``) and
-``bayesdrag diagnose TRACK ROUND -o DIR`` (:func:`run_diagnose`)."""
+"""The ``bayesdrag diagnose TRACK ROUND -o DIR`` command (:func:`run_diagnose`) around
+:func:`bayesdrag.pipeline.diagnose` (the Python API ``bayesdrag.diagnose``)."""
 from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
 
-from ..diagnosis import MIN_DIAGNOSIS_SAMPLES
-from ..diagnosis import diagnose as _analyse
-from ..diagnosis.summary import summary_paragraph
 from ..errors import InputError
-from ..results import DiagnosisResult
-from ..round import Round
-from ..track import RadarTrack, thin_for_fit
-from .options import DiagnoseOptions
+from ..pipeline import diagnose
+from ..track import thin_for_fit
 
-__all__ = ["diagnose", "run_diagnose"]
-
-
-def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = None, **kwargs: Any) -> DiagnosisResult:
-    """Diagnose the gap between a track and the nominal simulation of its round: where the
-    simulation misses, which unmodelled effect explains it, how large it is and whether it
-    matters (material).
-
-    Parameters
-    ----------
-    track : RadarTrack
-    rnd : Round
-    options : DiagnoseOptions, optional
-        Keyword arguments (``channels=("x", "z", "v")``, ``material_cd_shift=0.002``) override
-        single fields.
-
-    Returns
-    -------
-    DiagnosisResult
-        ``verdict``, ``paragraph``, ``summary()``, ``to_dataframe()`` (the candidate effects),
-        ``to_dict()`` (``diagnosis.json``), ``write(DIR)``.
-    """
-    opts = options if options is not None else DiagnoseOptions()
-    track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
-    if kwargs:
-        opts = DiagnoseOptions(**{**opts.__dict__, **kwargs})
-    if track.n < MIN_DIAGNOSIS_SAMPLES:
-        raise InputError(f"{track.source or 'track'}: {track.n} samples are too few for a diagnosis "
-                         f"(need >= {MIN_DIAGNOSIS_SAMPLES})")
-    from ..estimate.start import check_heights
-
-    check_heights(track, rnd)
-    d = _analyse(track, rnd, channels=opts.channels, alpha=opts.alpha, material_cd_shift=opts.material_cd_shift,
-                 material_end_sd=opts.material_end_sd)
-    record = dict(d.summary, summary=summary_paragraph(d.summary))     # what diagnosis.json holds
-    return DiagnosisResult(record, d, track, rnd)
+__all__ = ["run_diagnose"]
 
 
 def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None, columns=None):

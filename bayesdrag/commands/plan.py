@@ -1,6 +1,6 @@
 """Planning a firing as a command: :func:`plan` (Python API, ``bayesdrag.plan``) and
 ``bayesdrag plan ROUND -o DIR`` (:func:`run_plan`). The statistics are in
-:mod:`bayesdrag.estimate.plan` and :mod:`bayesdrag.estimate.plan_summary`."""
+:mod:`bayesdrag.planning.case` and :mod:`bayesdrag.planning.summary`."""
 from __future__ import annotations
 
 import sys
@@ -10,10 +10,10 @@ from typing import Any
 
 from ..drag import ReferenceTable
 from ..errors import InputError
-from ..estimate.plan_summary import make_plan
+from ..planning.summary import make_plan
 from ..results import PlanResult
 from ..round import Round
-from .options import PLAN_MAX_CASES, PlanOptions
+from ..options import PLAN_MAX_CASES, PlanOptions
 
 __all__ = ["plan", "run_plan"]
 

@@ -13,7 +13,7 @@ from ..io.outputs import atomic_write
 from ..round import Round
 from ..synthetic import add_noise, simulate_round
 from ..track import RadarTrack
-from .options import SimulateOptions
+from ..options import SimulateOptions
 
 __all__ = ["simulate", "run_simulate"]
 

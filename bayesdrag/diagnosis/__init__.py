@@ -89,7 +89,7 @@ The steps live in the package's modules, lowest first:
 * :mod:`~bayesdrag.diagnosis.impact`: Cd shift, end-of-track shift, materiality (8, 9);
 * :mod:`~bayesdrag.diagnosis.core`: :func:`diagnose` and its result :class:`Diagnosis`.
 
-The noise and outlier helpers are :mod:`bayesdrag.estimate.noise`'s.
+The noise and outlier helpers are :mod:`bayesdrag.estimate.model.noise`'s.
 """
 from __future__ import annotations
 

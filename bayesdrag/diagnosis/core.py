@@ -29,7 +29,7 @@ __all__ = ["diagnose", "Diagnosis", "MIN_DIAGNOSIS_SAMPLES"]
 #: fewest samples a diagnosis accepts: the initial state (6) and an effect (<= 2 parameters)
 #: need more data values than that with room for a test; a Doppler report every 100 yd (16
 #: samples of x and v) qualifies. Without [radar] sigma the noise estimate from the track's
-#: high-frequency content (:func:`bayesdrag.estimate.noise.noise_and_outliers`) needs more.
+#: high-frequency content (:func:`bayesdrag.estimate.model.noise.noise_and_outliers`) needs more.
 MIN_DIAGNOSIS_SAMPLES = 12
 #: parameters of two verdict effects correlated beyond this in the joint fit are reported
 JOINT_CORR_WARN = 0.9

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..effects import EFFECTS
 from ..errors import FitError
-from ..estimate.problem import OutputErrorProblem
+from ..estimate.model.problem import OutputErrorProblem
 from .setup import effect_problem, launch_priors
 
 __all__ = ["effect_change", "end_shift", "cd_shift", "materiality", "judge_impacts",

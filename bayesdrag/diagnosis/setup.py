@@ -1,7 +1,7 @@
 """The diagnosis' baseline problem and its fits (steps 1-3 of :mod:`bayesdrag.diagnosis`).
 
 :func:`make_setup` reads the noise and the gross outliers off the track
-(:func:`bayesdrag.estimate.noise.noise_and_outliers`), chooses the baseline drag (the round's
+(:func:`bayesdrag.estimate.model.noise.noise_and_outliers`), chooses the baseline drag (the round's
 table, or the nuisance spline of a Scheme 1 fit, :func:`nuisance_drag`) and the initial state
 with its launch priors, and returns a :class:`Setup` that every later fit shares.
 :func:`fit_effects` fits the baseline plus any list of effects by maximum likelihood;
@@ -18,8 +18,8 @@ from ..effects import EffectContext, drag_shape_free, drag_shape_model, effect_f
 from ..wind_layers import wind_profile_free
 from .winds import rw_information, rw_priors
 from ..errors import FitError
-from ..estimate.noise import OUTLIER_K, noise_and_outliers
-from ..estimate.problem import OutputErrorProblem, Prior
+from ..estimate.model.noise import OUTLIER_K, noise_and_outliers
+from ..estimate.model.problem import OutputErrorProblem, Prior
 
 __all__ = ["Setup", "make_setup", "nuisance_drag", "flown_mach_span", "drag_shape_for", "launch_priors",
            "extra_free", "k_free", "fit_starts", "effect_problem", "fit_effects", "n_weighted", "edf",
@@ -85,7 +85,7 @@ def launch_priors(L, P):
     -------
     tuple of Prior
     """
-    from ..estimate.launch import launch_state_priors
+    from ..estimate.scheme1.launch import launch_state_priors
 
     return launch_state_priors(L, P, heading=True)
 
@@ -93,7 +93,7 @@ def launch_priors(L, P):
 def nuisance_drag(track, rnd, channels, sigma, t_ic):
     """The nuisance drag of a round without a firing table, from a Scheme 1 fit of the track.
 
-    :func:`bayesdrag.estimate.scheme1.fit_scheme1` (``drag="spline"``) reads the Mach span, a
+    :func:`bayesdrag.estimate.scheme1.fit.fit_scheme1` (``drag="spline"``) reads the Mach span, a
     start Cd(M) and the state off the track, places the spline's knots where the data's shape
     bends and chooses the smoothness penalty by its evidence. The diagnosis takes from it only
     what a baseline needs to be the *same* model as the Cd fit a user would make: the drag
@@ -125,8 +125,8 @@ def nuisance_drag(track, rnd, channels, sigma, t_ic):
         The Scheme 1 fit gave no finite estimate.
     """
     from ..dynamics.pointmass import PointMassModel
-    from ..estimate.scheme1 import fit_scheme1
-    from ..estimate.smoothing import SMOOTHING_GRID, smoothness_priors
+    from ..estimate.scheme1.fit import fit_scheme1
+    from ..estimate.scheme1.smoothing import SMOOTHING_GRID, smoothness_priors
 
     # the whole track: samples the diagnosis weights out as gross outliers are kept here (the
     # local-cubic rule also flags the first samples of a shell that decelerates fast -- 9-12
@@ -277,7 +277,7 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
     """
     from ..dynamics.pointmass import PointMassModel
     from ..dynamics.trajectory import initial_state
-    from ..estimate.start import data_start
+    from ..estimate.scheme1.start import data_start
 
     chans = tuple(channels) if channels is not None else tuple(track.names)
     L = rnd.launch

@@ -144,7 +144,7 @@ def rw_priors(names_all, free):
     -------
     tuple of Prior
     """
-    from ..estimate.problem import Prior
+    from ..estimate.model.problem import Prior
 
     idx = _pidx(names_all)
     n = len(names_all)

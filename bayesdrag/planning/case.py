@@ -6,7 +6,7 @@ velocity of the round, the radar's noise and sample interval, the tracked part o
 into the sd of Cd by Mach that the default fit (``bayesdrag fit``, Scheme 1, penalised spline)
 will report, and splits it into the statistical part and the share of each declared systematic
 source. :func:`plan` runs every elevation x velocity case and
-:mod:`bayesdrag.estimate.plan_summary` answers "which cases reach the target".
+:mod:`bayesdrag.planning.summary` answers "which cases reach the target".
 
 How one case is predicted, and why (decisions):
 
@@ -20,11 +20,11 @@ How one case is predicted, and why (decisions):
   k-th as the fit thins such a track: the plan predicts what that fit reports, and a tiny ``dt``
   costs no more than a dense track (:func:`nominal_flight`).
 * **The fit's own machinery, not a look-alike.** The drag model is the one the default fit
-  builds for such a track (:func:`bayesdrag.estimate.scheme1.build_drag_model`: the table times
+  builds for such a track (:func:`bayesdrag.estimate.scheme1.fit.build_drag_model`: the table times
   a smooth correction with a table, a spline in Cd without, knots placed from the data's start
   curve): its knots depend on the noise (the start's noise sets how finely the knots may follow
   the shape), so they are placed from *one seeded noisy realisation* of the nominal track
-  (:data:`PLAN_SEED`), read by :func:`bayesdrag.estimate.start.data_start` exactly as the fit
+  (:data:`PLAN_SEED`), read by :func:`bayesdrag.estimate.scheme1.start.data_start` exactly as the fit
   reads a track. The launch priors are the fit's (:func:`launch_state_priors`, applied when the
   track starts at launch), the smoothness penalty the fit's (:func:`smoothing.penalty`).
 * **The smoothing weight as the fit would choose it on the planned noise.** The fit walks its
@@ -90,11 +90,11 @@ from ..io.drag_tables import load_m101
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
 from ..track import CHANNELS, MAX_FIT_SAMPLES, RadarTrack
-from .launch import launch_state_priors
-from .problem import OutputErrorProblem
-from .scheme1 import build_drag_model, coriolis_of
-from .smoothing import SMOOTHING_GRID, penalty
-from .start import data_start
+from ..estimate.scheme1.launch import launch_state_priors
+from ..estimate.model.problem import OutputErrorProblem
+from ..estimate.scheme1.fit import build_drag_model, coriolis_of
+from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty
+from ..estimate.scheme1.start import data_start
 
 __all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
            "walk_evidence", "case_mach_grid", "systematic_parameters", "level_shares", "LEVEL_SOURCES", "DEFAULT_DT", "PLAN_SEED",
@@ -412,7 +412,7 @@ def expected_log_evidence(F_meas, R, p, sds, prior_diag):
     (float, float, ndarray)
         Expected log evidence, edf of the fit (``n - tr(F^-1 R'R)``) and ``F^-1``.
 
-    The fit's evidence (:func:`bayesdrag.estimate.smoothing.fit_penalised`) is
+    The fit's evidence (:func:`bayesdrag.estimate.scheme1.smoothing.fit_penalised`) is
     ``-chi2_min / 2 + log|F^-1| / 2 - sum log sds``; for ``y = J theta* + e`` the minimum of the
     penalised chi2 has expectation ``const - tr(F^-1 F_meas) + p'p - g'F^-1 g``, ``g = R'p``.
     """

@@ -1,4 +1,4 @@
-"""A whole plan: every planned case (:func:`bayesdrag.estimate.plan.plan_case`), which combination
+"""A whole plan: every planned case (:func:`bayesdrag.planning.case.plan_case`), which combination
 of them reaches a target accuracy, and the plan in words.
 
 Combining cases (decision): rounds of different cases are fitted separately and pooled by
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..round import SYSTEMATIC_SOURCES
-from .plan import ASSUMPTIONS, PLAN_MACH_STEP, drag_assumption, plan_case, radar_channels
+from .case import ASSUMPTIONS, PLAN_MACH_STEP, drag_assumption, plan_case, radar_channels
 
 __all__ = ["Plan", "make_plan", "combine", "best_combination", "summary_paragraph", "target_paragraph",
            "EXHAUSTIVE_MAX"]

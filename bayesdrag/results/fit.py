@@ -19,10 +19,10 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from ..estimate.ml import MLResult
-    from ..estimate.posterior import LogPosterior
-    from ..estimate.sampler import BayesResult
-    from ..estimate.scheme1 import Scheme1Fit
+    from ..estimate.model.ml import MLResult
+    from ..estimate.bayes.posterior import LogPosterior
+    from ..estimate.bayes.sampler import BayesResult
+    from ..estimate.scheme1.fit import Scheme1Fit
     from ..estimate.scheme2 import Scheme2Result
     from ..io.outputs import OutputRun
     from ..round import Round
@@ -174,7 +174,7 @@ class FitResult:
 
     @property
     def ml(self) -> MLResult | None:
-        """The Scheme 1 :class:`~bayesdrag.estimate.ml.MLResult` (None for Scheme 2 and for a
+        """The Scheme 1 :class:`~bayesdrag.estimate.model.ml.MLResult` (None for Scheme 2 and for a
         result read from a folder)."""
         return None if self.scheme1 is None else self.scheme1.ml
 
@@ -281,14 +281,14 @@ class FitResult:
 
     def _inference_data(self, log_likelihood_draws: int | None) -> arviz.InferenceData | None:
         if self.posterior is not None and self.scheme1 is not None and self.log_posterior is not None:
-            from ..estimate.inference import to_inference_data
+            from ..estimate.bayes.inference import to_inference_data
 
             ref = self.round.reference_drag if self.round is not None else None
             return to_inference_data(self.posterior, self.log_posterior, self.grid, self.cd_draws(), ref,
                                      seed=getattr(self.options, "seed", None),
                                      log_likelihood_draws=log_likelihood_draws)
         if self.window_draws and self.track is not None:
-            from ..estimate.inference import windows_inference_data
+            from ..estimate.bayes.inference import windows_inference_data
 
             chans = getattr(self.options, "channels", None) or self.track.names
             return windows_inference_data(self.record["windows"], self.windows_ok, self.window_draws, self.track,
@@ -305,7 +305,7 @@ class FitResult:
                     raise MissingDataError("cd_draws() needs the Scheme 1 posterior: fit with mcmc=True (the default)")
                 self._cache["cd_draws"] = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
             else:
-                from ..estimate.sampler import cd_draws, widen_to_floor
+                from ..estimate.bayes.draws import cd_draws, widen_to_floor
 
                 f1 = self.scheme1
                 cd = cd_draws(self.posterior, f1.drag_model, self.grid, f1.problem.P)
@@ -542,7 +542,7 @@ def load_result(directory: str | Path) -> FitResult:
     idata = None
     nc = folder / "posterior.nc"
     if nc.is_file():
-        from ..estimate.inference import read_inference_data
+        from ..estimate.bayes.inference import read_inference_data
 
         idata = read_inference_data(nc)
     return FitResult(record, inference_data=idata, folder=folder, warnings=_recorded_warnings(record))

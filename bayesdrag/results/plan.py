@@ -14,8 +14,8 @@ if TYPE_CHECKING:
     import pandas
     from matplotlib.axes import Axes
 
-    from ..estimate.plan import CasePlan
-    from ..estimate.plan_summary import Plan
+    from ..planning.case import CasePlan
+    from ..planning.summary import Plan
     from ..round import Round
 
 __all__ = ["PlanResult", "load_plan", "CASE_COLUMNS"]
@@ -47,7 +47,7 @@ class PlanResult:
     record : dict
         The content of ``plan.json``; :meth:`to_dict` gives a copy.
     plan : Plan or None
-        The cases (:class:`~bayesdrag.estimate.plan.CasePlan`: Mach, assumed Cd, statistical
+        The cases (:class:`~bayesdrag.planning.case.CasePlan`: Mach, assumed Cd, statistical
         and systematic shares) and the target's answer; None for a result read from a folder.
     round : Round or None
     options : PlanOptions or None
@@ -90,7 +90,7 @@ class PlanResult:
 
     @property
     def cases(self) -> tuple[CasePlan, ...]:
-        """The :class:`~bayesdrag.estimate.plan.CasePlan` of every case (elevation x velocity);
+        """The :class:`~bayesdrag.planning.case.CasePlan` of every case (elevation x velocity);
         needs the plan's objects (``to_dict()["cases"]`` holds their numbers)."""
         return tuple(self._plan("cases").cases)
 

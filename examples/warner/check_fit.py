@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
+from bayesdrag.estimate.cd.table import cd_table
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.io.rounds import read_round, write_round
 from bayesdrag.io.tracks import read_track
 

@@ -263,7 +263,7 @@ SIXDOF_NULL = [_c(200, "6dof", None, {}, 20.0, expect="lift"),
 SMALL = [EFFECT_CASES[i] for i in (1, 3, 6, 15, 18, 24)] + NULL_CASES[:4]
 
 
-#: the words of the Scheme 1 origin check's message (estimate/launch.py origin_offset)
+#: the words of the Scheme 1 origin check's message (estimate/scheme1/launch.py origin_offset)
 ORIGIN_WORDS = "from the muzzle at t = 0"
 def _pz(i, zones, el, **kw):
     """A wind by downrange distance flown by py-ballisticcalc's zones [(wx, wy, until_m), ...]."""
@@ -373,7 +373,7 @@ def origin_alarm(track, rnd):
     """The fit's origin check on a track (issue 26): does the Scheme 1 fit say the first sample
     is away from the muzzle at t = 0? (the diagnosis, which keeps the launch priors, does not
     run it when the round has a table)"""
-    from bayesdrag.estimate.scheme1 import fit_scheme1
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
 
     lc = fit_scheme1(track, rnd).launch_check or {}
     return any(ORIGIN_WORDS in c["message"] for c in lc.get("conflicts", []))

@@ -20,7 +20,7 @@ import pytest
 from bayesdrag.drag import Spline
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.estimate.problem import OutputErrorProblem
+from bayesdrag.estimate.model.problem import OutputErrorProblem
 from bayesdrag.synthetic import add_noise
 from bayesdrag.track import RadarTrack
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import bayesdrag
-from bayesdrag.commands.fit import fit
+from bayesdrag.pipeline import fit
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from acceptance import cases as C  # noqa: E402

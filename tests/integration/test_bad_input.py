@@ -429,8 +429,8 @@ ATTACK_EXIT2 = [
 def test_attack_refused_before_any_fitting(name, setup, match, tmp_path, good, capsys, monkeypatch):
     """Exit 2, one line, nothing written, and no fitting work done: neither the start read off
     the track nor a single maximum-likelihood step ran (counted, not timed)."""
-    import bayesdrag.estimate.ml as ml
-    import bayesdrag.estimate.scheme1 as scheme1
+    import bayesdrag.estimate.model.ml as ml
+    import bayesdrag.estimate.scheme1.fit as scheme1
 
     calls = []
     real_fit, real_start = ml.fit, scheme1.data_start

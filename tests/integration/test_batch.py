@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from bayesdrag.commands.options import FitOptions
+from bayesdrag.options import FitOptions
 
 from bayesdrag.commands.batch import WORKER_ENV, fingerprint, job_done, marker_path, round_task, run_campaign
 from bayesdrag.campaign.synthetic import simulate_campaign

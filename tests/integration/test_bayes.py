@@ -9,11 +9,13 @@ import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.estimate.posterior import LogPosterior
-from bayesdrag.estimate.sampler import cd_draws, cd_posterior_rows, sample_posterior, split_rank_rhat
-from bayesdrag.estimate.moves import independence_move, random_walk_move
-from bayesdrag.estimate.inference import to_inference_data
-from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
+from bayesdrag.estimate.bayes.posterior import LogPosterior
+from bayesdrag.estimate.bayes.draws import cd_draws, cd_posterior_rows
+from bayesdrag.estimate.bayes.sampler import sample_posterior, split_rank_rhat
+from bayesdrag.estimate.bayes.moves import independence_move, random_walk_move
+from bayesdrag.estimate.bayes.inference import to_inference_data
+from bayesdrag.estimate.cd.table import cd_table
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
@@ -125,7 +127,7 @@ def test_summary_diagnostics_match_arviz():
     constant parameter."""
     import arviz as az
 
-    from bayesdrag.estimate.sampler import summarize
+    from bayesdrag.estimate.bayes.sampler import summarize
 
     rng = np.random.default_rng(4)
     for W, S in ((16, 300), (8, 57), (4, 1001)):

@@ -7,7 +7,7 @@ import pytest
 
 from bayesdrag.cli import main
 from bayesdrag.diagnosis import autocovariance, colored_inflation, diagnose, where_segments
-from bayesdrag.estimate.noise import hf_residual, noise_and_outliers
+from bayesdrag.estimate.model.noise import hf_residual, noise_and_outliers
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.synthetic import add_noise, add_outliers, ar1_noise, simulate_round
 from bayesdrag.round import Launch, Projectile, Radar, Round
@@ -245,7 +245,7 @@ def test_no_table_baseline_is_the_scheme1_spline_and_names_nothing(track_130_g1)
     got 'wind (wx = -60 ± 2.9) ... would shift a fitted Cd by up to 17005 %'. Now the nuisance
     Cd is the Scheme 1 penalised spline of the same track: the baseline explains the track
     within its noise and nothing is named."""
-    from bayesdrag.estimate.scheme1 import fit_scheme1
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
 
     rnd = _round_130(None)
     s = diagnose(track_130_g1, rnd).summary

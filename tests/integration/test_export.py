@@ -13,7 +13,7 @@ import pytest
 
 pbc = pytest.importorskip("py_ballisticcalc")
 
-from bayesdrag.estimate.scheme1 import fit_scheme1  # noqa: E402
+from bayesdrag.estimate.scheme1.fit import fit_scheme1  # noqa: E402
 from bayesdrag.io.export import PBC_STANDARD_DENSITY, density_match, drag_table, export_fit, export_result, load_pbc_drag_model, pbc_ballistic_coefficient
 from bayesdrag.synthetic import add_noise, simulate_round  # noqa: E402
 from bayesdrag.round import Launch, Projectile, Radar, Round  # noqa: E402
@@ -112,7 +112,7 @@ def test_pbc_with_the_exported_table_reproduces_the_track_within_noise(fitted):
 
 def test_export_from_a_result_folder_and_csv(fitted, tmp_path):
     d, track, rnd, res, prob = fitted
-    from bayesdrag.estimate.scheme1 import cd_grid, cd_table, determined_range
+    from bayesdrag.estimate.cd.table import cd_grid, cd_table, determined_range
 
     grid = cd_grid(np.min(res.mach), np.max(res.mach))  # the grid result.json carries
     rows = cd_table(res, prob.model.drag, grid, rnd.reference_drag)

@@ -569,7 +569,7 @@ def test_a_garbage_scheduler_address_is_one_line(case, capsys):
      r"track, and one run fits at most 200"),
 ])
 def test_caps_are_checked_before_anything_is_allocated(case, capsys, monkeypatch, argv, pattern):
-    from bayesdrag.commands import fit as fit_module
+    from bayesdrag import pipeline as fit_module
 
     def no_work(*a, **k):
         raise AssertionError("the fit started before the cap was checked")

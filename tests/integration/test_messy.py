@@ -1,7 +1,7 @@
 """Messy tracks with known truth (issue 7): dropouts and gaps, irregular sampling, a radar that
 locks on late, a track that ends before impact. Each is a noisy point-mass track of the 155 mm
 M101 shell (42.6 kg, 818 m/s, QE 15 deg; truth = the M101 table, BRL MR-1167) fitted by the
-Scheme 1 spline (:func:`bayesdrag.estimate.scheme1.fit_scheme1`), and Cd must come back over the
+Scheme 1 spline (:func:`bayesdrag.estimate.scheme1.fit.fit_scheme1`), and Cd must come back over the
 Mach range the remaining data cover.
 
 Measured (seed 5/11, radar sigma 1 m / 0.3 m/s, 0.1 s nominal sampling): largest |Cd error|
@@ -13,7 +13,8 @@ import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.estimate.scheme1 import cd_table, determined_range, fit_scheme1
+from bayesdrag.estimate.cd.table import cd_table, determined_range
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.synthetic import add_noise, drop_samples
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack

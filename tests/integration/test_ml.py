@@ -10,8 +10,9 @@ from bayesdrag.drag import ReferenceTable, make_drag_model
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.problem import OutputErrorProblem
-from bayesdrag.estimate.scheme1 import cd_table, fit_scheme1
+from bayesdrag.estimate.model.problem import OutputErrorProblem
+from bayesdrag.estimate.cd.table import cd_table
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack

@@ -6,7 +6,7 @@ import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.estimate.scheme1 import fit_scheme1
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.synthetic import add_noise, add_outliers
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack

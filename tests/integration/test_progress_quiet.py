@@ -12,8 +12,8 @@ import pytest
 
 from bayesdrag.cli import main
 from bayesdrag.commands.runs import PROGRESS_AFTER, StageProgress
-from bayesdrag.estimate.sampler import TAU_FACTOR, steps_to_converge
-from bayesdrag.estimate.scheme1 import fit_scheme1
+from bayesdrag.estimate.bayes.sampler import TAU_FACTOR, steps_to_converge
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.io.rounds import read_round
 from bayesdrag.io.tracks import write_track
 from bayesdrag.synthetic import add_noise, simulate_round

@@ -11,8 +11,8 @@ import pytest
 import bayesdrag
 from bayesdrag.commands.demo import demo_inputs
 from bayesdrag.errors import MissingDataError
-from bayesdrag.estimate import colored
-from bayesdrag.estimate.inference import LOG_LIKELIHOOD_VAR
+from bayesdrag.estimate.model import colored
+from bayesdrag.estimate.bayes.inference import LOG_LIKELIHOOD_VAR
 from bayesdrag.results import LOG_LIKELIHOOD_DRAWS
 
 #: a repr is one short paragraph [characters] (issue 24: 93 126 and 161 447 before)

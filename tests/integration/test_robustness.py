@@ -7,7 +7,7 @@ from bayesdrag.drag import Poly2
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import FitError, InputError
-from bayesdrag.estimate.problem import OutputErrorProblem
+from bayesdrag.estimate.model.problem import OutputErrorProblem
 from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.round import Launch, Projectile, Round
 from bayesdrag.track import RadarTrack

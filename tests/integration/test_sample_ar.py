@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from bayesdrag.commands.fit import fit
-from bayesdrag.commands.options import FitOptions
+from bayesdrag.pipeline import fit
+from bayesdrag.options import FitOptions
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
@@ -58,8 +58,8 @@ def _check_pointwise_log_likelihood_uses_each_draws_ar(res):
     """The log_likelihood group's terms of a draw sum to its log-likelihood with the draw's own
     sampled rho and q of the x channel (the sampler's whitened sum of squares and log
     determinant) and its noise sd draws."""
-    from bayesdrag.estimate import colored
-    from bayesdrag.estimate.inference import LOG_LIKELIHOOD_VAR
+    from bayesdrag.estimate.model import colored
+    from bayesdrag.estimate.bayes.inference import LOG_LIKELIHOOD_VAR
 
     b, post = res.posterior, res.log_posterior
     ll = res.to_inference_data().log_likelihood[LOG_LIKELIHOOD_VAR]

@@ -22,8 +22,10 @@ LAYERS = [
     ["bayesdrag.effects", "bayesdrag.effect_inputs", "bayesdrag.wind_layers"],
     ["bayesdrag.synthetic"],
     ["bayesdrag.estimate"],
+    ["bayesdrag.planning"],
     ["bayesdrag.results"],
     ["bayesdrag.diagnosis"],
+    ["bayesdrag.options", "bayesdrag.pipeline"],
     ["bayesdrag.campaign"],
     ["bayesdrag.plots"],
     ["bayesdrag.report"],
@@ -177,3 +179,38 @@ def test_public_api_names(name):
 
     assert name in bayesdrag.__all__
     assert getattr(bayesdrag, name) is not None
+
+
+#: estimate/'s sub-layers, lowest first: the output-error model; the three concepts built on it
+#: (the Scheme 1 recipe, what is claimed about Cd, Bayesian sampling), which do not import each
+#: other; Scheme 2, which borrows the Scheme 1 start and the quality gate
+ESTIMATE_LAYERS = [["model"], ["scheme1", "cd", "bayes"], ["scheme2"]]
+
+
+def _estimate_part(mod):
+    parts = mod.split(".")
+    return parts[2] if len(parts) > 2 and parts[:2] == ["bayesdrag", "estimate"] else None
+
+
+def test_estimate_sub_layers_import_only_downwards_and_siblings_stay_apart():
+    level = {p: i for i, layer in enumerate(ESTIMATE_LAYERS) for p in layer}
+    bad = []
+    for name, f in MODULES.items():
+        part = _estimate_part(name)
+        if part is None:
+            continue
+        assert part in level, f"{name}: estimate/{part} is in no sub-layer of ESTIMATE_LAYERS"
+        for mod, names, line in _imports(name, f):
+            for dep in _resolve(mod, names):
+                dp = _estimate_part(dep)
+                if dp is None or dp == part:
+                    continue
+                if level[dp] >= level[part]:
+                    bad.append(f"{name}:{line} (estimate/{part}) imports {dep} (estimate/{dp})")
+    assert not bad, bad
+
+
+def test_commands_call_the_pipeline_not_the_estimators():
+    bad = [f"{name}:{line} imports {mod}" for name, f in MODULES.items() if name.startswith("bayesdrag.commands")
+           for mod, _, line in _imports(name, f) if mod.startswith("bayesdrag.estimate")]
+    assert not bad, bad

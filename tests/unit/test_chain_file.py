@@ -16,9 +16,9 @@ from bayesdrag.cli import main
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.posterior import LogPosterior
-from bayesdrag.estimate.sampler import sample_posterior
-from bayesdrag.estimate.scheme1 import fit_scheme1
+from bayesdrag.estimate.bayes.posterior import LogPosterior
+from bayesdrag.estimate.bayes.sampler import sample_posterior
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.io.chain import FORMAT, MT_KEY_SIZE, ChainFile
 from bayesdrag.synthetic import add_noise
 from bayesdrag.round import Launch, Projectile, Radar, Round

@@ -1,10 +1,10 @@
-"""White + AR(1) model-error noise (bayesdrag.estimate.colored): the Kalman whitening is the exact
+"""White + AR(1) model-error noise (bayesdrag.estimate.model.colored): the Kalman whitening is the exact
 Gaussian likelihood, and the noise fit tells white from model-error residuals."""
 import numpy as np
 import pytest
 from scipy.linalg import cholesky, solve_triangular
 
-from bayesdrag.estimate import colored
+from bayesdrag.estimate.model import colored
 
 #: relative agreement of the Kalman filter with the dense Cholesky factor [-]
 EXACT_TOL = 1e-9

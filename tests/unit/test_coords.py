@@ -1,12 +1,12 @@
-"""The drift coordinates of the posterior (bayesdrag.estimate.coords): an exact change of variables."""
+"""The drift coordinates of the posterior (bayesdrag.estimate.bayes.coords): an exact change of variables."""
 import numpy as np
 import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.estimate.coords import DENSITY, MASS, TEMPERATURE
-from bayesdrag.estimate.posterior import LogPosterior
-from bayesdrag.estimate.scheme1 import fit_scheme1
+from bayesdrag.estimate.bayes.coords import DENSITY, MASS, TEMPERATURE
+from bayesdrag.estimate.bayes.posterior import LogPosterior
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.round import Launch, Projectile, Radar, Round, Systematics
 from bayesdrag.synthetic import add_noise
@@ -73,7 +73,7 @@ def test_reported_draws_are_in_the_parameters_units(post):
 def test_default_walkers_follow_the_sampled_temperature(post):
     from types import SimpleNamespace
 
-    from bayesdrag.estimate.sampler import DEFAULT_WALKERS, SOURCE_WALKERS, default_walkers
+    from bayesdrag.estimate.bayes.sampler import DEFAULT_WALKERS, SOURCE_WALKERS, default_walkers
 
     assert default_walkers(post) == SOURCE_WALKERS == 128
     assert default_walkers(post, "de") == 2 * post.ndim + 2

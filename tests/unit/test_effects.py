@@ -112,7 +112,7 @@ def test_early_clock_extrapolates_backwards_within_millimetres(model):
     from scipy.integrate import solve_ivp
 
     from bayesdrag.effects import EffectContext, effect_fn, extra_params
-    from bayesdrag.estimate.problem import OutputErrorProblem
+    from bayesdrag.estimate.model.problem import OutputErrorProblem
     from bayesdrag.track import RadarTrack
 
     BACK_TOL_M = 2e-3

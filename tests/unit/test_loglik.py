@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from bayesdrag.estimate import colored
-from bayesdrag.estimate.loglik import pointwise_log_likelihood, thinned_draws
+from bayesdrag.estimate.model import colored
+from bayesdrag.estimate.bayes.loglik import pointwise_log_likelihood, thinned_draws
 
 #: log densities agree with scipy's to this many nats (float64 rounding)
 TOL_LOGPDF = 1e-9

@@ -1,4 +1,4 @@
-"""The gross-outlier rule of bayesdrag/estimate/noise.py on fast-decelerating projectiles: a
+"""The gross-outlier rule of bayesdrag/estimate/model/noise.py on fast-decelerating projectiles: a
 bullet through the transonic drag rise sampled coarsely leaves a large but smooth residual about
 the local cubic, which is flight and must not be flagged; a noise-free track has no outliers;
 real spikes are still flagged on the same bullet."""
@@ -7,7 +7,7 @@ from importlib.resources import files
 import numpy as np
 import pytest
 
-from bayesdrag.estimate.noise import OUTLIER_MIN_SD, noise_and_outliers
+from bayesdrag.estimate.model.noise import OUTLIER_MIN_SD, noise_and_outliers
 from bayesdrag.io.drag_tables import read_drag_table
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, add_outliers, simulate_round

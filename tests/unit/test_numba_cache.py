@@ -48,7 +48,7 @@ def test_compile_summary_names_the_package_functions_it_compiled_or_loaded():
     """What the demo reports: compiled (with numba's compiler time) or loaded from the cache."""
     import numpy as np
 
-    from bayesdrag.estimate import colored
+    from bayesdrag.estimate.model import colored
 
     colored.whitened_ss(np.zeros((2, 5)), 0.5, 1.0, np.ones(4))
     s = _numba_cache.compile_summary()

@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bayesdrag.estimate.scheme1 import fit_scheme1
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round

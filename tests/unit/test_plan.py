@@ -1,4 +1,4 @@
-"""The firing planner (``bayesdrag.estimate.plan``, ``plan_summary``, ``bayesdrag.plan``): the
+"""The firing planner (``bayesdrag.planning.case``, ``plan_summary``, ``bayesdrag.plan``): the
 plan.json contract, the budget's arithmetic (density floor, rounds scaling, scatter), the
 expected evidence against a Monte Carlo of a linear problem, the combination rule and the error
 paths. The check of the prediction against fits of simulated firings is
@@ -10,8 +10,8 @@ import pytest
 
 import bayesdrag
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.plan import CasePlan, expected_log_evidence, walk_evidence
-from bayesdrag.estimate.plan_summary import best_combination, combine
+from bayesdrag.planning.case import CasePlan, expected_log_evidence, walk_evidence
+from bayesdrag.planning.summary import best_combination, combine
 from bayesdrag.round import Launch, Projectile, Radar, Round, Systematics
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}

@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.estimate import plan as plan_module
-from bayesdrag.estimate.plan import (MAX_DIRECT_SAMPLES, MAX_FLIGHT_TIME, case_round, nominal_flight,
-                                     plan_case)
+from bayesdrag.planning import case as plan_module
+from bayesdrag.planning.case import MAX_DIRECT_SAMPLES, MAX_FLIGHT_TIME, case_round, nominal_flight, plan_case
 from bayesdrag.io.rounds import read_round
 from bayesdrag.track import MAX_FIT_SAMPLES
 

@@ -14,12 +14,12 @@ from scipy.interpolate import CubicSpline, PchipInterpolator
 from bayesdrag.drag import ReferenceTable, Spline
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.basis import coefficient_budget, sparse_knots
-from bayesdrag.estimate.model_size import check_determinable
-from bayesdrag.estimate.problem import OutputErrorProblem
-from bayesdrag.estimate.quality import BEND_CAP, bend_coefficient, unresolved_bend
-from bayesdrag.estimate.scheme1 import fit_scheme1
-from bayesdrag.estimate.smoothing import SMOOTHING_GRID, penalty
+from bayesdrag.estimate.scheme1.basis import coefficient_budget, sparse_knots
+from bayesdrag.estimate.scheme1.model_size import check_determinable
+from bayesdrag.estimate.model.problem import OutputErrorProblem
+from bayesdrag.estimate.cd.quality import BEND_CAP, bend_coefficient, unresolved_bend
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
+from bayesdrag.estimate.scheme1.smoothing import SMOOTHING_GRID, penalty
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round
@@ -149,8 +149,8 @@ def test_a_track_too_short_for_the_spline_gets_the_tables_one_factor():
 def test_short_track_model_size_follows_the_samples(samples):
     """A 155 mm track sampled every 2 s, speed only: no more spline coefficients than samples,
     the fit converges, and the truth is inside 3 band sd (or 2 %) over the flown span."""
-    from bayesdrag.estimate.quality import assess
-    from bayesdrag.estimate.scheme1 import cd_grid, cd_table
+    from bayesdrag.estimate.cd.quality import assess
+    from bayesdrag.estimate.cd.table import cd_grid, cd_table
 
     ref = _table("M101")
     rnd = _round(ref, qe=30.0)

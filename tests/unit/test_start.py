@@ -15,10 +15,11 @@ from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.basis import adaptive_knots, rise_regions
-from bayesdrag.estimate.quality import CHI2_LIMIT
-from bayesdrag.estimate.scheme1 import cd_grid, cd_table, fit_scheme1
-from bayesdrag.estimate.start import check_gravity_units, data_start, smooth_kinematics
+from bayesdrag.estimate.scheme1.basis import adaptive_knots, rise_regions
+from bayesdrag.estimate.cd.quality import CHI2_LIMIT
+from bayesdrag.estimate.cd.table import cd_grid, cd_table
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
+from bayesdrag.estimate.scheme1.start import check_gravity_units, data_start, smooth_kinematics
 from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack
@@ -139,7 +140,7 @@ def test_no_table_fit_recovers_cd(name, mass, diameter, v0, qe):
 
 
 def _assert_recovers(f1, ref, track, rnd):
-    from bayesdrag.estimate.quality import assess
+    from bayesdrag.estimate.cd.quality import assess
 
     res, prob = f1.ml, f1.problem
     lo, hi = float(res.mach.min()), float(res.mach.max())
@@ -194,7 +195,7 @@ def test_time_origin_at_the_first_radar_sample_is_reported(m101):
 
 
 def test_quality_gate_flags_a_withheld_cross_wind(m101):
-    from bayesdrag.estimate.quality import assess
+    from bayesdrag.estimate.cd.quality import assess
 
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0, wind=(0.0, 6.0, 0.0))
     f1 = fit_scheme1(track, rnd)
@@ -209,7 +210,7 @@ def test_quality_gate_flags_a_withheld_cross_wind(m101):
 
 
 def test_white_noise_fit_is_clean_and_keeps_the_cramer_rao_band(m101):
-    from bayesdrag.estimate.quality import assess
+    from bayesdrag.estimate.cd.quality import assess
 
     track, rnd = _track(m101, 42.6, 0.155, 818.0, 15.0)
     f1 = fit_scheme1(track, rnd)

@@ -7,7 +7,8 @@ import pytest
 
 from bayesdrag.atmosphere import Atmosphere
 from bayesdrag.dynamics.pointmass import atmosphere_table
-from bayesdrag.estimate import systematics as S
+from bayesdrag.estimate.cd.budget import uncertainty_budget
+from bayesdrag.estimate.scheme1 import systematics as S
 
 #: interpolated temperature tables against exact ones, relative [-]
 TABLE_TOL = 1e-6
@@ -18,12 +19,12 @@ def test_budget_squares_plus_cross_give_the_total():
     A = rng.standard_normal((12, 12))
     cov = A @ A.T
     B = rng.standard_normal((7, 5))
-    b = S.uncertainty_budget(cov, B, slice(0, 5), [9, 10, 11], ["density", "temperature", "mass"])
+    b = uncertainty_budget(cov, B, slice(0, 5), [9, 10, 11], ["density", "temperature", "mass"])
     acc = b["by_source"]["statistical"] ** 2 + b["by_source"]["cross"]
     for k in ("density", "temperature", "mass"):
         acc = acc + b["by_source"][k] ** 2
     assert acc == pytest.approx(b["total_sd"] ** 2, rel=1e-10)
-    none = S.uncertainty_budget(cov, B, slice(0, 5), [], [])
+    none = uncertainty_budget(cov, B, slice(0, 5), [], [])
     assert none["by_source"]["statistical"] == pytest.approx(none["total_sd"])
 
 
@@ -33,7 +34,7 @@ def test_independent_source_share_is_its_linear_effect():
     cov = np.diag([4e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 9e-6])
     cov[0, 7] = cov[7, 0] = 0.5 * np.sqrt(4e-6 * 9e-6)
     B = np.array([[1.0]])
-    b = S.uncertainty_budget(cov, B, slice(0, 1), [7], ["density"])
+    b = uncertainty_budget(cov, B, slice(0, 1), [7], ["density"])
     A = cov[0, 7] / cov[7, 7]
     assert b["by_source"]["density"][0] == pytest.approx(abs(A) * 3e-3)
     assert b["by_source"]["cross"][0] == pytest.approx(0.0, abs=1e-18)
@@ -68,7 +69,7 @@ def test_a_multi_parameter_effect_is_one_source():
     A = rng.standard_normal((10, 10))
     cov = A @ A.T
     B = rng.standard_normal((4, 5))
-    b = S.uncertainty_budget(cov, B, slice(0, 5), [7, 8, 9], ["wind", "wind", "density"])
+    b = uncertainty_budget(cov, B, slice(0, 5), [7, 8, 9], ["wind", "wind", "density"])
     assert set(b["by_source"]) == {"statistical", "wind", "density", "cross"}
     acc = b["by_source"]["statistical"] ** 2 + b["by_source"]["wind"] ** 2 + b["by_source"]["density"] ** 2
     assert acc + b["by_source"]["cross"] == pytest.approx(b["total_sd"] ** 2, rel=1e-10)

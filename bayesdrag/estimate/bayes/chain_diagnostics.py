@@ -3,7 +3,7 @@
 (:func:`split_rank_rhat`), the bulk and tail effective sample size (:func:`ess`) and the
 per-parameter summary (:func:`summarize`). They are ArviZ's ``rhat``, ``ess`` and ``mcse``
 (Vehtari et al. 2021): the same numbers (tests compare them with ArviZ), without ArviZ, which
-only :mod:`bayesdrag.estimate.inference` imports. :mod:`bayesdrag.estimate.sampler` stops its
+only :mod:`bayesdrag.estimate.bayes.inference` imports. :mod:`bayesdrag.estimate.bayes.sampler` stops its
 chains by them.
 """
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """ArviZ output of a Bayesian fit: the one module of bayesdrag that imports :mod:`arviz`.
 
-:func:`to_inference_data` turns a :class:`~bayesdrag.estimate.sampler.BayesResult` and its
-:class:`~bayesdrag.estimate.posterior.LogPosterior` into an ``arviz.InferenceData``, written by
+:func:`to_inference_data` turns a :class:`~bayesdrag.estimate.bayes.sampler.BayesResult` and its
+:class:`~bayesdrag.estimate.bayes.posterior.LogPosterior` into an ``arviz.InferenceData``, written by
 ``bayesdrag fit`` as ``posterior.nc``. The convergence numbers of the run itself
-(R-hat, ESS) are computed by :mod:`bayesdrag.estimate.sampler` with ArviZ's definitions.
+(R-hat, ESS) are computed by :mod:`bayesdrag.estimate.bayes.sampler` with ArviZ's definitions.
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def to_inference_data(result, post, mach, cd, reference=None, *, n_ppc_per_chain
     mach : (M,) array_like
         Mach grid of ``cd`` [-].
     cd : (chains, draws, M) ndarray
-        Cd draws on ``mach`` (:func:`~bayesdrag.estimate.sampler.cd_draws`).
+        Cd draws on ``mach`` (:func:`~bayesdrag.estimate.bayes.draws.cd_draws`).
     reference : DragModel, optional
         Reference drag; its Cd on ``mach`` goes to ``constant_data.reference_cd``.
     n_ppc_per_chain : int, keyword-only

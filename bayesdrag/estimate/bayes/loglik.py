@@ -4,14 +4,14 @@
 Definition (a choice, documented in ``docs/bayes.md``)
     The sampler's Gaussian likelihood has the noise sd integrated out analytically; each
     retained draw carries its exact conditional noise sd ``sigma_c`` (drawn from
-    ``sigma_c^2 | theta, z``, :meth:`~bayesdrag.estimate.posterior.LogPosterior.sigma_draws`).
+    ``sigma_c^2 | theta, z``, :meth:`~bayesdrag.estimate.bayes.posterior.LogPosterior.sigma_draws`).
     The pointwise terms are those of the likelihood *conditional on that sigma draw*, so
     ``(theta, sigma)`` is one draw of the joint posterior and the terms of a draw sum to
     ``log p(z | theta, sigma)``:
 
     * a white channel: ``log N(z_i; y_i(theta), sigma_c^2)``;
     * an ``ar1`` channel (white noise plus an AR(1) model-error process,
-      :mod:`~bayesdrag.estimate.colored`): the Kalman innovations ``nu_i`` are independent
+      :mod:`~bayesdrag.estimate.model.colored`): the Kalman innovations ``nu_i`` are independent
       with variances ``F_i sigma_c^2``, so sample i contributes
       ``log N(nu_i; 0, F_i sigma_c^2)`` (its prediction error given the samples before it);
       ``rho`` and ``q`` are the ML plug-in values, or the draw's own with ``--sample-ar``;
@@ -25,7 +25,7 @@ import math
 import numpy as np
 from scipy.special import gammaln
 
-from . import colored
+from ..model import colored
 
 __all__ = ["pointwise_log_likelihood", "draws_log_likelihood", "thinned_draws"]
 

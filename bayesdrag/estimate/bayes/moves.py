@@ -1,7 +1,7 @@
 """emcee moves for the posterior of a radar track: the independence move and the move mix.
 
 The posterior of a radar track is close to Gaussian and its Laplace covariance is known
-(:class:`~bayesdrag.estimate.posterior.LogPosterior`), so a proposal that jumps anywhere in it
+(:class:`~bayesdrag.estimate.bayes.posterior.LogPosterior`), so a proposal that jumps anywhere in it
 mixes in a few steps regardless of the dimension and the correlations. The default mix
 (``"auto"``) is the independence move of :func:`independence_move` (a mixture of a Gaussian with
 the Laplace covariance, 90 %, and a multivariate t, 10 dof, 1.1 x, 10 %, centred at the
@@ -23,7 +23,7 @@ import emcee
 import numpy as np
 from scipy.special import gammaln
 
-from ..errors import InputError
+from ...errors import InputError
 
 #: independence proposal, t component: scale of the Laplace covariance and Student-t dof
 PROPOSAL_SCALE = 1.1

@@ -1,9 +1,9 @@
 """The log posterior of an output-error problem, seeded by its ML fit.
 
-The posterior is the ML cost of :mod:`bayesdrag.estimate.ml` turned into a likelihood, with the
+The posterior is the ML cost of :mod:`bayesdrag.estimate.model.ml` turned into a likelihood, with the
 noise sd of every channel unknown and weak priors; :class:`LogPosterior` evaluates it for many
 parameter sets in one call of the batched point-mass kernel (what emcee's vectorised ensemble
-needs). Sampling it is :mod:`bayesdrag.estimate.sampler`'s job; ``docs/bayes.md`` has the
+needs). Sampling it is :mod:`bayesdrag.estimate.bayes.sampler`'s job; ``docs/bayes.md`` has the
 reasons and the measurements.
 
 Model
@@ -21,7 +21,7 @@ Likelihood
     ``sigma_c^2 | theta, z ~ SS_c / chi^2_N`` (:meth:`LogPosterior.sigma_draws`), so the
     posterior still holds ``log_sigma_c`` and is the joint posterior.
 
-    Channels with ``ar1`` noise (:mod:`bayesdrag.estimate.colored`: white noise plus an AR(1)
+    Channels with ``ar1`` noise (:mod:`bayesdrag.estimate.model.colored`: white noise plus an AR(1)
     model-error process of coefficient ``rho_c`` and variance ``q_c sigma_c^2``) enter through
     their Kalman innovations: ``-1/2 sum log F_i - N/2 log SS_c``, ``SS_c`` the whitened sum of
     squares, the white sd marginalised the same way and drawn as ``SS_c / chi^2_N``. Their
@@ -34,7 +34,7 @@ Likelihood
     past 100 steps without settling in 1500 steps, also with the Laplace covariance's
     mixed derivatives included. The plug-in converges as before (tau ~4); what the correlation
     time's uncertainty would add is covered by the model-error floor of ``auto``
-    (:func:`bayesdrag.estimate.scheme1.model_error_floor`).
+    (:func:`bayesdrag.estimate.cd.table.model_error_floor`).
 
     ``student-t``: ``(z - y) / sigma_c ~ t_nu`` per sample, robust to outliers. ``log sigma_c``
     are sampled explicitly (uniform prior on ``[log(s_c/100), log(100 s_c)]``, ``s_c`` the ML
@@ -59,7 +59,7 @@ Laplace approximation
     estimate with every noise sd estimated (a short refit, :func:`mode_fit`), or for the
     Student-t likelihood the t mode (:func:`student_t_mode`). ``N(mode, inverse Fisher
     information at the residual rms)`` (:func:`fisher_information`) centres the proposal of
-    :mod:`bayesdrag.estimate.moves` and the walkers' start (:meth:`LogPosterior.initial_walkers`).
+    :mod:`bayesdrag.estimate.bayes.moves` and the walkers' start (:meth:`LogPosterior.initial_walkers`).
 """
 from __future__ import annotations
 
@@ -69,8 +69,8 @@ import math
 import numpy as np
 from scipy.special import gammaln
 
-from ..errors import FitError, InputError
-from . import colored
+from ...errors import FitError, InputError
+from ..model import colored
 from .coords import drift_coordinates
 
 #: prior sd of non-drag parameters in units of their Cramér-Rao sd
@@ -219,7 +219,7 @@ def fisher_information(problem, theta, sigma, ar=None):
 
 
 class LogPosterior:
-    """Vectorised log-posterior of an :class:`~bayesdrag.estimate.problem.OutputErrorProblem`.
+    """Vectorised log-posterior of an :class:`~bayesdrag.estimate.model.problem.OutputErrorProblem`.
 
     Parameters
     ----------
@@ -434,7 +434,7 @@ class LogPosterior:
     # ------------------------------------------------------------------------------------
     def free_theta(self, X):
         """Free parameters (W, n_theta) of sampled coordinates (W, D) (the coordinate map of
-        :mod:`~bayesdrag.estimate.coords` undone where it is used)."""
+        :mod:`~bayesdrag.estimate.bayes.coords` undone where it is used)."""
         X = np.atleast_2d(X)
         T = X[:, :self.n_theta]
         return T if self.coords is None else self.coords.to_theta(T)

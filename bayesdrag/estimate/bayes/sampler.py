@@ -1,10 +1,10 @@
-"""Sampling a :class:`~bayesdrag.estimate.posterior.LogPosterior` with emcee until converged.
+"""Sampling a :class:`~bayesdrag.estimate.bayes.posterior.LogPosterior` with emcee until converged.
 
 Run (choices measured, see ``docs/bayes.md`` and ``benchmarks/fit.py --moves``)
     * ``emcee.EnsembleSampler(vectorize=True)``: one kernel call per half-ensemble move, with
-      the moves of :mod:`bayesdrag.estimate.moves`.
+      the moves of :mod:`bayesdrag.estimate.bayes.moves`.
     * Walkers start as draws from the Gaussian (Laplace) approximation of the posterior
-      (:meth:`~bayesdrag.estimate.posterior.LogPosterior.initial_walkers`), so the burn-in is
+      (:meth:`~bayesdrag.estimate.bayes.posterior.LogPosterior.initial_walkers`), so the burn-in is
       short.
     * Run length: every ``check_every`` steps the integrated autocorrelation time tau is
       estimated (emcee's walker-averaged estimator, :func:`integrated_time`); the run stops when
@@ -14,7 +14,7 @@ Run (choices measured, see ``docs/bayes.md`` and ``benchmarks/fit.py --moves``)
       ``max_steps`` (then ``converged=False`` with a message). Burn-in = ceil(3 max tau),
       thinning = max(1, floor(min tau / 2)).
     * Diagnostics (:func:`split_rank_rhat`, :func:`ess`, :func:`summarize`, in
-      :mod:`bayesdrag.estimate.chain_diagnostics`) are numpy versions of ArviZ's ``rhat``,
+      :mod:`bayesdrag.estimate.bayes.chain_diagnostics`) are numpy versions of ArviZ's ``rhat``,
       ``ess`` and ``mcse`` (Vehtari et al. 2021): the same numbers, without ArviZ.
     * Progress: the bar's total (and the status lines) are the steps convergence needs by the
       chain's current tau (:func:`steps_to_converge`), re-estimated at every check.
@@ -35,10 +35,10 @@ from dataclasses import dataclass, field
 import emcee
 import numpy as np
 
-from .._threads import single_blas
-from .._signals import deferred_interrupt
-from ..errors import InputError
-from ..io.chain import ChainFile
+from ..._threads import single_blas
+from ..._signals import deferred_interrupt
+from ...errors import InputError
+from ...io.chain import ChainFile
 from .chain_diagnostics import ess, integrated_time, split_rank_rhat, summarize
 from .coords import TEMPERATURE
 from .moves import describe_moves, make_moves
@@ -205,9 +205,9 @@ def sample_posterior(post, *, nwalkers=None, max_steps=20000, min_steps=100, che
         Alternative to ``rng`` (give one of them): derives the streams by a fixed rule, so a
         given seed always gives the same chain. Neither: fresh entropy.
     moves : {"auto", "de", "stretch"}
-        Move mix (:func:`~bayesdrag.estimate.moves.make_moves`).
+        Move mix (:func:`~bayesdrag.estimate.bayes.moves.make_moves`).
     move_options : dict, optional
-        Keyword options of :func:`~bayesdrag.estimate.moves.make_moves` (weight, scale, dof).
+        Keyword options of :func:`~bayesdrag.estimate.bayes.moves.make_moves` (weight, scale, dof).
     backend_path : path, optional
         HDF5 file the chain is written to as it runs (:class:`~bayesdrag.io.chain.ChainFile`;
         ``None``: memory only).
@@ -406,81 +406,13 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, 
                        tuple(warns), resumed, tau_hist, sampler.get_chain())
 
 
-# --------------------------------------------------------------------------- Cd from the draws
-def cd_draws(result, drag_model, mach, n_drag):
-    """Cd on a Mach grid for every retained draw.
-
-    Parameters
-    ----------
-    result : BayesResult
-    drag_model : DragModel
-        Its ``jacobian(mach)`` (M, P) maps the P drag coefficients to Cd (linear models).
-    mach : (M,) array_like
-        Mach numbers [-].
-    n_drag : int
-        P, the leading drag coefficients of ``result.thetas``.
-
-    Returns
-    -------
-    (chains, draws, M) ndarray
-        Cd [-].
-    """
-    B = drag_model.jacobian(np.asarray(mach, float))  # (M, P)
-    return np.einsum("wsp,mp->wsm", result.thetas[..., :n_drag], B)
-
-
-def cd_posterior_rows(rows, cd):
-    """Add the posterior part to ``cd_table`` rows.
-
-    Parameters
-    ----------
-    rows : list of dict
-        From :func:`bayesdrag.estimate.scheme1.cd_table` (keys mach, ml, crb_sd, ...).
-    cd : (chains, draws, M) ndarray
-        Posterior draws of Cd at the rows' Mach numbers.
-
-    Returns
-    -------
-    list of dict
-        Each row with ``mean``, ``sd``, ``q05``, ``q25``, ``q50``, ``q75``, ``q95`` and
-        ``sd_over_crb`` (posterior sd / Cramér-Rao sd; None where the CRB sd is 0).
-    """
-    flat = cd.reshape(-1, cd.shape[-1])
-    q = np.quantile(flat, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
-    mean = flat.mean(axis=0)
-    sd = flat.std(axis=0, ddof=1)
-    out = []
-    for i, r in enumerate(rows):
-        r = dict(r)
-        r.update(mean=float(mean[i]), sd=float(sd[i]), q05=float(q[0, i]), q25=float(q[1, i]),
-                 q50=float(q[2, i]), q75=float(q[3, i]), q95=float(q[4, i]),
-                 sd_over_crb=float(sd[i] / r["crb_sd"]) if r.get("crb_sd") else None)
-        out.append(r)
-    return out
-
-
-def widen_to_floor(cd, rows):
-    """Posterior Cd draws (chains, draws, M) widened about their mean, Mach by Mach, to the
-    rows' model-error floor (:func:`~bayesdrag.estimate.scheme1.model_error_floor`) where
-    their sd is below it; rows gain ``model_error_widening`` (the factor, 1 where none)."""
-    flat = cd.reshape(-1, cd.shape[-1])
-    mean = flat.mean(axis=0)
-    sd = flat.std(axis=0, ddof=1)
-    floor = np.array([r.get("model_error_floor", 0.0) for r in rows], float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.where(sd > 0, np.maximum(1.0, floor / sd), 1.0)
-    for r, v in zip(rows, k):
-        r["model_error_widening"] = float(v)
-    return mean + (cd - mean) * k
-
-
 def default_walkers(post, moves="auto"):
     """Walkers of a run whose ``nwalkers`` was not given.
 
     Parameters
     ----------
     post : LogPosterior
-        Its ``ndim`` and ``coords`` (:mod:`bayesdrag.estimate.coords`).
+        Its ``ndim`` and ``coords`` (:mod:`bayesdrag.estimate.bayes.coords`).
     moves : str
         The move mix's name.
 

@@ -6,7 +6,7 @@
 Goodness of fit, per channel
     ``chi2_per_sample`` = mean squared residual over the noise variance: against the round's
     ``[radar] sigma`` where given, else against the noise the track's own high-frequency content
-    shows (:func:`bayesdrag.estimate.noise.noise_and_outliers`), never against the fit's own
+    shows (:func:`bayesdrag.estimate.model.noise.noise_and_outliers`), never against the fit's own
     residual rms (which would make every fit perfect). Above :data:`CHI2_LIMIT` the residuals
     are far above the noise: the model misses the track. The lag-1 autocorrelation of the
     residuals above :data:`ACF_LIMIT` says the misfit is structured (model error), not noise,
@@ -51,7 +51,8 @@ import math
 
 import numpy as np
 
-from .noise import noise_and_outliers
+from ..model.noise import noise_and_outliers
+from .table import DETERMINED_REL_SD
 
 #: a channel whose residuals have a mean square above this many noise variances misses the track
 CHI2_LIMIT = 4.0
@@ -63,8 +64,6 @@ STRUCTURED_CHI2_MIN = 0.25
 #: a channel's residuals below this chi2 per sample (rms under a third of the round's sigma, on
 #: more than 20 samples) say the stated sigma is too large: a note
 SIGMA_HIGH_CHI2 = 0.1
-#: relative sd of Cd below which Cd counts as determined
-DETERMINED_REL_SD = 0.01
 #: a rigid model's curve further than this many flexible-band sd from the flexible fit's misses
 RIGID_K = 3.0
 #: a coefficient within this fraction of its bound range of a bound sits at it
@@ -198,7 +197,7 @@ def channel_fit(res, track, channels, sigma_given, noise=None):
     sigma_given : dict
         The round's noise sd per channel (used where given).
     noise : (dict, dict), optional
-        ``(sigma, source)`` from :func:`bayesdrag.estimate.noise.noise_and_outliers` already
+        ``(sigma, source)`` from :func:`bayesdrag.estimate.model.noise.noise_and_outliers` already
         computed on the whole track (Scheme 2 windows share it).
 
     Returns
@@ -265,7 +264,7 @@ def assess(fit1, rows, track, sigma_given=None):
     Parameters
     ----------
     fit1 : Scheme1Fit
-        The fit (:func:`bayesdrag.estimate.scheme1.fit_scheme1`): its ML result, problem, start,
+        The fit (:func:`bayesdrag.estimate.scheme1.fit.fit_scheme1`): its ML result, problem, start,
         smoothing and launch check are read.
     rows : list of dict
         ``cd`` rows (``mach``, ``ml``, ``crb_sd``, ``crb_sd_colored``); updated in place with

@@ -164,7 +164,7 @@ def innovation_variances(rho, q, dt_ratio):
     The filter's variances do not depend on the data: ``u_i = nu_i / sqrt(F_i)`` of
     :func:`standardize` and these ``F_i`` give each sample's Gaussian log density,
     ``-1/2 (log(2 pi sigma^2 F_i) + u_i^2 / sigma^2)``, whose sum is the channel's exact
-    log-likelihood (the pointwise terms of :mod:`bayesdrag.estimate.loglik`).
+    log-likelihood (the pointwise terms of :mod:`bayesdrag.estimate.bayes.loglik`).
 
     Parameters
     ----------

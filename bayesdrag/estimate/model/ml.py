@@ -1,5 +1,5 @@
 """Maximum-likelihood output-error fit (paper Eq. 19) with Cramér-Rao bounds, of an
-:class:`~bayesdrag.estimate.problem.OutputErrorProblem`.
+:class:`~bayesdrag.estimate.model.problem.OutputErrorProblem`.
 
 The estimator follows the output-error method of flight-test system identification (NASA
 SIDPAC ``oe.m``; Jategaonkar, *Flight Vehicle System Identification*, ch. 4):
@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import fftconvolve
 
-from ..errors import FitError
+from ...errors import FitError
 
 #: a fit that no step improves has converged when Gauss-Newton predicts a cost decrease below
 #: this (the cost is a chi2: 1e-3 is far below what the data can tell)
@@ -92,7 +92,7 @@ class MLResult:
         Per-sample weights used.
     ar : dict channel -> (rho, q)
         Model-error AR coefficient and variance ratio of the ``ar1`` channels
-        (:mod:`bayesdrag.estimate.colored`; empty when every channel is white).
+        (:mod:`bayesdrag.estimate.model.colored`; empty when every channel is white).
     noise_model : dict channel -> str
         ``white`` or ``ar1`` per channel.
     """

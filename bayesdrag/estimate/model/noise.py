@@ -5,7 +5,7 @@ never across a dropout or gap) measures what no smooth flight can produce: noise
 corrected for the part the smoother absorbs, estimates the noise sd; samples further than
 ``OUTLIER_K`` robust sd from the local curve are gross outliers. The fit's residuals are never
 used for this: a misfit would inflate the estimate and hide itself (the fit's goodness-of-fit
-gate, :mod:`bayesdrag.estimate.quality`, compares the two).
+gate, :mod:`bayesdrag.estimate.cd.quality`, compares the two).
 
 The outlier rule is local. A gross outlier is a lone sample that stands out from its
 neighbours' residuals; where a projectile decelerates fast and the track is coarse (a bullet

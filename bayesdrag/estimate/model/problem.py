@@ -1,5 +1,5 @@
 """The output-error problem: one track, one point-mass model, the parameters and their priors
-(paper Eq. 19). :mod:`bayesdrag.estimate.ml` fits it.
+(paper Eq. 19). :mod:`bayesdrag.estimate.model.ml` fits it.
 
 * parameters ``theta`` = drag-model coefficients + initial state ``X0, Y0, Z0, Ux0, Uy0, Uz0``
   at ``t_ic`` (by default the first sample time), each free or fixed, then optional extra
@@ -22,7 +22,7 @@ autocorrelation.
 Noise model per channel (``noise_model``): ``white`` (independent samples, Eq. 19 as written) or
 ``ar1``: white noise of sd ``sigma_c`` plus a first-order autoregressive model-error process
 (coefficient ``rho_c`` per median sample interval, variance ``q_c sigma_c^2``); residuals and
-sensitivities are whitened by its Kalman filter (:mod:`bayesdrag.estimate.colored`, which says
+sensitivities are whitened by its Kalman filter (:mod:`bayesdrag.estimate.model.colored`, which says
 why a pure AR(1) of the whole residual is not enough), so the least squares is the generalised one
 and its information matrix gives the colored bound. The AR parameters of a channel are estimated
 from its residuals like the noise sd (relaxation); the radar's sigma, when given, is not used for
@@ -34,9 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
-from ..errors import InputError
-from ..track import CHANNELS
+from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
+from ...errors import InputError
+from ...track import CHANNELS
 from . import colored
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
@@ -352,13 +352,13 @@ class OutputErrorProblem:
     # ----------------------------------------------------------------------------------------
 
     def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False):
-        """Fit by Levenberg-Marquardt with noise relaxation (:func:`bayesdrag.estimate.ml.fit`).
+        """Fit by Levenberg-Marquardt with noise relaxation (:func:`bayesdrag.estimate.model.ml.fit`).
 
         Parameters
         ----------
         max_iter : int
         tol_cost, tol_step, tol_sigma : float
-            Convergence rules (:mod:`bayesdrag.estimate.ml`).
+            Convergence rules (:mod:`bayesdrag.estimate.model.ml`).
         fallback : bool
             Continue an unconverged fit with scipy's trust-region reflective least squares.
 
@@ -373,7 +373,7 @@ class OutputErrorProblem:
 
     def fit_trust_region(self, theta, sigma, max_nfev=200):
         """Minimise the cost at fixed noise sd with scipy's trust-region reflective least
-        squares from ``theta`` (:func:`bayesdrag.estimate.ml.fit_trust_region`)."""
+        squares from ``theta`` (:func:`bayesdrag.estimate.model.ml.fit_trust_region`)."""
         from . import ml
 
         return ml.fit_trust_region(self, theta, sigma, max_nfev=max_nfev)

@@ -10,7 +10,7 @@ Knots (:func:`adaptive_knots`)
     a least-squares cubic spline on the current knots misses any shape curve by more than
     :data:`KNOT_TOL` (relative), down to :data:`FINE` (the kernel's Mach grid step); neighbouring
     intervals then differ by at most a factor two (no abrupt change of resolution). The shape
-    curves are the data-driven start curve (:mod:`bayesdrag.estimate.start`), which shows where
+    curves are the data-driven start curve (:mod:`bayesdrag.estimate.scheme1.start`), which shows where
     this shell's drag bends, and, when there is a firing table, the table itself. Because the
     start is smeared over a steep rise, every interval within :data:`RISE_MARGIN` Mach of a
     refined one is kept at most 0.02 Mach wide, so the sharper true rise still fits. Measured: a
@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from ..drag import Spline
+from ...drag import Spline
 
 #: coarsest knot spacing [Mach]
 COARSE = 0.1

@@ -2,7 +2,7 @@
 
 How a fit is set up and run (each choice with its reason):
 
-* **Start from the data** (:mod:`bayesdrag.estimate.start`). The Mach span, the starting Cd(M)
+* **Start from the data** (:mod:`bayesdrag.estimate.scheme1.start`). The Mach span, the starting Cd(M)
   and the state at the first sample are read off the track (smoothed speed, its rate and the
   path angle), not from the round's nominal launch values or a generic curve: a round file may
   be wrong, and a shell may be nothing like a 155 mm one. A track whose path bends as if gravity
@@ -11,13 +11,13 @@ How a fit is set up and run (each choice with its reason):
   1996). With a firing table it is the table times a smooth correction
   (:class:`bayesdrag.drag.TableSpline`: the table is evaluated exactly, so a correct table costs
   nothing however steep its rise); without one, a spline in Cd itself. Knots are placed where
-  the start curve (and the table) bend (:func:`bayesdrag.estimate.basis.adaptive_knots`); the
+  the start curve (and the table) bend (:func:`bayesdrag.estimate.scheme1.basis.adaptive_knots`); the
   penalty is on the second derivative of the relative correction ``Cd / base`` (base: the table,
   or the start curve), its weight chosen by maximising the Laplace-approximated marginal
   likelihood (the evidence) over :data:`SMOOTHING_GRID`, and allowed more freedom where the base
   itself bends. A short track (8-24 samples) gets at most one coefficient per sample, and a
   track too short even for the penalty's straight-line correction gets one factor on the table
-  or is refused, naming the smallest model (:mod:`bayesdrag.estimate.model_size`). Why not knots
+  or is refused, naming the smallest model (:mod:`bayesdrag.estimate.scheme1.model_size`). Why not knots
   added one by one by BIC: BIC's ``log N`` per knot (~9 for a
   1500-sample track) refuses corrections of a few Cramér-Rao sd, so the representation error
   stays several bounds wide where Cd bends; the penalised spline follows the bend and its bounds
@@ -41,7 +41,7 @@ How a fit is set up and run (each choice with its reason):
 * **Noise**: the round's ``[radar] sigma`` when given for a channel, else estimated by
   relaxation.
 * **Determined Mach range**: where the sd of Cd is below 1 % of Cd, inside the Mach span of the
-  data, and not where the curve is clamped or held at a bound (:mod:`bayesdrag.estimate.quality`).
+  data, and not where the curve is clamped or held at a bound (:mod:`bayesdrag.estimate.cd.quality`).
 """
 from __future__ import annotations
 
@@ -50,25 +50,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._threads import single_blas
-from ..drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default_spline_knots, make_drag_model
-from ..dynamics.pointmass import PointMassModel
-from ..dynamics.trajectory import initial_state
-from ..errors import FitError, InputError
+from ..._threads import single_blas
+from ...drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default_spline_knots, make_drag_model
+from ...dynamics.pointmass import PointMassModel
+from ...dynamics.trajectory import initial_state
+from ...errors import FitError, InputError
 from .launch import checked_launch_priors, launch_state_priors, unseen_launch_priors
 from .model_size import check_determinable, default_knots, free_mask
-from .ml import MLResult
-from . import colored
-from .problem import OutputErrorProblem
+from ..model.ml import MLResult
+from ..model import colored
+from ..model.problem import OutputErrorProblem
 from .systematics import fit_with_sources
 from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
 from .start import DataStart, check_gravity_units, check_heights, data_start
 
-__all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "cd_grid", "cd_table",
-           "determined_range", "coriolis_of"]
+__all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "coriolis_of"]
 
-#: relative CRB sd of Cd below which Cd counts as determined by the data
-DETERMINED_REL_SD = 0.01
 #: Student-t degrees of freedom of the robust fit (4: heavy tails, finite variance)
 ROBUST_NU = 4.0
 #: reweighting passes of the robust fit
@@ -93,7 +90,7 @@ class Scheme1Fit:
         penalty and the launch priors kept, per-sample weights of a robust fit, noise): the
         posterior samples exactly this problem.
     start : DataStart
-        What the track said before any fit (:mod:`bayesdrag.estimate.start`).
+        What the track said before any fit (:mod:`bayesdrag.estimate.scheme1.start`).
     smoothing : dict or None
         The penalty's choice (sd, edf, evidence over the grid, ``at_grid_end``); None for an
         unpenalised model.
@@ -110,7 +107,7 @@ class Scheme1Fit:
         fitted ``rho`` and ``q`` of ``ar1`` channels.
     sources : tuple
         The round's declared systematic sources fitted as nuisance parameters
-        (:func:`bayesdrag.estimate.systematics.source_extras`: stem, parameter, nominal, sd), in
+        (:func:`bayesdrag.estimate.scheme1.systematics.source_extras`: stem, parameter, nominal, sd), in
         this order after the initial state; empty when none is declared.
     white_ml : MLResult or None
         With ``auto`` noise that chose ``ar1`` somewhere: the white-noise fit it started from,
@@ -124,7 +121,7 @@ class Scheme1Fit:
     model_size : dict
         How the drag model's size followed the data (:func:`default_knots`): ``samples``,
         ``coefficients``, ``knot_rules``, ``short``; a short track's bands include the bends
-        its samples cannot resolve (:func:`bayesdrag.estimate.quality.unresolved_bend`).
+        its samples cannot resolve (:func:`bayesdrag.estimate.cd.quality.unresolved_bend`).
     """
 
     ml: MLResult
@@ -253,11 +250,11 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         A start already read off this track.
     noise_model : {"white", "ar1", "auto"}
         ``ar1``: every channel has white noise plus an AR(1) model-error process
-        (:mod:`bayesdrag.estimate.colored`); ``auto``: the channels whose white-noise residuals
+        (:mod:`bayesdrag.estimate.model.colored`); ``auto``: the channels whose white-noise residuals
         show one (:func:`choose_noise_model`). A Student-t fit stays white.
     with_effects : sequence of str
         Effects of :mod:`bayesdrag.effects` fitted with Cd as nuisance parameters (checked by
-        :func:`bayesdrag.estimate.systematics.plan_effects`).
+        :func:`bayesdrag.estimate.scheme1.systematics.plan_effects`).
     progress : callable, optional
         ``progress(step)`` receives a short description of each step as the fit reaches it
         (the command prints them when the fit is slow).
@@ -526,79 +523,3 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
                 for j, c in enumerate(chans)}
     return res, rejected
 
-
-#: largest Mach step of the result's ``cd`` grid (the kernel's Mach grid: a steep drag rise is
-#: ~0.1 Mach wide and a table interpolated through the rows must follow it)
-CD_GRID_STEP = 0.01
-#: fewest rows of the result's ``cd`` grid
-CD_GRID_MIN_ROWS = 81
-
-
-def cd_grid(mach_min, mach_max):
-    """The result's Mach grid over [mach_min, mach_max]: uniform, at least
-    :data:`CD_GRID_MIN_ROWS` rows, no step above :data:`CD_GRID_STEP`, rounded to 1e-4."""
-    n = max(CD_GRID_MIN_ROWS, int(math.ceil((mach_max - mach_min) / CD_GRID_STEP - 1e-9)) + 1)
-    return np.round(np.linspace(mach_min, mach_max, n), 4)
-
-
-def model_error_floor(fit1, rows):
-    """Raise the rows' colored sd to the model-error floor of an ``auto`` fit that chose ``ar1``.
-
-    The generalised least squares with AR(1) model-error noise gives the better estimate
-    (on the shipped 6-DOF demo the largest Cd error fell from 1.1 % to 0.43 %), but its bound
-    assumes the model error *is* a stationary AR(1) process. The white-noise fit's
-    colored-residual bound (Morelli & Klein) assumes no form at all. Where the two disagree the
-    band takes the larger, with the declared sources' share added in squares: a form of model
-    error the data cannot check is not claimed away. (Measured on the demo: GLS bound alone
-    covers the table at 75 % of the grid, the floor brings the band to the colored bound's
-    ~97 %.) ``ar1`` chosen by the user trusts the AR(1) form: no floor.
-
-    Parameters
-    ----------
-    fit1 : Scheme1Fit
-    rows : list of dict
-        ``cd`` rows (``crb_sd``, ``crb_sd_colored``, optional ``crb_sd_statistical``); updated
-        in place: ``crb_sd_colored`` raised to the floor, ``model_error_floor`` added.
-
-    Returns
-    -------
-    bool
-        Whether a floor was applied.
-    """
-    if fit1.white_ml is None:
-        return False
-    mach = np.array([r["mach"] for r in rows], float)
-    # the white fit's drag model is the same object (the refit keeps the problem's model)
-    mk = cd_table(fit1.white_ml, fit1.drag_model, mach)
-    for r, w in zip(rows, mk):
-        src = max(r["crb_sd"] ** 2 - r.get("crb_sd_statistical", r["crb_sd"]) ** 2, 0.0)
-        floor = math.sqrt(w["crb_sd_colored"] ** 2 + src)
-        r["model_error_floor"] = float(floor)
-        r["crb_sd_colored"] = float(max(r["crb_sd_colored"], floor))
-    return True
-
-
-def cd_table(result, drag_model, mach, reference=None):
-    """Cd(M) rows for result.json: ML value, CRB sd (delta method), reference."""
-    P = drag_model.n_params
-    B = drag_model.jacobian(mach)
-    cd = drag_model.cd(result.drag_params, mach)
-    var = np.einsum("ij,jk,ik->i", B, result.cov[:P, :P], B)
-    varc = np.einsum("ij,jk,ik->i", B, result.cov_colored[:P, :P], B)
-    rows = []
-    for i, m in enumerate(mach):
-        rows.append({"mach": round(float(m), 4), "ml": float(cd[i]), "crb_sd": float(np.sqrt(max(var[i], 0))),
-                     "crb_sd_colored": float(np.sqrt(max(varc[i], 0))),
-                     "reference": float(reference.value(m)) if reference is not None else None})
-    return rows
-
-
-def determined_range(rows):
-    """Mach interval spanned by the rows marked ``determined`` (:mod:`bayesdrag.estimate.quality`;
-    holes inside it are listed in ``ml.quality.undetermined``), or, for rows not yet assessed,
-    where the CRB relative sd of Cd is below :data:`DETERMINED_REL_SD`."""
-    if rows and "determined" in rows[0]:
-        ok = [r["mach"] for r in rows if r["determined"]]
-    else:
-        ok = [r["mach"] for r in rows if r["ml"] > 0 and r["crb_sd"] / r["ml"] < DETERMINED_REL_SD]
-    return (min(ok), max(ok)) if ok else None

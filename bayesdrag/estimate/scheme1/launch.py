@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .problem import Prior
+from ..model.problem import Prior
 
 __all__ = ["LAUNCH_CONFLICT_K", "ORIGIN_NOISE_K", "launch_state_priors", "unseen_launch_priors",
            "checked_launch_priors", "origin_offset"]
@@ -169,7 +169,7 @@ def _position_noise(track, sigma):
     """The noise sd [m] of one position sample: the round's, but never below what the track's
     own high-frequency content shows (a radar noisier than its round says must not make a
     correct origin look off); the largest over the position channels."""
-    from .noise import hf_noise_sd
+    from ..model.noise import hf_noise_sd
 
     t = np.asarray(track.t, float)
     out = 0.0
@@ -283,7 +283,7 @@ def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
 def _density_offset(rnd, heights, dz):
     """Largest relative density difference between the fitted flight's ``heights`` [m] and the
     same heights moved by ``-dz`` (the heights above the muzzle)."""
-    from ..atmosphere import MAX_ALTITUDE, MIN_ALTITUDE
+    from ...atmosphere import MAX_ALTITUDE, MIN_ALTITUDE
 
     atm = rnd.atmosphere
     lo = MIN_ALTITUDE - atm.gun_altitude + 1.0

@@ -5,22 +5,22 @@ A fit has as many unknowns as its free initial-state values plus the drag model'
 parameters, and a track holds samples x channels values. A penalised spline's effective size is
 not its coefficient count: its smoothness penalty is a pseudo-measurement on every curvature, so
 the data must determine only its null space, a straight-line correction
-(:func:`check_determinable`; :class:`bayesdrag.estimate.problem.OutputErrorProblem` counts the
+(:func:`check_determinable`; :class:`bayesdrag.estimate.model.problem.OutputErrorProblem` counts the
 same way). A track too short for the default spline but long enough for one factor on the firing
 table is fitted with that factor (and says so); one too short for even that is refused, naming
 the smallest model and the samples it needs.
 
 Knots (:func:`default_knots`) follow where the data's shape and the table bend
-(:func:`bayesdrag.estimate.basis.adaptive_knots`); a *short* track, with fewer samples than
+(:func:`bayesdrag.estimate.scheme1.basis.adaptive_knots`); a *short* track, with fewer samples than
 those rules want coefficients, gets at most one coefficient per sample and no knot between two
-samples the data cannot tell apart (:func:`bayesdrag.estimate.basis.sparse_knots`), and its bands
-include how far Cd may bend between its samples (:func:`bayesdrag.estimate.quality.unresolved_bend`).
+samples the data cannot tell apart (:func:`bayesdrag.estimate.scheme1.basis.sparse_knots`), and its bands
+include how far Cd may bend between its samples (:func:`bayesdrag.estimate.cd.quality.unresolved_bend`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, coefficient_budget, rise_regions, sparse_knots
 from .launch import unseen_launch_priors
 
@@ -133,10 +133,10 @@ def default_knots(reference, start, lo, hi):
     """Knots of the default (penalised) spline over [lo, hi] and the record of the model's size.
 
     The knots follow where the start's shape (and the table) bend
-    (:func:`bayesdrag.estimate.basis.adaptive_knots`), to :data:`KNOT_TOL` but not into wiggles
+    (:func:`bayesdrag.estimate.scheme1.basis.adaptive_knots`), to :data:`KNOT_TOL` but not into wiggles
     the start's noise left. A short track, with fewer samples than those rules want
     coefficients, gets at most one coefficient per sample, and no knot between two samples
-    that the data cannot tell apart (:func:`bayesdrag.estimate.basis.sparse_knots`): the
+    that the data cannot tell apart (:func:`bayesdrag.estimate.scheme1.basis.sparse_knots`): the
     model's size follows the data.
 
     Returns

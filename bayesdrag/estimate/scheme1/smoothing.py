@@ -1,7 +1,7 @@
 """The smoothness penalty of the flexible drag model and the choice of its weight by the evidence.
 
 The penalty is a Gaussian pseudo-prior on the second derivative of the *relative* correction
-(:mod:`bayesdrag.estimate.basis`); its sd is chosen by maximising the Laplace-approximated
+(:mod:`bayesdrag.estimate.scheme1.basis`); its sd is chosen by maximising the Laplace-approximated
 marginal likelihood (evidence) over :data:`SMOOTHING_GRID`, walked uphill from the middle, each
 fit warm-started from the previous one (:func:`fit_penalised`).
 """
@@ -11,9 +11,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..drag import TableSpline
+from ...drag import TableSpline
 from .basis import curvature_weights, second_difference_rows
-from .problem import Prior
+from ..model.problem import Prior
 
 __all__ = ["SMOOTHING_GRID", "penalty", "smoothness_priors", "fit_penalised", "drop_coefficient_correlations"]
 
@@ -27,7 +27,7 @@ SMOOTHING_GRID = tuple(10.0 ** np.arange(-3.0, 3.01, 0.5))
 
 def penalty(dm, base):
     """A function ``sd -> (priors, D, sds)``: the smoothness pseudo-priors of
-    :mod:`bayesdrag.estimate.basis` on the relative correction of ``dm``.
+    :mod:`bayesdrag.estimate.scheme1.basis` on the relative correction of ``dm``.
 
     With a table (:class:`TableSpline`) the coefficients *are* the correction; without one the
     penalty is on Cd's own second derivative over its typical level (the median of the data's

@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
 
-from ..atmosphere import G0
-from ..errors import InputError
-from .noise import hf_noise_sd
+from ...atmosphere import G0
+from ...errors import InputError
+from ..model.noise import hf_noise_sd
 
 #: Mach bin width of the start curve
 START_BIN = 0.01
@@ -130,7 +130,7 @@ class DataStart:
     notes : tuple of str
     track_mach : (N,) ndarray or None
         Mach at each sample, in time order, from the smoothed speed (where the track's samples
-        lie in Mach: how finely it can resolve Cd(M); :mod:`bayesdrag.estimate.basis`).
+        lie in Mach: how finely it can resolve Cd(M); :mod:`bayesdrag.estimate.scheme1.basis`).
     """
 
     mach_span: tuple
@@ -478,10 +478,10 @@ def window_fits(track, rnd, kin, cd0, sigma=None, ends_only=False):
     list of dict with ``i0``, ``i1``, ``mach`` (mean, min, max), ``cd``, ``state0`` (6,) at the
     window's first sample; only windows whose fit converged.
     """
-    from ..drag import Constant
-    from ..dynamics.pointmass import PointMassModel
-    from ..errors import FitError
-    from .problem import OutputErrorProblem
+    from ...drag import Constant
+    from ...dynamics.pointmass import PointMassModel
+    from ...errors import FitError
+    from ..model.problem import OutputErrorProblem
 
     if "x" not in track.channels or "z" not in track.channels:
         return []

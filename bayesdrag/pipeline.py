@@ -1,0 +1,462 @@
+"""What ``bayesdrag.fit`` and ``bayesdrag.diagnose`` compute: a track and a round in, a frozen
+result out (:class:`~bayesdrag.results.FitResult`, :class:`~bayesdrag.results.DiagnosisResult`).
+
+No file is read or written here (except the sampler's chain file when the caller names one) and
+nothing is printed: the commands (:mod:`bayesdrag.commands`) read the files, call these functions
+and write the output folder. Scheme 1 (Cd(M) over the whole flight, the default) and Scheme 2 (a
+constant Cd per window) share :func:`fit`; ``--with auto`` and the default effect search call the
+diagnosis from here.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ._threads import single_blas
+from .errors import FitError, InputError
+from .estimate.cd.quality import assess, check_against_flexible, intervals
+from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
+from .estimate.scheme1.fit import fit_scheme1
+from .estimate.scheme2 import fit_scheme2, windows_table
+from .options import DiagnoseOptions, FitOptions
+from .results import DiagnosisResult, FitResult
+from .round import Round
+from .track import RadarTrack, thin_for_fit
+
+__all__ = ["fit", "diagnose", "summary_line"]
+
+
+@single_blas
+def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, chain_path: Any = None,
+        resume: bool = False, log: Callable[[str], None] | None = None, progress: bool = False,
+        ml_progress: Callable[[str], None] | None = None, **kwargs: Any) -> FitResult:
+    """Estimate Cd(M) from a track.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    options : FitOptions, optional
+        Everything that changes the result (default :class:`FitOptions`); keyword arguments
+        (``mcmc=False``, ``drag="poly2"``, ...) override single fields.
+    chain_path : path, optional
+        Scheme 1 with sampling: write the emcee chain to this HDF5 file as it runs (a killed run
+        can then be resumed).
+    resume : bool
+        Continue the unfinished chain in ``chain_path``.
+    log : callable, optional
+        ``log(str)`` receives status lines of long work (the sampler's progress).
+    progress : bool
+        Show a progress bar on stderr while sampling.
+    ml_progress : callable, optional
+        ``ml_progress(step)`` receives the step the maximum-likelihood fit is at
+        (:class:`~bayesdrag.commands.runs.StageProgress` prints it when the fit is slow); its
+        ``done()`` is called at the end when it has one.
+
+    Returns
+    -------
+    FitResult
+        Frozen; ``to_dict()`` is the content of ``result.json``.
+
+    Raises
+    ------
+    InputError
+        Options or inputs that do not fit together (a channel the track lacks).
+    FitError
+        No solution: the message says why.
+    """
+    t_start = time.perf_counter()
+    track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
+    opts = options if options is not None else FitOptions()
+    if kwargs:
+        opts = FitOptions(**{**opts.to_dict(), **kwargs})
+    chans = opts.channels
+    if chans is not None:
+        missing = [c for c in chans if c not in track.names]
+        if missing:
+            raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
+                             f"track (it has {', '.join(track.names)})")
+    if opts.scheme == 2:
+        opts.check_windows(track.n)       # a bound on the windows, before any is fitted
+        return _fit_scheme2(track, rnd, opts, chans, log, t_start)
+    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress)
+
+
+def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
+    with_effects, with_note = _with_effects(track, rnd, opts, log)
+    f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
+                     likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
+                     with_effects=with_effects, progress=ml_progress)
+    res = f1.ml
+    if not res.success:
+        raise FitError(f"{track.source or 'track'}: {res.message}")
+    dm = f1.drag_model
+    lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
+    grid = cd_grid(lo, hi)
+    rows = cd_table(res, dm, grid, rnd.reference_drag)
+    if f1.ml_without_effects is not None:
+        for r, v in zip(rows, dm.cd(f1.ml_without_effects.drag_params, grid)):
+            r["ml_without_effects"] = float(v)
+    budget = _budget(f1, grid, rows)
+    floored = model_error_floor(f1, rows)
+    quality = assess(f1, rows, track, rnd.radar.sigma)
+    if dm.name != "spline":
+        if ml_progress is not None:
+            ml_progress("the flexible fit the rigid model is checked against")
+        _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality)
+    if ml_progress is not None and hasattr(ml_progress, "done"):
+        ml_progress.done()
+    summary = _ml_summary(f1, rows, quality, lo, hi, opts)
+    summary["uncertainty_budget"] = budget
+    if with_note is not None:
+        with_note["fitted"] = list(f1.effects)
+        summary["ml"]["with_effects"] = with_note
+    if floored:
+        budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
+    # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
+    warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
+    bayes = post = None
+    if opts.mcmc:
+        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored)
+        summary["cd"] = rows
+        summary["posterior"] = _posterior_json(bayes)
+        summary["mcmc"] = _mcmc_json(bayes, post)
+        warnings += list(bayes.warnings)
+        info = [r for r in rows if r["crb_sd"] > 0 and r["ml"] > 0 and r["crb_sd"] / r["ml"] < 0.01]
+        ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
+        if ratios:
+            summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
+    return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
+                     log_posterior=post, grid=grid, warnings=tuple(warnings),
+                     seconds=time.perf_counter() - t_start)
+
+
+def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
+    """A rigid model's band holds no shape error: check its curve against the flexible fit of
+    the same track (:func:`check_against_flexible`). The check never refuses a track the rigid
+    model fits: when the flexible fit cannot be made (a track too short for it) or does not
+    converge, ``quality.rigid_check`` and a note say so and the rows stand as fitted."""
+    try:
+        ff = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not opts.fix_ic,
+                         likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start)
+    except (InputError, FitError) as exc:
+        ff, why = None, str(exc)
+    else:
+        why = None if ff.success else ff.message
+        if why is None and ff.drag_model.name != "spline":
+            why = "the track is too short for it"
+    if why is not None:
+        quality["rigid_check"] = {"against": "spline", "skipped": why}
+        quality.setdefault("notes", []).append(
+            f"the {f1.drag_model.name} curve could not be checked against the flexible fit of the same track "
+            f"({why}): its band holds the noise only, not its shape error")
+        return
+    rows_f = cd_table(ff.ml, ff.drag_model, grid, rnd.reference_drag)
+    assess(ff, rows_f, track, rnd.radar.sigma)
+    check_against_flexible(rows, rows_f, quality, f1.drag_model.name)
+
+
+def _with_effects(track, rnd, opts, log):
+    """The effects ``--with`` asks for (``auto``: the diagnosis' verdict), checked: those that
+    share a declared source's quantity or are confounded with Cd are left out with a reason.
+    Returns ``(names, record)``; ``record`` (``requested``, ``skipped``) is None without
+    ``--with``."""
+    from .estimate.scheme1.systematics import plan_effects
+
+    req = opts.with_effects
+    if not req:
+        return (), None
+    if req == "auto":
+        from .diagnosis import diagnose
+
+        d = diagnose(track, rnd)
+        names = list(d.summary["verdict"])
+        if log is not None:
+            log(f"--with auto: the diagnosis names {', '.join(names) if names else 'no material effect'}")
+    else:
+        names = list(req)
+    keep, skipped = plan_effects(names, rnd)
+    return keep, {"requested": req if req == "auto" else list(req), "candidates": names, "skipped": skipped}
+
+
+def _budget(f1, grid, rows):
+    """result.json ``uncertainty_budget`` (linearised, GUM) of the Scheme 1 fit; each ``cd`` row
+    gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
+    budget is all ``statistical`` and ``conditional_on`` lists what the Cd assumes known."""
+    from .estimate.cd.budget import budget_rows, uncertainty_budget
+    from .round import SYSTEMATIC_SOURCES
+
+    res = f1.ml
+    P = f1.problem.P
+    idx, keys = [], []
+    stems = {s[1].name: s[0] for s in f1.sources}
+    for j, n in enumerate(res.names):
+        if n in stems:
+            idx.append(j)
+            keys.append(stems[n])
+        elif "." in n and n.split(".")[0] in f1.effects:
+            idx.append(j)
+            keys.append(n.split(".")[0])
+    b = uncertainty_budget(res.cov, f1.drag_model.jacobian(grid), slice(0, P), idx, keys)
+    for r, v in zip(rows, b["by_source"]["statistical"]):
+        r["crb_sd_statistical"] = float(v)
+    out = budget_rows(b, grid)
+    declared = {s[0] for s in f1.sources}
+    out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared]
+    return out
+
+
+def _ml_summary(f1, rows, quality, lo, hi, opts):
+    """The ``scheme``, ``drag_model``, ``ml`` and ``cd`` parts of result.json."""
+    res = f1.ml
+    det = determined_range(rows)
+    free = [n for n, f in zip(res.names, res.free) if f]
+    smoothing = None
+    if f1.smoothing:
+        smoothing = {k: v for k, v in f1.smoothing.items() if isinstance(v, (int, float, str))}
+    return {
+        "scheme": 1, "drag_model": f1.drag_model.name,
+        "ml": {"params": res.params,
+               "crb": {n: float(s) for n, s, f in zip(res.names, res.crb, res.free) if f},
+               "crb_colored": {n: float(s) for n, s, f in zip(res.names, res.crb_colored, res.free) if f},
+               "fixed": [n for n in res.names if n not in free],
+               "converged": res.converged, "iterations": res.iterations, "cost": res.cost,
+               "message": res.message, "sigma": res.sigma,
+               "rms": {c: float(np.sqrt(np.mean(r**2))) for c, r in res.residuals.items()},
+               "warnings": list(res.warnings),
+               "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None,
+               "likelihood": opts.likelihood, "rejected_samples": f1.rejected, "smoothing": smoothing,
+               "model_size": dict(f1.model_size) or None, "noise": f1.noise, "quality": quality},
+        "cd": rows,
+    }
+
+
+def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=False):
+    from .estimate.bayes.posterior import LogPosterior
+    from .estimate.bayes.draws import cd_draws, cd_posterior_rows, widen_to_floor
+    from .estimate.bayes.sampler import default_walkers, sample_posterior
+
+    post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu, sample_ar=opts.sample_ar)
+    walkers = opts.walkers if opts.walkers is not None else default_walkers(post, opts.moves)
+    bayes = sample_posterior(post, nwalkers=walkers, moves=opts.moves, max_steps=opts.max_steps, seed=opts.seed,
+                             backend_path=chain_path, resume=bool(resume and chain_path and Path(chain_path).exists()),
+                             progress=progress, log=log)
+    cd = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
+    if floored:
+        cd = widen_to_floor(cd, rows)
+    return bayes, post, cd_posterior_rows(rows, cd)
+
+
+
+def _posterior_json(b):
+    s = b.summary
+    col = lambda k: {n: float(v) for n, v in zip(s.index, s[k])}  # noqa: E731
+    return {"mean": col("mean"), "sd": col("sd"), "r_hat": col("r_hat"), "ess_bulk": col("ess_bulk"),
+            "ess_tail": col("ess_tail"), "q05": col("q05"), "q95": col("q95")}
+
+
+def _mcmc_json(b, post):
+    def sig(c):
+        x = b.draws[..., b.names.index(f"log_sigma_{c}")]
+        return {"median": float(np.exp(np.median(x))), "q05": float(np.exp(np.quantile(x, 0.05))),
+                "q95": float(np.exp(np.quantile(x, 0.95)))}
+
+    return {"converged": b.converged, "message": b.message, "steps": b.steps, "burn": b.burn,
+            "thin": b.thin, "walkers": b.nwalkers, "draws": int(b.draws.shape[0] * b.draws.shape[1]),
+            "tau_max": float(np.max(b.tau)), "tau_mean": float(np.mean(b.tau)),
+            "acceptance": b.acceptance, "moves": b.moves, "likelihood": b.likelihood,
+            "nu": post.nu, "resumed_from": b.resumed_from, "seconds": round(b.elapsed, 3),
+            "sigma": {c: sig(c) for c in post.channels}}
+
+
+def _fit_scheme2(track, rnd, opts, chans, log, t_start):
+    """Scheme 2: ML per window, then (with sampling) the same posterior in each window (Cd,
+    initial state, noise). Windows are sampled one after the other: each window's batch already
+    runs on both cores (numba threads); a process pool would only add start-up and contention on
+    a 2-core machine. Scheme 2 chains are kept in memory (one window takes a few seconds)."""
+    from .estimate.bayes.posterior import LogPosterior
+    from .estimate.bayes.sampler import sample_posterior
+
+    r2 = fit_scheme2(track, rnd, window=opts.window, overlap=opts.overlap, channels=chans, free_ic=not opts.fix_ic)
+    ok = [k for k, r in enumerate(r2.results) if r.success]
+    if not ok:
+        raise FitError(f"{track.source or 'track'}: no Scheme 2 window converged ({r2.results[0].message})")
+    rows = windows_table(r2)
+    warnings = [f"window {k} ({rows[k]['t_start']:.2f}-{rows[k]['t_end']:.2f} s): {r2.results[k].message}"
+                for k in range(len(rows)) if k not in ok]
+    draws = {}
+    if opts.mcmc:
+        for k in ok:
+            post = LogPosterior(r2.problems[k], r2.results[k])
+            b = sample_posterior(post, nwalkers=opts.walkers, max_steps=opts.max_steps,
+                                 seed=None if opts.seed is None else opts.seed + k)
+            cd = b.draws[..., 0]
+            flat = cd.reshape(-1)
+            q = np.quantile(flat, [0.05, 0.5, 0.95])
+            rows[k].update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
+                           q95=float(q[2]),
+                           sd_over_crb=float(flat.std(ddof=1) / rows[k]["crb_sd"]) if rows[k]["crb_sd"] else None,
+                           r_hat_max=float(b.summary["r_hat"].max()), ess_bulk_min=float(b.summary["ess_bulk"].min()),
+                           mcmc_converged=b.converged, steps=b.steps)
+            draws[k] = cd
+            if not b.converged:
+                warnings.append(f"window {k}: {b.message}")
+            if log:
+                log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
+    budget = _window_budget(rows, ok, draws, rnd, opts.seed)
+    mach = np.array([w["mach"] for w in rows])
+    lo, hi = float(min(w["mach_min"] for w in rows)), float(max(w["mach_max"] for w in rows))
+    grid = np.round(np.linspace(lo, hi, 81), 4)
+    cd_rows, quality = _stitched_rows(rows, ok, mach, grid, rnd, bool(draws))
+    warnings += quality["problems"]
+    summary = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
+               "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
+                      "windows": len(rows), "notes": list(r2.notes), "quality": quality},
+               "cd": cd_rows, "windows": rows, "uncertainty_budget": budget}
+    if draws:
+        summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
+                           "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
+    return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme2=r2,
+                     window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
+                     seconds=time.perf_counter() - t_start)
+
+
+def _window_budget(rows, ok, draws, rnd, seed):
+    """Scheme 2's budget: the declared level sources (density, mass, diameter: one factor on
+    every window's Cd) added to each window's bound and, by Monte Carlo (an independent factor
+    per draw), to its posterior draws; the windows stay conditional on the other sources.
+    Window rows gain ``crb_sd_statistical``; ``crb_sd`` becomes the total."""
+    from .estimate.cd.budget import level_shares
+
+    rel, cond = level_shares(rnd)
+    s_rel = float(np.sqrt(sum(v * v for v in rel.values())))
+    by = {"statistical": [], **{k: [] for k in rel}, "cross": []}
+    total = []
+    rng = np.random.default_rng(None if seed is None else seed + 10_000)
+    for k, r in enumerate(rows):
+        stat = float(r["crb_sd"]) if r.get("crb_sd") is not None else float("nan")
+        cd = float(r["ml"]) if r.get("ml") is not None else float("nan")
+        r["crb_sd_statistical"] = stat
+        tot = float(np.sqrt(stat ** 2 + (s_rel * cd) ** 2))
+        r["crb_sd"] = tot
+        by["statistical"].append(stat)
+        for n, v in rel.items():
+            by[n].append(abs(cd) * v)
+        by["cross"].append(0.0)
+        total.append(tot)
+        if k in draws and s_rel > 0:
+            d = draws[k]
+            d = d * (1.0 + s_rel * rng.standard_normal(d.shape))
+            draws[k] = d
+            flat = d.reshape(-1)
+            q = np.quantile(flat, [0.05, 0.5, 0.95])
+            r.update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
+                     q95=float(q[2]), sd_over_crb=float(flat.std(ddof=1) / tot) if tot else None)
+    r6 = lambda a: [float(f"{v:.6g}") for v in a]  # noqa: E731
+    return {"mach": [round(float(r["mach"]), 4) for r in rows], "total_sd": r6(total),
+            "by_source": {k: r6(v) for k, v in by.items()}, "conditional_on": cond,
+            "note": "windows: the level sources (density, mass, diameter) are included; conditional on "
+                    + (", ".join(cond) if cond else "nothing")}
+
+
+def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
+    """Scheme 2's ``cd`` rows on a Mach grid through the windows, and its ``ml.quality``: a grid
+    point is determined when the windows on both sides of it are."""
+    order = np.argsort(mach[ok])
+    mk = mach[ok][order]
+
+    def interp(key):
+        v = np.array([rows[k][key] for k in ok], float)[order]
+        return np.interp(grid, mk, v)
+
+    cols = {key: interp(key) for key in ("ml", "crb_sd", "band_sd") + (("mean", "q05", "q95") if sampled else ())}
+    det_w = np.array([rows[k]["determined"] for k in ok], bool)[order]
+    j_hi = np.clip(np.searchsorted(mk, grid), 0, len(mk) - 1)
+    j_lo = np.clip(j_hi - 1, 0, len(mk) - 1)
+    inside = (grid >= mk[0]) & (grid <= mk[-1])
+    cd_rows = []
+    for i, m in enumerate(grid):
+        r = {key: float(v[i]) for key, v in cols.items()}
+        r["mach"] = float(m)
+        r["determined"] = bool(inside[i] and det_w[j_lo[i]] and det_w[j_hi[i]])
+        r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
+        cd_rows.append(r)
+    problems = [f"window {k} (Mach {rows[k]['mach']:.2f}): {p}" for k in ok for p in rows[k]["quality"]["problems"]]
+    quality = {"ok": not problems and len(ok) == len(rows),
+               "undetermined": intervals(grid, ~np.array([r["determined"] for r in cd_rows])),
+               "windows_determined": int(det_w.sum()), "problems": problems}
+    return cd_rows, quality
+
+
+def _why_not_clean(quality):
+    """The summary's reason a Scheme 1 fit is not a clean answer (its ``ml.quality``)."""
+    from .estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
+
+    chans = (quality.get("channels") or {}).values()
+    if any(c["chi2_per_sample"] > CHI2_LIMIT or (c["lag1"] > ACF_LIMIT and c["n"] > 20) for c in chans):
+        return "the model misses the track"
+    origin = (quality.get("launch") or {}).get("origin")
+    if origin:
+        return {"clock": "the track's clock is not the launch's", "position": "the track's origin is not at the gun"
+                }.get(origin["kind"], "the track does not start at the muzzle at t = 0")
+    return "a parameter sits at a bound"
+
+
+def summary_line(result):
+    """The one-line outcome the command prints (converged, determined range, caveat)."""
+    s = result.record
+    if s["scheme"] == 2:
+        m = s["ml"]
+        lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]
+        return (f"fit (Scheme 2): {m['windows_converged']}/{m['windows']} windows of {s['window']} samples "
+                f"converged, Mach {lo:.2f}-{hi:.2f}")
+    ml = s["ml"]
+    det = ml["mach_range_determined"]
+    caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {_why_not_clean(ml['quality'])} (warnings above)"
+    head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}"
+            if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
+    holes = [(a, b) for a, b in ml["quality"].get("undetermined", []) if det and det[0] < a and b < det[1]]
+    if holes:
+        head += " except " + ", ".join(f"{a:.2f}-{b:.2f}" for a, b in holes)
+    return head + caveat
+
+
+def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = None, **kwargs: Any) -> DiagnosisResult:
+    """Diagnose the gap between a track and the nominal simulation of its round: where the
+    simulation misses, which unmodelled effect explains it, how large it is and whether it
+    matters (material).
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    options : DiagnoseOptions, optional
+        Keyword arguments (``channels=("x", "z", "v")``, ``material_cd_shift=0.002``) override
+        single fields.
+
+    Returns
+    -------
+    DiagnosisResult
+        ``verdict``, ``paragraph``, ``summary()``, ``to_dataframe()`` (the candidate effects),
+        ``to_dict()`` (``diagnosis.json``), ``write(DIR)``.
+    """
+    from .diagnosis import MIN_DIAGNOSIS_SAMPLES
+    from .diagnosis import diagnose as analyse
+    from .diagnosis.summary import summary_paragraph
+    from .estimate.scheme1.start import check_heights
+
+    opts = options if options is not None else DiagnoseOptions()
+    track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
+    if kwargs:
+        opts = DiagnoseOptions(**{**opts.__dict__, **kwargs})
+    if track.n < MIN_DIAGNOSIS_SAMPLES:
+        raise InputError(f"{track.source or 'track'}: {track.n} samples are too few for a diagnosis "
+                         f"(need >= {MIN_DIAGNOSIS_SAMPLES})")
+    check_heights(track, rnd)
+    d = analyse(track, rnd, channels=opts.channels, alpha=opts.alpha, material_cd_shift=opts.material_cd_shift,
+                material_end_sd=opts.material_end_sd)
+    record = dict(d.summary, summary=summary_paragraph(d.summary))     # what diagnosis.json holds
+    return DiagnosisResult(record, d, track, rnd)
