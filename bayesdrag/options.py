@@ -13,13 +13,12 @@ from dataclasses import asdict, dataclass, fields
 
 from .drag import DRAG_MODEL_NAMES
 from .errors import InputError
+from .estimate.model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from .track import CHANNELS
 
 __all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "PlanOptions", "LIKELIHOODS", "MOVES",
            "SIMULATION_MODELS", "JOBS"]
 
-#: noise models of the likelihood
-LIKELIHOODS = ("gaussian", "student-t")
 #: emcee move sets (auto: independence proposal from the ML fit + a local move)
 MOVES = ("auto", "de", "stretch")
 #: trajectory models of ``simulate``
@@ -28,8 +27,8 @@ SIMULATION_MODELS = ("pointmass", "6dof")
 JOBS = ("fit", "diagnose")
 #: noise models of the channels (``auto``: per channel from the residuals)
 NOISE_MODELS = ("auto", "white", "ar1")
-#: the Student-t likelihood's default degrees of freedom (heavy tails, finite variance)
-DEFAULT_NU = 4.0
+#: the Student-t likelihood's default degrees of freedom
+DEFAULT_NU = STUDENT_T_NU
 #: allowed Student-t degrees of freedom: the range the posterior samples with ``--nu sample``
 #: (below 1 the weights of every sample but the closest vanish: a bound of 0 and overflow)
 NU_RANGE = (1.0, 100.0)

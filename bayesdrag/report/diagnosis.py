@@ -6,13 +6,12 @@ as a met file (``diagnosis_met.csv``, and ``diagnosis_wind_downrange.csv`` for a
 downrange distance). No analysis here."""
 from __future__ import annotations
 
-import numpy as np
-
 from ..io.met import write_met_profile, write_wind_profile
 from ..io.outputs import ensure_output_dir, write_bytes, write_json
 from ..plots.diagnosis import plot_ranking, plot_residuals_before_after, plot_where
 from ..plots.wind import plot_found_wind, wind_layer_table
 from ..diagnosis.summary import impact_text, reported_values, summary_paragraph
+from ..results.document import jsonable
 from .render import figure_png, png_base64, render_report
 
 __all__ = ["write_diagnosis", "diagnosis_figures"]
@@ -68,7 +67,7 @@ def write_diagnosis(out, d, *, track_name="", round_name=""):
     out = ensure_output_dir(out)
     paragraph = summary_paragraph(d.summary)
     s = dict(d.summary, summary=paragraph)
-    write_json(out / "diagnosis.json", _jsonable(s))
+    write_json(out / "diagnosis.json", jsonable(s))
     b64 = {}
     for name, fig in diagnosis_figures(d).items():
         png = figure_png(fig, dpi=DIAGNOSIS_DPI)
@@ -85,19 +84,3 @@ def write_diagnosis(out, d, *, track_name="", round_name=""):
         fig_wind=b64.get("wind"), wind_rows=wind_rows, wind_axis=wind_axis, met_files=met_files),
         template="diagnosis.html.j2")
     return paragraph
-
-
-def _jsonable(o):
-    """Plain JSON types (numpy scalars converted, non-finite floats to None)."""
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, (np.floating, float)):
-        v = float(o)
-        return v if np.isfinite(v) else None
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, np.bool_):
-        return bool(o)
-    return o

@@ -475,7 +475,7 @@ _FIRST_USE = """
 import json, os
 import numpy as np
 {first}
-from bayesdrag.estimate import colored
+from bayesdrag.estimate.model import colored
 colored.whitened_ss(np.zeros((2, 5)), 0.5, 1.0, np.ones(4))
 print(json.dumps({{k: os.environ.get(k) for k in ("NUMBA_CACHE_DIR", "OMP_WAIT_POLICY", "NUMBA_CACHE_LOCATOR_CLASSES")}}))
 """
@@ -494,7 +494,7 @@ def test_import_bayesdrag_changes_no_variable_and_creates_no_file(tmp_path, base
     assert _files_under(tmp_path / "home") == [] and _files_under(tmp_path / "cache") == []
 
 
-@pytest.mark.parametrize("first", ["from bayesdrag.dynamics import kernel", "from bayesdrag.estimate import posterior"])
+@pytest.mark.parametrize("first", ["from bayesdrag.dynamics import kernel", "from bayesdrag.estimate.bayes import posterior"])
 def test_the_first_kernel_use_caches_in_the_private_folder(tmp_path, first):
     """Where the compiled functions are first needed the settings are made: the cache in the
     per-user folder (0700), numba's threads passive; also when a module that imports numba

@@ -71,6 +71,7 @@ from scipy.special import gammaln
 
 from ...errors import FitError, InputError
 from ..model import colored
+from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from .coords import drift_coordinates
 
 #: prior sd of non-drag parameters in units of their Cramér-Rao sd
@@ -259,8 +260,8 @@ class LogPosterior:
     squares per channel [m^2 or m^2/s^2] (emcee blobs, used for the noise draws).
     """
 
-    def __init__(self, problem, ml, *, likelihood="gaussian", nu=4.0, sample_ar=False):
-        if likelihood not in ("gaussian", "student-t"):
+    def __init__(self, problem, ml, *, likelihood="gaussian", nu=STUDENT_T_NU, sample_ar=False):
+        if likelihood not in LIKELIHOODS:
             raise InputError(f"likelihood {likelihood!r} is not known (allowed: gaussian, student-t)")
         self.problem = problem
         self.ml = ml

@@ -45,7 +45,6 @@ How a fit is set up and run (each choice with its reason):
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,6 +58,7 @@ from .launch import checked_launch_priors, launch_state_priors, unseen_launch_pr
 from .model_size import check_determinable, default_knots, free_mask
 from ..model.ml import MLResult
 from ..model import colored
+from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from ..model.problem import OutputErrorProblem
 from .systematics import fit_with_sources
 from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
@@ -66,8 +66,8 @@ from .start import DataStart, check_gravity_units, check_heights, data_start
 
 __all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "coriolis_of"]
 
-#: Student-t degrees of freedom of the robust fit (4: heavy tails, finite variance)
-ROBUST_NU = 4.0
+#: Student-t degrees of freedom of the robust fit
+ROBUST_NU = STUDENT_T_NU
 #: reweighting passes of the robust fit
 ROBUST_ITERATIONS = 6
 #: a sample more than this many noise scales off the robust curve is listed as rejected
@@ -263,7 +263,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     -------
     Scheme1Fit
     """
-    if likelihood not in ("gaussian", "student-t"):
+    if likelihood not in LIKELIHOODS:
         raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
     chans = tuple(channels) if channels is not None else track.names
     smaller = check_determinable(track, rnd, chans, free_ic, drag, knots)
