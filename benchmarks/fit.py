@@ -1,6 +1,6 @@
 """Warm timings of the fits on one round (issues 4, 5 and 17).
 
-* ``bayes_spline`` (DESIGN.md): a full Bayesian fit (``bayesdrag.fit`` with the default options:
+* ``bayes_spline``: a full Bayesian fit (``bayesdrag.fit`` with the default options:
   ML + sampling to convergence) of the default spline on the shipped demo track, warm, with the
   trajectories it simulated, the batched kernel's limit for them (trajectories x the kernel's
   microseconds per trajectory on large batches of the same track, measured in the same run),
@@ -164,7 +164,7 @@ def compare_posterior(new, ref):
 
 
 def time_demo_bayes(seed=DEMO_SEED):
-    """The DESIGN.md ``bayes_spline`` benchmark: ``bayesdrag.fit`` of the shipped demo track
+    """The ``bayes_spline`` benchmark: ``bayesdrag.fit`` of the shipped demo track
     with the default options (spline, ML + sampling to convergence), the second of two runs."""
     from bayesdrag.pipeline import fit
     from bayesdrag.options import FitOptions

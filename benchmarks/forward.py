@@ -11,7 +11,7 @@ machine is shared, so the best is the least disturbed); it is also given for the
 the ML fit (21 = 2 * 10 free parameters + 1) and emcee (64 walkers) use. Winds that change along
 the flight are timed against the constant wind in the same run (``wind_profile_ratio_vs_constant_wind``:
 a wind by height in layers; ``wind_downrange_ratio_vs_constant_wind``: by downrange distance). The
-last line printed is one JSON object (DESIGN.md).
+last line printed is one JSON object (docs/bayes.md, Speed).
 """
 import argparse
 import json

@@ -1,4 +1,4 @@
-"""The output folder: a run's outputs are one consistent set (DESIGN.md, command line).
+"""The output folder: a run's outputs are one consistent set (docs/formats.md, docs/security.md).
 
 :class:`OutputRun` is the one way a command writes ``DIR``::
 

@@ -127,7 +127,7 @@ PLAUSIBLE = {"t": (-1e4, 1e5), "x": (-2e6, 2e6), "y": (-2e6, 2e6), "z": (-2e5, 2
 #: a gap is refused as a stray sample when it is longer than this many median sample intervals
 #: and longer than the rest of the track lasts
 STRAY_GAP_INTERVALS = 50
-#: a track whose x falls by more than this [m] flies toward -x (noted, DESIGN.md frames)
+#: a track whose x falls by more than this [m] flies toward -x (noted; frames in docs/formats.md)
 MIN_DOWNRANGE = 10.0
 
 

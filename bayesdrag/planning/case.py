@@ -35,7 +35,7 @@ How one case is predicted, and why (decisions):
   g'F^-1 g`` with ``g = R'p``. Expected rather than one realisation's: one realisation's walk
   stops a grid step early or late at random, the expectation gives the typical choice and needs
   no fit (a fit per case would cost ~1 s; the plan of four cases runs in seconds).
-* **Systematic sources** (the round's declared ``_sd`` keys, DESIGN.md). Density, mass and
+* **Systematic sources** (the round's declared ``_sd`` keys, docs/formats.md). Density, mass and
   diameter (:data:`LEVEL_SOURCES`) are exactly confounded with the level of Cd: the track sees
   only ``rho Cd d^2 / m``, so an error of one is an error of Cd by the same relative amount at
   every Mach, and the data spend no information on it. Their shares are therefore analytic

@@ -78,7 +78,7 @@ class Plan:
         return summary_paragraph(self)
 
     def to_dict(self):
-        """The content of ``plan.json`` (DESIGN.md: ``cases`` with ``elevation``, ``velocity``,
+        """The content of ``plan.json`` (docs/planning.md: ``cases`` with ``elevation``, ``velocity``,
         ``rounds``, ``mach_range``, ``cd`` rows of ``mach`` and ``sd``; more keys beside them)."""
         undeclared = [s for s in SYSTEMATIC_SOURCES if s not in self.declared]
         target = None

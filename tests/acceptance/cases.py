@@ -47,7 +47,7 @@ SHELLS = {"155": dict(mass=42.6, diameter=0.155, Ix=0.146, Iy=1.709, v0=V0, twis
 DT = 0.05  # sample interval [s] (coarser than the paper's 0.027 s to keep the suite fast)
 
 #: effects that count as a correct top-1 for a withheld effect (temperature/density are each
-#: other's match by the acceptance; density and drag_scale are exactly confounded by DESIGN.md)
+#: other's match by the acceptance; density and drag_scale are exactly confounded by the contract (docs/formats.md))
 ACCEPT = {"temperature": {"temperature", "density", "drag_scale"},
           "density": {"density", "temperature", "drag_scale"},
           "drag_scale": {"drag_scale", "density", "temperature"},
@@ -396,7 +396,7 @@ def run_case(case, origin=True):
     verdict = s["verdict"]
     immaterial = s.get("immaterial", [])
     # top-1: the first verdict member the simulator does not carry by itself (6-DOF drift). The
-    # verdict holds only material effects (DESIGN.md); a withheld effect too small to matter
+    # verdict holds only material effects (the contract (docs/formats.md)); a withheld effect too small to matter
     # (a 10 ms clock moves a 15-deg track's end by ~3 noise sd) is still found when the
     # diagnosis lists it as detectable but immaterial, and then counts as named there
     own = [n for n in verdict if n not in case.inherent]

@@ -28,7 +28,7 @@ Why the air is the round's (decision): a track flown in other air than the round
 a withheld density effect, which the diagnosis is right to find. py-ballisticcalc's stock air
 differs from ICAO in two ways that are modelling conventions, not shells: its sea-level density
 is the CIPM-2007 real-gas 1.22552 kg/m^3 (0.043 % above ICAO's 1.225: on the long precise
-tracks the track's end moves by more than 3 noise sd, which DESIGN.md calls material, and
+tracks the track's end moves by more than 3 noise sd, which the contract (docs/formats.md) calls material, and
 ``diagnose`` named ``density`` 1.0004-1.0008 on 9 of 20 right/absent-table tracks), and a 30-ft
 "fast path" holds the gun-level air within +-9.1 m (a 0.09 % step; flat-fire bullets fly their
 whole path in it and ``diagnose`` named ``density``/``yaw_drag`` there). Both are checked where
@@ -69,7 +69,7 @@ Cases (decisions and reasons)
 * Sampling 0.01-1 s, position noise sd 0.1-3 m, speed noise sd 0.1 of it in m/s (typical of a
   Doppler radar); the round's ``[radar] sigma`` is the true noise. At most ~2500 samples a track.
 * Partial tracks: lock-on 0.5-2 s after launch, loss before impact; t stays launch-relative
-  (DESIGN.md: t = 0 at launch).
+  (the contract (docs/formats.md): t = 0 at launch).
 * Channels: x,y,z,v (y is pure noise about 0 without wind, as a radar would give it), two
   positions-only tracks (x,y,z) and two Doppler-like x,v tracks.
 * Withheld wind: three extra cases (``withheld`` set) flown in a constant wind the round does not
@@ -649,7 +649,7 @@ def error_lines(stderr):
 
 
 def clear_exit2(rc, stderr):
-    """Exit 2 with one clear line on stderr (DESIGN.md): exactly one error line, no traceback."""
+    """Exit 2 with one clear line on stderr (the contract (docs/formats.md)): exactly one error line, no traceback."""
     return rc == 2 and len(error_lines(stderr)) == 1 and "Traceback" not in stderr
 
 

@@ -63,7 +63,7 @@ def summarise(results):
             "shrink_ge_0.9_rate": sum(s >= 0.9 for s in shr) / max(len(shr), 1),
             "shrink_ge_0.9_within_noise_rate": sum(shr_noise) / max(len(shr_noise), 1),
             "false_alarm_rate": fa, "cases_with_extra_effects": extra,
-            # withheld effects the diagnosis found but judged immaterial (DESIGN.md): named under
+            # withheld effects the diagnosis found but judged immaterial (the contract (docs/formats.md)): named under
             # "immaterial", not in the verdict; and null tracks with something immaterial listed
             "effect_named_immaterial": sum(bool(r.get("named_immaterial")) for r in eff),
             "null_with_immaterial": sum(bool(r.get("immaterial")) for r in nul),

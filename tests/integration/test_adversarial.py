@@ -1,7 +1,7 @@
 """The adversarial cases of issue 16, end to end through the command line: every one ends with
 exit status 2 and one line on stderr (or 1 and one line for a full disk, 130 for Ctrl-C), or
 with a correct result; never a traceback, never code from a file run, never earlier outputs
-lost or left looking current (DESIGN.md, command line).
+lost or left looking current (the contract (docs/formats.md), command line).
 
 Classes: planted pickles in every file the program reads; the chain checked before a resume;
 the output folder as one consistent set (manifest, superseded files, kill, lock, umask, disk

@@ -1,6 +1,6 @@
 """Catalogue of bad input (issue 7): every kind must end with exit status 2, exactly one line on
 stderr that names the file/row/key, what was found and what is allowed, no traceback, and leave
-the files already in the output folder byte-identical (DESIGN.md, command line).
+the files already in the output folder byte-identical (the contract (docs/formats.md), command line).
 
 Each entry is ``(id, command, setup, match)``: ``setup(d)`` writes the bad file(s) into the
 case folder ``d`` (starting from a good round ``round.toml``, its reference table ``cd.csv``

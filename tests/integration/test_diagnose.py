@@ -282,7 +282,7 @@ def test_the_right_table_names_nothing_and_a_wind_is_still_found(track_130_g1):
 
 def test_materiality_thresholds_move_a_small_clock_offset_out_of_the_verdict():
     """A 10 ms late clock at 15 deg is detected; whether it is material depends on the
-    thresholds (DESIGN.md defaults: 0.1 % of Cd, 3 noise sd at the track's end). Above them it is
+    thresholds (the contract (docs/formats.md) defaults: 0.1 % of Cd, 3 noise sd at the track's end). Above them it is
     listed as detectable but immaterial, worded as such, never as a finding."""
     from bayesdrag.diagnosis import MATERIAL_CD_SHIFT, MATERIAL_END_SD
     from bayesdrag.diagnosis.summary import summary_paragraph

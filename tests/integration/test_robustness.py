@@ -1,5 +1,5 @@
 """Numerical robustness (issue 7): what cannot be computed ends with a clear message and the
-DESIGN.md exit status, never a hang or a silent wrong answer."""
+the contract (docs/formats.md) exit status, never a hang or a silent wrong answer."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Real Doppler data (Warner Tool Company, 2019; shared/data/warner): the converted example
+"""Real Doppler data (Warner Tool Company, 2019, converted into examples/warner/): the converted example
 files and the issue-7 acceptance on them.
 
 Measured (examples/warner/check_fit.py): reference-scale factor in ICAO air 0.7756 (.338) and

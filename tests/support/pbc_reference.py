@@ -509,9 +509,7 @@ def _max_diff(a, b):
 if __name__ == "__main__":
     import os
 
-    path = "/work/shared/data/m101/cd_m101.csv"
-    if not os.path.exists(path):
-        path = os.path.join(os.path.dirname(__file__), "..", "bayesdrag", "data", "cd_m101.csv")
+    path = os.path.join(os.path.dirname(__file__), "..", "..", "bayesdrag", "data", "cd_m101.csv")
     M, CD = _read_table(path)
     mass, diam, v0 = 42.6, 0.155, 818.0
 

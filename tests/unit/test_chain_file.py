@@ -338,7 +338,7 @@ def test_external_link_is_not_followed(post, chain_copy, tmp_path):
 
 # ------------------------------------------------------------------ no unpickling in the package
 def test_no_module_of_the_package_can_unpickle():
-    """DESIGN.md: no file the program reads is unpickled or evaluated. No bayesdrag module
+    """the contract (docs/formats.md): no file the program reads is unpickled or evaluated. No bayesdrag module
     imports pickle-like loaders or calls eval/exec, or np.load with allow_pickle."""
     root = Path(__file__).resolve().parents[2] / "bayesdrag"
     banned_modules = {"pickle", "cPickle", "_pickle", "marshal", "shelve", "dill", "cloudpickle", "joblib"}

@@ -1,4 +1,4 @@
-"""The output folder as one consistent set (bayesdrag/io/outputs.py, DESIGN.md command line):
+"""The output folder as one consistent set (bayesdrag/io/outputs.py, the contract (docs/formats.md) command line):
 manifest, superseded files moved aside (never deleted, never left looking current), staging and
 a journalled swap that a later run completes, the folder lock, umask-respecting modes, a full
 disk as one OutputError with nothing lost."""

@@ -15,7 +15,7 @@ from bayesdrag.planning.summary import best_combination, combine
 from bayesdrag.round import Launch, Projectile, Radar, Round, Systematics
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
-#: declared systematic sds of the budget tests (DESIGN.md units)
+#: declared systematic sds of the budget tests (the contract (docs/formats.md) units)
 SYSTEMATICS = dict(mass=0.05, diameter=0.0002, density=0.003, temperature=1.0, position_scale=1e-4,
                    velocity_scale=1e-4, time_offset=0.002)
 #: relative tolerance of quantities that are equal by algebra but computed by finite

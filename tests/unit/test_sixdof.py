@@ -235,7 +235,7 @@ def test_output_sampling_and_frame(shell):
 
 
 def test_wind_pushes_along_wind(shell):
-    """A crosswind toward +y (DESIGN frame) moves the impact toward +y; a tailwind lengthens
+    """A crosswind toward +y (the gun frame) moves the impact toward +y; a tailwind lengthens
     the range."""
     calm = simulate_6dof(shell, 360.0, 7.0)
     cross = simulate_6dof(shell, 360.0, 7.0, wind=(0.0, 10.0, 0.0))
@@ -245,7 +245,7 @@ def test_wind_pushes_along_wind(shell):
 
 
 def test_azimuth_from_north_does_not_rotate_frame(shell):
-    """x is along the firing azimuth by definition (DESIGN.md); flat, non-rotating Earth."""
+    """x is along the firing azimuth by definition (the contract (docs/formats.md)); flat, non-rotating Earth."""
     a = simulate_6dof(shell, 360.0, 7.0)
     b = simulate_6dof(shell, 360.0, 7.0, azimuth_deg=90.0)
     assert np.array_equal(a.position, b.position)
