@@ -446,6 +446,7 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
     from .diagnosis import MIN_DIAGNOSIS_SAMPLES
     from .diagnosis import diagnose as analyse
     from .diagnosis.summary import summary_paragraph
+    from .estimate.scheme1.model_size import check_constant_channels
     from .estimate.scheme1.start import check_heights
 
     opts = options if options is not None else DiagnoseOptions()
@@ -456,6 +457,7 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
         raise InputError(f"{track.source or 'track'}: {track.n} samples are too few for a diagnosis "
                          f"(need >= {MIN_DIAGNOSIS_SAMPLES})")
     check_heights(track, rnd)
+    check_constant_channels(track, tuple(opts.channels) if opts.channels else track.names)
     d = analyse(track, rnd, channels=opts.channels, alpha=opts.alpha, material_cd_shift=opts.material_cd_shift,
                 material_end_sd=opts.material_end_sd)
     record = dict(d.summary, summary=summary_paragraph(d.summary))     # what diagnosis.json holds

@@ -440,6 +440,28 @@ def test_attack_refused_before_any_fitting(name, setup, match, tmp_path, good, c
     assert calls == [], f"fitting work ran before the refusal: {calls}"
 
 
+#: the attacker's tracks that ``bayesdrag diagnose`` must refuse too (a 150 km track was "explained
+#: within its noise" at chi2 per sample 4.8e6)
+#: (a t,y track of zeros is the nominal flight's drift: "explained within its noise" is then the answer)
+ATTACK_EXIT2_DIAGNOSE = [c for c in ATTACK_EXIT2 if c[0] == "attack-track-at-150-km"] + [
+    ("attack-constant-v", _fit(_steps(_keep_columns(["t", "v"]), _constant("v", "800.0"))),
+     r"track\.csv: channel v is constant \(800(\.0)?\); it carries no information")]
+
+
+@needs_diagnose
+@pytest.mark.parametrize("name, setup, match", _params(ATTACK_EXIT2_DIAGNOSE))
+def test_attack_refused_by_diagnose_before_any_work(name, setup, match, tmp_path, good, capsys, monkeypatch):
+    """The same tracks through ``bayesdrag diagnose``: exit 2 and one line, and the diagnosis
+    itself never started (counted, not timed)."""
+    import bayesdrag.diagnosis as diagnosis
+
+    calls = []
+    real = diagnosis.diagnose
+    monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: (calls.append("diagnose"), real(*a, **k))[1])
+    _check(*_run_case(tmp_path, good, capsys, monkeypatch, _as_diagnose(setup)), match)
+    assert calls == [], f"diagnosis work ran before the refusal: {calls}"
+
+
 def _truth(d):
     from bayesdrag.io.drag_tables import read_drag_table
 

@@ -15,6 +15,8 @@ from bayesdrag.track import RadarTrack
 SIGMA = {"x": 1.0, "z": 1.0, "v": 0.3}
 #: the clock estimate against the true offset [s]
 CLOCK_ATOL = 0.01
+#: the priors a correct origin keeps (the round's muzzle position, speed and elevation)
+MUZZLE_PRIORS = ("X0_muzzle", "Y0_muzzle", "Z0_muzzle", "launch_speed", "elevation")
 
 
 def _flat(qe=1.0, dt=0.05, noise=1.0, seed=1, mass=42.6, diameter=0.155):
@@ -60,8 +62,11 @@ def test_a_late_clock_on_a_flat_path_is_a_clock_offset():
 @pytest.mark.parametrize("noise", [1.0, 10.0])
 def test_a_correct_origin_never_fires(noise):
     """A radar 10x noisier than its round says: the fit's bound on the muzzle position is then
-    too narrow, but the origin check measures the noise itself."""
+    too narrow, but the origin check measures the noise itself; and the launch priors stay (a
+    check that is unsure keeps them: none is left out)."""
     for seed in range(3):
         tr, rnd = _flat(qe=15.0, noise=noise, seed=seed)
         f1 = fit_scheme1(tr, rnd)
         assert "origin" not in f1.launch_check, f1.launch_check
+        assert set(MUZZLE_PRIORS) <= set(f1.launch_check["applied"]), f1.launch_check
+        assert f1.launch_check["conflicts"] == [], f1.launch_check

@@ -70,6 +70,17 @@ def _ic_unknowns(track, rnd, chans, free_ic):
     return max(n, 0)
 
 
+def check_constant_channels(track, chans):
+    """Raise :class:`InputError` when a channel of ``chans`` is constant: it says nothing of the
+    flight (``y`` may be 0 throughout beside other channels, a flight in the plane of fire, not
+    alone). Checked before any fitting or diagnosis work."""
+    for ch in chans:
+        vals = np.asarray(track.channels[ch], float)
+        if vals.size and np.ptp(vals) == 0.0 and (ch != "y" or len(chans) == 1):
+            raise InputError(f"{track.source or 'track'}: channel {ch} is constant ({vals[0]:g}); it carries no "
+                             f"information — drop the column or fix the track")
+
+
 def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=None):
     """Can this track determine the drag model asked for, or at least the smallest one?
 
@@ -95,12 +106,7 @@ def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=Non
         when an explicitly chosen model is too large, naming the smallest that is not.
     """
     n, c = int(track.n), len(chans)
-    for ch in chans:
-        vals = np.asarray(track.channels[ch], float)
-        # y may be 0 throughout beside other channels (a flight in the plane of fire), not alone
-        if vals.size and np.ptp(vals) == 0.0 and (ch != "y" or len(chans) == 1):
-            raise InputError(f"{track.source or 'track'}: channel {ch} is constant ({vals[0]:g}); it carries no "
-                             f"information — drop the column or fix the track")
+    check_constant_channels(track, chans)
     ic = _ic_unknowns(track, rnd, chans, free_ic)
     table = rnd.reference_drag is not None
     small = ("reference-scale", "one factor on the firing table") if table else (
