@@ -64,7 +64,7 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
     """``(cd, band_sd)`` on ``grid`` of the same fit with ``change`` (effects, likelihood); None
     when it fails."""
     kw = dict(drag=f1.drag_model.name, channels=chans, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
-              nu=opts.ml_nu, noise_model=opts.noise_model)
+              nu=opts.ml_nu, noise_model=opts.noise_model, start=f1.start)   # the plain fit's start: no new search
     kw.update(change)
     try:
         alt = fit_scheme1(track, rnd, **kw)
