@@ -84,12 +84,12 @@ def note_model_error(gap, quality, grid, rows):
     me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
     ml = np.array([r["ml"] for r in rows], float)
     if gap["effects"]:
-        eff = ", ".join(gap["effects"])
+        eff, them = ", ".join(gap["effects"]), "it" if len(gap["effects"]) == 1 else "them"
         quality["problems"].append(
-            f"the diagnosis finds {eff} that the round does not declare: fitting {'it' if len(gap['effects']) == 1 else 'them'} "
-            f"moves Cd by {describe(grid, ml, gap['parts']['effects'])}; the bands include "
-            f"this as model error and rows whose band then exceeds 1 % are not determined "
-            f"(`bayesdrag fit ... --with {gap['effects'][0] if len(gap['effects']) == 1 else eff}` fits the cause)")
+            f"the diagnosis finds {eff} that the round does not declare: fitting {them} moves Cd by "
+            f"{describe(grid, ml, gap['parts']['effects'])}; the bands include this as model error and rows whose "
+            f"band then exceeds 1 % are not determined (`bayesdrag fit ... --with {','.join(gap['effects'])}` fits "
+            f"the cause)")
         quality["ok"] = False
     if gap["noise_check"] and "noise" in gap["parts"]:
         stat = np.array([r["band_sd"] for r in rows], float)
@@ -158,8 +158,9 @@ def why_not_clean(quality):
     me = quality.get("model_error") or {}
     if me.get("effects"):
         eff = ",".join(me["effects"])
-        return (f"an undeclared {', '.join(me['effects'])} moves Cd by up to {100 * me.get('effects_max_rel', 0.0):.2g} % "
-                f"(in the bands); next: `bayesdrag fit ... --with {eff}` fits it")
+        rel = 100 * me.get("effects_max_rel", 0.0)
+        return (f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); "
+                f"next: `bayesdrag fit ... --with {eff}` fits it")
     chans = quality.get("channels") or {}
     bad = {c: f for c, f in chans.items()
            if f["chi2_per_sample"] > CHI2_LIMIT or (f["lag1"] > ACF_LIMIT and f["n"] > 20)}
