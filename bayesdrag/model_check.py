@@ -46,12 +46,18 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
     if opts.likelihood == "gaussian":
         _, _, out = noise_and_outliers(track, f1.problem.channels, rnd.radar.sigma)
         flagged = int(out.any(axis=1).sum())
-    if opts.likelihood == "gaussian" and (noisy or flagged):
+    if opts.likelihood == "gaussian" and flagged:
+        # gross outliers: a Student-t fit (white, outliers reweighted) is the check
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, likelihood="student-t")
         if alt is not None:
             parts["noise"] = shift_sd(ml, band, alt[0])
-            rec["noise_check"] = {"why": ("gross outliers" if flagged else "") + (" and " if flagged and noisy else "")
-                                  + ("correlated (AR(1)) residuals" if noisy else ""), "outlier_samples": flagged}
+            rec["noise_check"] = {"why": "gross outliers" + (" and correlated (AR(1)) residuals" if noisy else ""),
+                                  "against": "student-t", "outlier_samples": flagged}
+    elif f1.white_ml is not None:
+        # correlated residuals the auto noise model took as AR(1): the white-noise fit it started
+        # from is the check (no new fit: both are consistent when the model is right)
+        parts["noise"] = shift_sd(ml, band, f1.drag_model.cd(f1.white_ml.drag_params, grid))
+        rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     me = combine(*parts.values())
     rec["parts"] = {k: [float(f"{v:.4g}") for v in p] for k, p in parts.items()}
     if me is not None:
@@ -78,6 +84,10 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
     return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra])
 
 
+#: how the noise checks are named in the problem line
+_CHECK_NAMES = {"student-t": "robust fit (Student-t, white noise)", "white": "white-noise fit"}
+
+
 def note_model_error(gap, quality, grid, rows):
     """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do."""
     quality["model_error"] = gap
@@ -96,7 +106,7 @@ def note_model_error(gap, quality, grid, rows):
         shift = np.asarray(gap["parts"]["noise"], float)
         if np.any(shift > 0.5 * stat):
             quality["problems"].append(
-                f"a robust fit (Student-t, white noise) of the track moves Cd by up to "
+                f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
                 f"it as model error")
     if gap["conditional_air"]:
@@ -177,5 +187,7 @@ def why_not_clean(quality):
                 }.get(origin["kind"], "the track does not start at the muzzle at t = 0") + \
             "; next: declare time_offset_sd / [launch] position_sd, or trim the track"
     if me.get("noise_check"):
-        return f"a robust fit moves Cd ({me['noise_check']['why']}, in the bands); next: try --likelihood student-t"
+        nc = me["noise_check"]
+        nxt = "--likelihood student-t" if nc["against"] == "student-t" else "`bayesdrag diagnose TRACK ROUND -o DIR`"
+        return f"a {_CHECK_NAMES[nc['against']]} moves Cd ({nc['why']}, in the bands); next: {nxt}"
     return "a parameter sits at a bound (see ml.quality.at_bounds); next: `bayesdrag diagnose TRACK ROUND -o DIR`"

@@ -14,9 +14,11 @@ Effects
 Noise
     A Gaussian fit of a track with gross outliers, or with a correlated model-error process the
     ``auto`` noise model approximates as AR(1), rests on a noise model the data cannot fully
-    check. A robust fit (Student-t, white) of the same track is the check: both are consistent
-    when their assumptions hold, so where their curves differ, Cd is uncertain by that
-    difference (taken as one sd). On a white track without outliers neither check runs.
+    check. Another consistent estimator of the same track is the check: a robust fit (Student-t,
+    white) where the track has gross outliers, else the white-noise fit the AR(1) fit started
+    from. Both estimators are consistent when the model is right, so where their curves differ,
+    Cd is uncertain by that difference (taken as one sd). On a white track without outliers
+    neither check runs.
 
 The model error enters the row's band in squares, and ``uncertainty_budget.by_source.model_error``
 (:func:`fold_into_budget`), so the budget's squares still add up to the band the row reports.
