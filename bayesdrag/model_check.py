@@ -27,12 +27,17 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
     band = np.array([max(r["crb_sd"], r.get("crb_sd_colored", r["crb_sd"])) for r in rows], float)
     rec = {"effects": [], "skipped": {}, "conditional_air": [], "noise_check": None}
     parts = {}
-    try:
-        from .diagnosis import diagnose
+    from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 
-        verdict = list(diagnose(track, rnd, channels=chans).summary["verdict"])
-    except (InputError, FitError) as exc:
-        verdict, rec["diagnosis_failed"] = [], str(exc)
+    verdict = []
+    if track.n < MIN_DIAGNOSIS_SAMPLES:
+        rec["diagnosis_skipped"] = f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"
+    else:
+        try:
+            verdict = list(diagnose(track, rnd, channels=chans).summary["verdict"])
+        except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
+            # the check never costs the fit its answer: the record says it could not be made
+            rec["diagnosis_failed"] = f"{type(exc).__name__}: {exc}"
     keep, skipped = plan_effects(verdict, rnd)
     rec["verdict"], rec["skipped"] = verdict, skipped
     rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density", "drag_scale")]
@@ -109,6 +114,11 @@ def note_model_error(gap, quality, grid, rows):
                 f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
                 f"it as model error")
+    why = gap.get("diagnosis_skipped") or gap.get("diagnosis_failed")
+    if why:
+        quality.setdefault("notes", []).append(
+            f"the model check could not run the diagnosis ({why}): the bands hold no model error for an undeclared "
+            f"effect")
     if gap["conditional_air"]:
         quality.setdefault("notes", []).append(
             f"the diagnosis finds air unlike the round's ({', '.join(gap['conditional_air'])}): Cd is conditional "
