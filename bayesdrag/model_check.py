@@ -40,7 +40,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
             rec["diagnosis_failed"] = f"{type(exc).__name__}: {exc}"
     keep, skipped = plan_effects(verdict, rnd)
     rec["verdict"], rec["skipped"] = verdict, skipped
-    rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density", "drag_scale")]
+    rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density")]
     if keep:
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=keep)
         if alt is not None:
@@ -149,10 +149,13 @@ def air(f1, gap):
     declared = {s[0] for s in f1.sources}
     undeclared = [k for k in ("density", "temperature") if k not in declared]
     found = list((gap or {}).get("conditional_air", []))
-    if contradicted:
+    beyond = [n for n in found if n in declared]       # a declared air source the diagnosis still finds
+    if contradicted or beyond:
         line = "the track contradicts the declared air: " + ", ".join(
-            f"{c['source']} fitted {c['fitted']:.4g} against the stated {c['stated']:.4g} ({c['z']:+.1f} declared sd)"
-            for c in contradicted) + "; check the met data or widen the declared _sd"
+            [f"{c['source']} fitted {c['fitted']:.4g} against the stated {c['stated']:.4g} ({c['z']:+.1f} declared sd)"
+             for c in contradicted] +
+            [f"the diagnosis finds {n} beyond the declared {n}_sd" for n in beyond if n not in
+             {c["source"] for c in contradicted}]) + "; check the met data or widen the declared _sd"
     elif found:
         line = (f"Cd is conditional on the stated air, which the track contradicts (the diagnosis finds "
                 f"{', '.join(found)}): declare {' and '.join(k + '_sd' for k in undeclared) or 'wider air _sd keys'} "
