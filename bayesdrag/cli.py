@@ -180,6 +180,10 @@ def _add_fit_options(p, batch=False):
     p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto",
                    help="fit these effects of the diagnosis library with Cd as nuisance parameters (auto: the ones "
                         "`bayesdrag diagnose` names); the report shows Cd with and without them")
+    p.add_argument("--no-model-check", dest="model_check", action="store_false",
+                   help="skip the check of the Cd against the misfit that remains (the diagnosis's undeclared "
+                        "effects and a robust fit, whose Cd shifts widen the bands as model error): faster, and the "
+                        "bands then hold the noise only")
     p.add_argument("--nu", type=_nu, default=d.nu,
                    help=f"Student-t degrees of freedom: a number (default {d.nu:g}) or 'sample'")
 
@@ -312,7 +316,7 @@ def _fit_options(args):
             raise InputError(f"command line: --channels {args.channels!r} names no channel; use e.g. x,z,v")
         kw["channels"] = ch
     for k in ("scheme", "window", "overlap", "walkers", "max_steps", "moves", "likelihood", "nu", "noise_model",
-              "sample_ar"):
+              "sample_ar", "model_check"):
         if hasattr(args, k):
             kw[k] = getattr(args, k)
     if getattr(args, "with_effects", ""):

@@ -98,6 +98,11 @@ class FitOptions:
         ``auto``: the ones the diagnosis names. Effects that share a declared source's quantity
         (density, temperature, radar_time) or are confounded with Cd (density without
         ``density_sd``, drag_scale, drag_shape) are left out and the result says why.
+    model_check : bool
+        Without ``with_effects``, check the Cd against the misfit that remains (default True): the
+        diagnosis's material effects, a robust fit for outliers, the white fit for AR(1) noise; the Cd
+        shifts they imply widen the bands as model error (:mod:`bayesdrag.estimate.cd.model_error`).
+        ``--no-model-check`` skips it (faster; bands then hold noise only).
     window, overlap : int
         Scheme 2: samples per window (default 50) and shared by consecutive windows (0).
     walkers : int or None
@@ -122,6 +127,7 @@ class FitOptions:
     noise_model: str = "auto"
     sample_ar: bool = False
     with_effects: tuple | str = ()
+    model_check: bool = True
     window: int = 50
     overlap: int = 0
     walkers: int | None = None

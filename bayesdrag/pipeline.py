@@ -17,10 +17,13 @@ import numpy as np
 
 from ._threads import single_blas
 from .errors import FitError, InputError
+from .estimate.cd.headline import headline
+from .estimate.cd.model_error import fold_into_budget
 from .estimate.cd.quality import assess, check_against_flexible, intervals
 from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
+from .model_check import air, model_error, note_model_error, why_not_clean
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
 from .round import Round
@@ -102,7 +105,15 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             r["ml_without_effects"] = float(v)
     budget = _budget(f1, grid, rows)
     floored = model_error_floor(f1, rows)
+    gap = None
+    if opts.model_check and not opts.with_effects:
+        if ml_progress is not None:
+            ml_progress("checking the Cd against the misfit that remains")
+        gap = model_error(track, rnd, opts, chans, f1, grid, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
+    if gap is not None:
+        note_model_error(gap, quality, grid, rows)
+    quality["air"] = air(f1, gap)
     if dm.name != "spline":
         if ml_progress is not None:
             ml_progress("the flexible fit the rigid model is checked against")
@@ -116,11 +127,12 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         summary["ml"]["with_effects"] = with_note
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
+    fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
     bayes = post = None
     if opts.mcmc:
-        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored)
+        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress)
         summary["cd"] = rows
         summary["posterior"] = _posterior_json(bayes)
         summary["mcmc"] = _mcmc_json(bayes, post)
@@ -129,6 +141,8 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
         if ratios:
             summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
+    summary["headline"] = headline(summary["cd"], summary["ml"]["mach_range_determined"], quality["ok"],
+                                   None if quality["ok"] else why_not_clean(quality))
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
@@ -234,9 +248,9 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
     }
 
 
-def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=False):
+def _sample(f1, rows, grid, opts, chain_path, resume, log, progress):
     from .estimate.bayes.posterior import LogPosterior
-    from .estimate.bayes.draws import cd_draws, cd_posterior_rows, widen_to_floor
+    from .estimate.bayes.draws import cd_draws, cd_posterior_rows, needs_widening, widen_to_floor
     from .estimate.bayes.sampler import default_walkers, sample_posterior
 
     post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu, sample_ar=opts.sample_ar)
@@ -244,10 +258,9 @@ def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=Fal
     bayes = sample_posterior(post, nwalkers=walkers, moves=opts.moves, max_steps=opts.max_steps, seed=opts.seed,
                              backend_path=chain_path, resume=bool(resume and chain_path and Path(chain_path).exists()),
                              progress=progress, log=log)
-    cd = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
-    if floored:
-        cd = widen_to_floor(cd, rows)
-    return bayes, post, cd_posterior_rows(rows, cd)
+    sampled = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
+    cd = widen_to_floor(sampled, rows) if needs_widening(rows) else sampled
+    return bayes, post, cd_posterior_rows(rows, cd, sampled)
 
 
 
@@ -319,6 +332,9 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     if draws:
         summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
                            "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
+    det = determined_range(cd_rows)
+    summary["headline"] = headline(cd_rows, det, quality["ok"],
+                                   "; ".join(quality["problems"][:1]) or None)
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme2=r2,
                      window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
@@ -391,22 +407,9 @@ def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
     return cd_rows, quality
 
 
-def _why_not_clean(quality):
-    """The summary's reason a Scheme 1 fit is not a clean answer (its ``ml.quality``)."""
-    from .estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
-
-    chans = (quality.get("channels") or {}).values()
-    if any(c["chi2_per_sample"] > CHI2_LIMIT or (c["lag1"] > ACF_LIMIT and c["n"] > 20) for c in chans):
-        return "the model misses the track"
-    origin = (quality.get("launch") or {}).get("origin")
-    if origin:
-        return {"clock": "the track's clock is not the launch's", "position": "the track's origin is not at the gun"
-                }.get(origin["kind"], "the track does not start at the muzzle at t = 0")
-    return "a parameter sits at a bound"
-
-
 def summary_line(result):
-    """The one-line outcome the command prints (converged, determined range, caveat)."""
+    """The outcome the command prints: converged, determined range, caveat and next step, and a
+    second line on the air when the Cd is conditional on it or the track contradicts it."""
     s = result.record
     if s["scheme"] == 2:
         m = s["ml"]
@@ -415,13 +418,14 @@ def summary_line(result):
                 f"converged, Mach {lo:.2f}-{hi:.2f}")
     ml = s["ml"]
     det = ml["mach_range_determined"]
-    caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {_why_not_clean(ml['quality'])} (warnings above)"
+    caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {why_not_clean(ml['quality'])}"
     head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}"
             if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
     holes = [(a, b) for a, b in ml["quality"].get("undetermined", []) if det and det[0] < a and b < det[1]]
     if holes:
         head += " except " + ", ".join(f"{a:.2f}-{b:.2f}" for a, b in holes)
-    return head + caveat
+    air = (ml["quality"].get("air") or {})
+    return head + caveat + (f"\nair: {air['line']}" if air.get("line") else "")
 
 
 def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = None, **kwargs: Any) -> DiagnosisResult:

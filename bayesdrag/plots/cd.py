@@ -90,8 +90,16 @@ def plot_cd_posterior(rows, ax=None, truth=None, label="posterior", crb_band=0.9
     ax = new_axes(ax, (7.5, 4.8))
     m = np.array([r["mach"] for r in rows])
     g = {k: np.array([r[k] for r in rows], float) for k in ("q05", "q25", "q50", "q75", "q95", "ml", "crb_sd")}
-    ax.fill_between(m, g["q05"], g["q95"], color="C0", alpha=0.22, lw=0, label="90 % posterior")
-    ax.fill_between(m, g["q25"], g["q75"], color="C0", alpha=0.45, lw=0, label="50 % posterior")
+    widened = any(r.get("model_error_widening", 1.0) > 1.0 + 1e-9 for r in rows) and "sampled_q05" in rows[0]
+    ax.fill_between(m, g["q05"], g["q95"], color="C0", alpha=0.22, lw=0,
+                    label="90 % total band (posterior + model error)" if widened else "90 % posterior")
+    ax.fill_between(m, g["q25"], g["q75"], color="C0", alpha=0.45, lw=0,
+                    label="50 % total band" if widened else "50 % posterior")
+    if widened:
+        # the posterior as the sampler drew it, apart from the model-error widening
+        for j, k in enumerate(("sampled_q05", "sampled_q95")):
+            ax.plot(m, [r[k] for r in rows], color="C1", lw=0.9, ls="-.",
+                    label="90 % posterior as sampled" if j == 0 else None)
     ax.plot(m, g["q50"], color="C0", lw=1.4, label=f"{label} median")
     k = norm.ppf(0.5 + crb_band / 2)
     ax.plot(m, g["ml"] - k * g["crb_sd"], color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
@@ -161,12 +169,14 @@ def plot_cd_posterior_relative(rows, ax=None, truth=None, crb_band=0.90):
 
 
 def plot_cd_relative(rows, ax=None):
-    """Posterior sd of Cd over the Cramér-Rao sd against Mach (1 = the bound is attained).
+    """Posterior sd of Cd over the Cramér-Rao sd against Mach (1 = the bound is attained): the
+    posterior as sampled, and dashed the total band the rows report where a model-error
+    widening makes it wider.
 
     Parameters
     ----------
     rows : list of dict
-        ``cd`` rows with ``sd_over_crb``.
+        ``cd`` rows with ``sd_over_crb`` (sampled) and ``total_sd_over_crb``.
 
     Returns
     -------
@@ -175,8 +185,12 @@ def plot_cd_relative(rows, ax=None):
     ax = new_axes(ax, (6, 3))
     m = np.array([r["mach"] for r in rows])
     q = np.array([np.nan if r.get("sd_over_crb") is None else r["sd_over_crb"] for r in rows])
+    tot = np.array([np.nan if r.get("total_sd_over_crb") is None else r["total_sd_over_crb"] for r in rows])
     ax.axhspan(0.7, 1.5, color="0.9", label="0.7-1.5")
-    ax.plot(m, q, "C0")
+    ax.plot(m, q, "C0", label="posterior as sampled")
+    if np.any(np.abs(tot - q) > 1e-3 * np.nan_to_num(q, nan=1.0)):
+        # the model-error widening is not the sampler's: drawn as its own term
+        ax.plot(m, tot, "C3", ls="--", label="total band (with the model-error widening)")
     ax.axhline(1, color="k", lw=0.6)
     ax.set(xlabel="Mach", ylabel="posterior sd / CRB sd", title="posterior width vs Cramér-Rao bound")
     ax.grid(alpha=0.3)
@@ -241,7 +255,7 @@ def plot_uncertainty_budget(budget, ax=None, cd=None):
     m = np.asarray(budget["mach"], float)
     scale = 100.0 / np.asarray(cd, float) if cd is not None else 1.0
     unit = " [% of Cd]" if cd is not None else ""
-    ax.plot(m, np.asarray(budget["total_sd"]) * scale, color="k", lw=1.8, label="total (ML, joint)")
+    ax.plot(m, np.asarray(budget["total_sd"]) * scale, color="k", lw=1.8, label="total (the band the rows report)")
     for i, (k, v) in enumerate(budget["by_source"].items()):
         if k == "cross":
             continue

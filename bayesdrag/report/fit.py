@@ -146,23 +146,30 @@ def fit_figures(result):
     budget_fig = []
     if budget and (len(budget["by_source"]) > 2 or budget.get("model_error_floor")):
         budget_fig = [("cd_budget.png", "Uncertainty budget", "The Cd sd by source (GUM, linearised at the ML "
-                       "estimate): statistical = what the track leaves with every declared source held; each "
-                       "source's share; the total of the joint fit; dash-dot the model-error floor the band uses "
-                       "where the residuals show model error.", budget_figure(result).figure, None)]
+                       "estimate): statistical = what the track leaves with every declared source held (the colored "
+                       "or model-error-floor sd where the residuals show model error); each source's share; "
+                       "model_error = the Cd shift the remaining misfit implies; the total is the band the cd rows "
+                       "report; dash-dot the model-error floor where the residuals show model error.",
+                       budget_figure(result).figure, None)]
     if result.posterior is None:
         return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the "
                  "Cramér-Rao sd, or the colored-residual sd where the residuals show model error) and the reference.",
                  cd_figure(result).figure, None),
                 ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.", residuals_figure(result),
                  None)] + budget_fig
-    figs = [("cd.png", "Cd(M) posterior", "Posterior median with 50 % and 90 % bands, the ML curve's 90 % "
-             "Cramér-Rao band (dotted) and the reference firing table (dashed).", cd_figure(result).figure, None)]
+    figs = [("cd.png", "Cd(M) posterior", "Posterior median with the 50 % and 90 % bands the cd rows report "
+             "(q05/q95: where the residuals show model error, widened beyond the posterior as sampled, drawn "
+             "dash-dot), the ML curve's 90 % Cramér-Rao band (dotted) and the reference firing table (dashed).",
+             cd_figure(result).figure, None)]
     if all(r.get("reference") for r in rows):
         figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
                      "reference curve, where their widths are visible.", cd_relative_figure(result).figure, None))
     figs += budget_fig
-    figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "1 = the posterior is as wide as the bound; "
-                 "above 1 where the noise is estimated larger than the round's or the data are weak.",
+    figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "The posterior as sampled (solid): 1 = as "
+                 "wide as the bound, above 1 where the noise is estimated larger than the round's or the data are "
+                 "weak. Dashed, where drawn: the total band the cd rows report (q05/q95), wider by the model-error "
+                 "widening (the model-error floor and the Cd shift of the remaining misfit), which the sampler "
+                 "does not see.",
                  sd_ratio_figure(result).figure, None))
     figs.append(("corner.png", "Corner plot", "Cd at three Mach numbers of the determined range and the initial "
                  "state; lines at the 5, 50 and 95 % quantiles.", corner_figure(result), CORNER_DPI))
@@ -260,7 +267,7 @@ def write_fit_report(out, result, sources=None):
 
 def _common(result, sources, title_kind):
     track_name = Path(sources.get("track", result.track.source or "track")).name
-    return {"title": f"bayesdrag fit{title_kind}: {track_name}",
+    return {"title": f"bayesdrag fit{title_kind}: {track_name}", "answer": result.record.get("headline"),
             "created": datetime.datetime.now().isoformat(timespec="seconds"),
             "warnings": list(result.warnings), "versions": versions(),
             "quality": result.record["ml"].get("quality")}
@@ -371,12 +378,18 @@ def budget_context(summary, n=6):
         return None
     cond = b.get("conditional_on") or []
     srcs = [k for k in b["by_source"] if k not in ("statistical", "cross")]
-    note = ("Includes the declared sources " + ", ".join(srcs) + " (fitted with their priors); "
-            if srcs else "No systematic source is declared: ")
+    declared = [k for k in srcs if k != "model_error"]
+    note = ("Includes the declared sources " + ", ".join(declared) + " (fitted with their priors); "
+            if declared else "No systematic source is declared: ")
     note += ("the Cd is conditional on the nominal " + ", ".join(cond) + "." if cond else "every source is included.")
     if b.get("model_error_floor"):
         note += (" The residuals show model error: the band uses the model-error floor (the colored bound of the "
-                 "white-noise fit with the sources), wider than the AR(1) fit's own bound.")
+                 "white-noise fit with the sources), wider than the AR(1) fit's own bound; it is inside "
+                 "statistical.")
+    if "model_error" in srcs:
+        note += (" model_error is the Cd shift the misfit that remains implies (an undeclared effect the diagnosis "
+                 "finds, fitted; or a robust fit of the noise), see ml.quality.model_error.")
+    note += " The total is the band each cd row reports (band_sd): the squares plus cross give it."
     rows = []
     if srcs or b.get("model_error_floor"):
         mach = np.asarray(b["mach"], float)

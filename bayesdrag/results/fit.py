@@ -297,7 +297,8 @@ class FitResult:
 
     def cd_draws(self) -> np.ndarray:
         """Posterior Cd draws on the grid, (chains, draws, M), widened to the model-error floor
-        where ``result.json``'s rows are (Scheme 1 after sampling)."""
+        and model-error term where ``result.json``'s rows are (Scheme 1 after sampling): the
+        draws whose quantiles are the rows' ``q05``/``q95``."""
         if "cd_draws" not in self._cache:
             if self.posterior is None or self.scheme1 is None:
                 idata = self.to_inference_data() if self.sampled and self.scheme == 1 else None
@@ -305,11 +306,11 @@ class FitResult:
                     raise MissingDataError("cd_draws() needs the Scheme 1 posterior: fit with mcmc=True (the default)")
                 self._cache["cd_draws"] = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
             else:
-                from ..estimate.bayes.draws import cd_draws, widen_to_floor
+                from ..estimate.bayes.draws import cd_draws, needs_widening, widen_to_floor
 
                 f1 = self.scheme1
                 cd = cd_draws(self.posterior, f1.drag_model, self.grid, f1.problem.P)
-                if any("model_error_floor" in r for r in self.record.get("cd", [])):
+                if needs_widening(self.record.get("cd", [])):
                     cd = widen_to_floor(cd, [dict(r) for r in self.record["cd"]])   # as result.json's rows
                 self._cache["cd_draws"] = cd
         return self._cache["cd_draws"]

@@ -25,7 +25,7 @@ LAYERS = [
     ["bayesdrag.planning"],
     ["bayesdrag.results"],
     ["bayesdrag.diagnosis"],
-    ["bayesdrag.options", "bayesdrag.pipeline"],
+    ["bayesdrag.options", "bayesdrag.model_check", "bayesdrag.pipeline"],
     ["bayesdrag.campaign"],
     ["bayesdrag.plots"],
     ["bayesdrag.report"],

@@ -19,8 +19,13 @@ Bands
     colored-residual sd (Morelli & Klein: the residuals' own size and correlation, a sandwich
     estimate) when they do not. So a fit whose residuals show model error gets the wider band,
     and a white-noise fit keeps the Cramér-Rao one.
+Model error
+    A row's ``model_error_sd`` (:mod:`bayesdrag.estimate.cd.model_error`: the Cd shift an effect
+    the diagnosis finds, or a robust fit of the noise, implies) is added to its band in squares.
 Where Cd is determined
-    A ``cd`` row is determined when its ``band_sd`` is below :data:`DETERMINED_REL_SD` of Cd, it
+    A ``cd`` row is determined when its band less the declared systematic sources' share (those
+    widen the total band, but a well-measured Cd conditional on a known 1 % density uncertainty
+    is still determined by the data) is below :data:`DETERMINED_REL_SD` of Cd, it
     lies inside the Mach span the data cover, the drag model is not clamped there (beyond its
     end knots the spline is held flat), and no coefficient acting there sits at its bound.
     ``undetermined`` lists the Mach intervals of the grid where it is not.
@@ -321,6 +326,12 @@ def assess(fit1, rows, track, sigma_given=None):
         # a frame not at the gun's height: the air the fit flew in is not the air the shell
         # flew in; Cd is uncertain by the density difference (as one sd)
         band = np.sqrt(band**2 + (origin["density_offset"] * np.abs(ml))**2)
+    # the data's band (noise, correlated residuals, unresolved bends) less the declared sources'
+    # share: what "determined" is judged on, with the model error (:mod:`.model_error`) added
+    sys_var = np.clip(crb**2 - np.array([r.get("crb_sd_statistical", r["crb_sd"]) for r in rows], float)**2, 0, None)
+    me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
+    judged = np.sqrt(np.clip(band**2 - sys_var, 0, None) + me**2)
+    band = np.sqrt(band**2 + me**2)
     dm = prob.model.drag
     clamped = _clamped(dm, mach)
     bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
@@ -328,9 +339,9 @@ def assess(fit1, rows, track, sigma_given=None):
     lo, hi = (float(np.nanmin(res.mach)), float(np.nanmax(res.mach)))
     inside = (mach >= lo - 1e-4) & (mach <= hi + 1e-4)  # the grid is rounded to 1e-4
     with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.where(ml > 0, band / ml, np.inf)
+        rel = np.where(ml > 0, judged / ml, np.inf)
     # a zero band is no bound at all (an information matrix the data leave singular there)
-    det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band) & (band > 0)
+    det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band) & (judged > 0)
     for r, b, d in zip(rows, band, det):
         r["band_sd"] = float(b)
         r["determined"] = bool(d)

@@ -1,0 +1,206 @@
+"""The checks a default fit makes of its own Cd: the model error of the misfit that remains
+(:mod:`bayesdrag.estimate.cd.model_error`: the diagnosis's material effects fitted, a robust
+fit where the noise is correlated or has gross outliers), what the Cd assumes of the air, and
+the reason and next step a not-clean answer's summary gives."""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import FitError, InputError
+from .estimate.cd.model_error import combine, describe, shift_sd
+from .estimate.cd.quality import assess
+from .estimate.cd.table import cd_table, model_error_floor
+from .estimate.scheme1.fit import fit_scheme1
+
+__all__ = ["model_error", "note_model_error", "air", "why_not_clean", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD"]
+
+
+def model_error(track, rnd, opts, chans, f1, grid, rows):
+    """The model-error term of each row (:mod:`bayesdrag.estimate.cd.model_error`): the Cd shift
+    of the material effects the diagnosis finds and the round does not declare (fitted), and of
+    a robust fit where the noise is not white or has gross outliers. Sets each row's
+    ``model_error_sd``; returns the record of ``ml.quality.model_error``."""
+    from .estimate.model.noise import noise_and_outliers
+    from .estimate.scheme1.systematics import plan_effects
+
+    ml = np.array([r["ml"] for r in rows], float)
+    band = np.array([max(r["crb_sd"], r.get("crb_sd_colored", r["crb_sd"])) for r in rows], float)
+    rec = {"effects": [], "skipped": {}, "conditional_air": [], "noise_check": None}
+    parts = {}
+    from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
+
+    verdict = []
+    if track.n < MIN_DIAGNOSIS_SAMPLES:
+        rec["diagnosis_skipped"] = f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"
+    else:
+        try:
+            verdict = list(diagnose(track, rnd, channels=chans).summary["verdict"])
+        except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
+            # the check never costs the fit its answer: the record says it could not be made
+            rec["diagnosis_failed"] = f"{type(exc).__name__}: {exc}"
+    keep, skipped = plan_effects(verdict, rnd)
+    rec["verdict"], rec["skipped"] = verdict, skipped
+    rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density")]
+    if keep:
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=keep)
+        if alt is not None:
+            parts["effects"] = shift_sd(ml, band, alt[0], alt[1])
+            rec["effects"] = list(keep)
+    noisy = f1.white_ml is not None or opts.noise_model == "ar1"
+    flagged = 0
+    if opts.likelihood == "gaussian":
+        _, _, out = noise_and_outliers(track, f1.problem.channels, rnd.radar.sigma)
+        flagged = int(out.any(axis=1).sum())
+    if opts.likelihood == "gaussian" and flagged:
+        # gross outliers: a Student-t fit (white, outliers reweighted) is the check
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, likelihood="student-t")
+        if alt is not None:
+            parts["noise"] = shift_sd(ml, band, alt[0])
+            rec["noise_check"] = {"why": "gross outliers" + (" and correlated (AR(1)) residuals" if noisy else ""),
+                                  "against": "student-t", "outlier_samples": flagged}
+    elif f1.white_ml is not None:
+        # correlated residuals the auto noise model took as AR(1): the white-noise fit it started
+        # from is the check (no new fit: both are consistent when the model is right)
+        parts["noise"] = shift_sd(ml, band, f1.drag_model.cd(f1.white_ml.drag_params, grid))
+        rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
+    me = combine(*parts.values())
+    rec["parts"] = {k: [float(f"{v:.4g}") for v in p] for k, p in parts.items()}
+    if me is not None:
+        for r, v in zip(rows, me):
+            r["model_error_sd"] = float(v)
+    return rec
+
+
+def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
+    """``(cd, band_sd)`` on ``grid`` of the same fit with ``change`` (effects, likelihood); None
+    when it fails."""
+    kw = dict(drag=f1.drag_model.name, channels=chans, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
+              nu=opts.ml_nu, noise_model=opts.noise_model, start=f1.start)   # the plain fit's start: no new search
+    kw.update(change)
+    try:
+        alt = fit_scheme1(track, rnd, **kw)
+    except (InputError, FitError):
+        return None
+    if not alt.ml.success:
+        return None
+    ra = cd_table(alt.ml, alt.drag_model, grid)
+    model_error_floor(alt, ra)
+    assess(alt, ra, track, rnd.radar.sigma)
+    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra])
+
+
+#: how the noise checks are named in the problem line
+_CHECK_NAMES = {"student-t": "robust fit (Student-t, white noise)", "white": "white-noise fit"}
+
+
+def note_model_error(gap, quality, grid, rows):
+    """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do."""
+    quality["model_error"] = gap
+    me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
+    ml = np.array([r["ml"] for r in rows], float)
+    if gap["effects"]:
+        eff, them = ", ".join(gap["effects"]), "it" if len(gap["effects"]) == 1 else "them"
+        quality["problems"].append(
+            f"the diagnosis finds {eff} that the round does not declare: fitting {them} moves Cd by "
+            f"{describe(grid, ml, gap['parts']['effects'])}; the bands include this as model error and rows whose "
+            f"band then exceeds 1 % are not determined (`bayesdrag fit ... --with {','.join(gap['effects'])}` fits "
+            f"the cause)")
+        quality["ok"] = False
+    if gap["noise_check"] and "noise" in gap["parts"]:
+        stat = np.array([r["band_sd"] for r in rows], float)
+        shift = np.asarray(gap["parts"]["noise"], float)
+        if np.any(shift > 0.5 * stat):
+            quality["problems"].append(
+                f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
+                f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
+                f"it as model error")
+    why = gap.get("diagnosis_skipped") or gap.get("diagnosis_failed")
+    if why:
+        quality.setdefault("notes", []).append(
+            f"the model check could not run the diagnosis ({why}): the bands hold no model error for an undeclared "
+            f"effect")
+    if gap["conditional_air"]:
+        quality.setdefault("notes", []).append(
+            f"the diagnosis finds air unlike the round's ({', '.join(gap['conditional_air'])}): Cd is conditional "
+            f"on the stated air")
+    if "effects" in gap["parts"]:
+        e = np.asarray(gap["parts"]["effects"], float)
+        quality["model_error"]["effects_max_rel"] = float(np.max(np.where(ml > 0, e / np.abs(ml), 0.0)))
+    quality["model_error"]["max_rel"] = float(np.max(np.where(ml > 0, me / np.abs(ml), 0.0))) if me.size else 0.0
+
+
+#: a declared air source whose fitted value lies this many declared sd from the stated value is
+#: contradicted by the track
+AIR_CONTRADICTION_SD = 3.0
+
+
+def air(f1, gap):
+    """What the Cd assumes of the air, in one line (``ml.quality.air``): declared air sources the
+    track contradicts (fitted beyond :data:`AIR_CONTRADICTION_SD` declared sd), or undeclared air
+    the Cd is conditional on (named by the diagnosis when it finds air unlike the round's)."""
+    params = f1.ml.params
+    contradicted = []
+    for stem, ep, nom, sd in f1.sources:
+        if stem in ("density", "temperature") and ep.name in params and sd > 0:
+            z = (float(params[ep.name]) - nom) / sd
+            if abs(z) > AIR_CONTRADICTION_SD:
+                contradicted.append({"source": stem, "fitted": float(params[ep.name]), "stated": float(nom),
+                                     "z": float(z)})
+    declared = {s[0] for s in f1.sources}
+    undeclared = [k for k in ("density", "temperature") if k not in declared]
+    found = list((gap or {}).get("conditional_air", []))
+    beyond = [n for n in found if n in declared]       # a declared air source the diagnosis still finds
+    if contradicted or beyond:
+        line = "the track contradicts the declared air: " + ", ".join(
+            [f"{c['source']} fitted {c['fitted']:.4g} against the stated {c['stated']:.4g} ({c['z']:+.1f} declared sd)"
+             for c in contradicted] +
+            [f"the diagnosis finds {n} beyond the declared {n}_sd" for n in beyond if n not in
+             {c["source"] for c in contradicted}]) + "; check the met data or widen the declared _sd"
+    elif found:
+        line = (f"Cd is conditional on the stated air, which the track contradicts (the diagnosis finds "
+                f"{', '.join(found)}): declare {' and '.join(k + '_sd' for k in undeclared) or 'wider air _sd keys'} "
+                f"in [atmosphere] to carry it in the band")
+    elif undeclared:
+        line = (f"Cd is conditional on the stated air ({' and '.join(undeclared)} not declared: "
+                f"{', '.join(k + '_sd' for k in undeclared)} in [atmosphere] would carry it in the band)")
+    else:
+        line = None
+    return {"contradicted": contradicted, "undeclared": undeclared, "found": found, "line": line}
+
+
+#: an estimated noise sd below this [m or m/s] is no radar's: the track is (nearly) noise-free,
+#: and residuals above it are the simulator's or the integrator's, not a missed effect
+NOISE_FREE_SD = 1e-3
+
+
+def why_not_clean(quality):
+    """The summary's reason a Scheme 1 fit is not a clean answer and the next step
+    (its ``ml.quality``)."""
+    from .estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
+
+    me = quality.get("model_error") or {}
+    if me.get("effects"):
+        eff = ",".join(me["effects"])
+        rel = 100 * me.get("effects_max_rel", 0.0)
+        return (f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); "
+                f"next: `bayesdrag fit ... --with {eff}` fits it")
+    chans = quality.get("channels") or {}
+    bad = {c: f for c, f in chans.items()
+           if f["chi2_per_sample"] > CHI2_LIMIT or (f["lag1"] > ACF_LIMIT and f["n"] > 20)}
+    if bad:
+        if all(f["noise_source"] != "round" and f["noise_sd"] < NOISE_FREE_SD for f in bad.values()):
+            return (f"a (nearly) noise-free track: residuals of rms {max(f['rms'] for f in bad.values()):.2g} "
+                    f"against a noise of {max(f['noise_sd'] for f in bad.values()):.2g} estimated from it; give "
+                    f"[radar] sigma in the round for bands that hold the radar's noise")
+        return (f"the model misses the track in {', '.join(bad)}; next: `bayesdrag diagnose TRACK ROUND -o DIR` "
+                f"names the cause")
+    origin = (quality.get("launch") or {}).get("origin")
+    if origin:
+        return {"clock": "the track's clock is not the launch's", "position": "the track's origin is not at the gun"
+                }.get(origin["kind"], "the track does not start at the muzzle at t = 0") + \
+            "; next: declare time_offset_sd / [launch] position_sd, or trim the track"
+    if me.get("noise_check"):
+        nc = me["noise_check"]
+        nxt = "--likelihood student-t" if nc["against"] == "student-t" else "`bayesdrag diagnose TRACK ROUND -o DIR`"
+        return f"a {_CHECK_NAMES[nc['against']]} moves Cd ({nc['why']}, in the bands); next: {nxt}"
+    return "a parameter sits at a bound (see ml.quality.at_bounds); next: `bayesdrag diagnose TRACK ROUND -o DIR`"

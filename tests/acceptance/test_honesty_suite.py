@@ -1,0 +1,44 @@
+"""The honesty suite (:mod:`acceptance.honesty_suite`): flights with an effect the round does not
+declare, and with none, judged on the rows the default fit claims. A row marked ``determined``
+whose Cd is wrong (more than 2 % from the truth and more than 3 of its ``band_sd``) is the worst
+defect; the fast subset holds the flights that produced such rows before the model-error term
+(issue 27), the slow run every case."""
+import pytest
+
+from acceptance import honesty_suite as hs
+
+#: flights that claimed wrong rows before the model-error term: AR(1) noise with outliers and no
+#: effect at all; a 3 m/s head-cross wind on AR(1) noise; a flat 8 m/s headwind the residuals hide
+FAST_CASES = ("w-pm-null-102", "w-pm-wind-04", "w-pm-wind-01")
+#: a white-noise flight with no effect: nothing to widen, its determined span must stay whole
+CLEAN_CASE = "w-pm-null-100"
+#: share of a clean flight's judged span that must stay determined
+CLEAN_DETERMINED = 0.95
+
+
+@pytest.mark.parametrize("cid", FAST_CASES)
+def test_no_wrong_determined_row(cid):
+    r = hs.run_case(hs.case_by_id(cid))
+    assert "error" not in r, r.get("error")
+    assert r["determined_wrong"] == 0, (f"{cid}: {r['determined_wrong']} of {r['determined']} determined rows wrong "
+                                        f"(worst {r['worst_z_wrong']:.1f} band sd)")
+
+
+def test_clean_flight_keeps_its_span():
+    r = hs.run_case(hs.case_by_id(CLEAN_CASE))
+    assert r["determined_wrong"] == 0
+    assert r["determined_fraction"] >= CLEAN_DETERMINED, r["determined_fraction"]
+    assert r["quality_ok"]
+
+
+@pytest.mark.slow
+def test_full_suite_claims_no_wrong_row():
+    bad = []
+    for c in hs.all_cases():
+        if c.conditional:          # Cd conditional on the stated air by design (reported apart)
+            continue
+        r = hs.run_case(c)
+        assert "error" not in r, (c.id, r.get("error"))
+        if r["determined_wrong"]:
+            bad.append(f"{c.id}: {r['determined_wrong']}/{r['determined']} (worst z {r['worst_z_wrong']:.1f})")
+    assert not bad, "; ".join(bad)

@@ -1,0 +1,64 @@
+"""The model-error term (bayesdrag.estimate.cd.model_error), the budget that adds up to the band,
+the posterior widened to it, and the headline (issue 27)."""
+import numpy as np
+import pytest
+
+from bayesdrag.estimate.bayes.draws import cd_posterior_rows, needs_widening, widen_to_floor
+from bayesdrag.estimate.cd.headline import HEADLINE_LEVEL_Z, headline
+from bayesdrag.estimate.cd.model_error import combine, fold_into_budget, shift_sd
+
+#: relative agreement of quantities written to 6 significant digits
+SIX_DIGITS = 1e-5
+
+
+def test_shift_sd_carries_the_better_fits_band():
+    ml, band = np.array([0.30, 0.30]), np.array([0.001, 0.002])
+    alt, band_alt = np.array([0.303, 0.30]), np.array([0.0015, 0.001])
+    me = shift_sd(ml, band, alt, band_alt)
+    # the plain Cd's error sd is sqrt(shift^2 + band_alt^2): its band plus me in squares gives it
+    np.testing.assert_allclose(np.hypot(band, me), [np.hypot(0.003, 0.0015), 0.002], rtol=1e-12)
+    np.testing.assert_allclose(shift_sd(ml, band, alt), [0.003, 0.0], atol=1e-15)
+
+
+def test_combine_adds_in_squares_and_none_is_nothing():
+    assert combine(None, None) is None
+    np.testing.assert_allclose(combine(np.array([3.0]), None, np.array([4.0])), [5.0])
+
+
+def test_budget_total_is_the_band_and_squares_add_up():
+    budget = {"mach": [1.0, 2.0], "total_sd": [0.0010, 0.0020],
+              "by_source": {"statistical": [0.0008, 0.0012], "density": [0.0006, 0.0016], "cross": [0.0, 0.0]}}
+    rows = [{"band_sd": 0.0015, "model_error_sd": 0.0005}, {"band_sd": 0.0030, "model_error_sd": 0.0}]
+    b = fold_into_budget(budget, rows)
+    assert b["total_sd"] == [0.0015, 0.0030]
+    assert b["linearised_total_sd"] == [0.0010, 0.0020]
+    sq = sum(np.asarray(v) ** 2 for k, v in b["by_source"].items() if k != "cross")
+    sq = sq + np.asarray(b["by_source"]["cross"])
+    np.testing.assert_allclose(sq, np.square(b["total_sd"]), rtol=SIX_DIGITS)
+    assert b["by_source"]["model_error"] == [0.0005, 0.0]
+
+
+def test_widening_holds_the_model_error_and_keeps_the_sampled_posterior():
+    rng = np.random.default_rng(0)
+    cd = 0.3 + 0.001 * rng.standard_normal((4, 2000, 2))
+    rows = [{"mach": 1.0, "ml": 0.3, "crb_sd": 0.001, "model_error_sd": 0.002},
+            {"mach": 2.0, "ml": 0.3, "crb_sd": 0.001}]
+    assert needs_widening(rows) and not needs_widening([rows[1]])
+    wide = widen_to_floor(cd, rows)
+    out = cd_posterior_rows(rows, wide, cd)
+    # the total sd is sqrt(sampled^2 + model error^2); the sampled keys are the sampler's
+    assert out[0]["sd"] == pytest.approx(np.hypot(out[0]["sampled_sd"], 0.002), rel=1e-9)
+    assert out[1]["sd"] == pytest.approx(out[1]["sampled_sd"], rel=1e-12)
+    assert out[0]["sd_over_crb"] == pytest.approx(out[0]["sampled_sd"] / 0.001, rel=1e-12)
+    assert out[0]["q05"] < out[0]["sampled_q05"] and out[0]["q95"] > out[0]["sampled_q95"]
+    assert rows[0]["model_error_widening"] > 2.0 and rows[1]["model_error_widening"] == 1.0
+
+
+def test_headline_takes_the_rows_numbers():
+    rows = [{"mach": m, "ml": 0.3, "band_sd": 0.001, "determined": 1.0 <= m <= 2.0} for m in np.linspace(0.8, 2.4, 17)]
+    h = headline(rows, (1.0, 2.0), False, "the model misses the track; next: bayesdrag diagnose")
+    assert h["band"] == "ml" and h["clean"] is False and "next" in h["not_clean_because"]
+    assert [p["mach"] for p in h["cd"]] == pytest.approx([1.0, 1.25, 1.5, 1.75, 2.0], abs=0.051)
+    assert all(p["determined"] for p in h["cd"])
+    assert h["cd"][0]["q95"] - h["cd"][0]["cd"] == pytest.approx(HEADLINE_LEVEL_Z * 0.001)
+    assert headline(rows, None, True)["determined_range"] is None
