@@ -89,7 +89,7 @@ from ..errors import InputError
 from ..io.drag_tables import load_m101
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
-from ..track import CHANNELS, MAX_FIT_SAMPLES, RadarTrack
+from ..track import GUN_CHANNELS as CHANNELS, MAX_FIT_SAMPLES, RadarTrack
 from ..estimate.scheme1.launch import launch_state_priors
 from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
@@ -177,7 +177,7 @@ def drag_assumption(rnd, assumed_drag=None):
 def radar_channels(rnd):
     """The channels the radar gives (those with a ``[radar] sigma``) and their sd."""
     sig = dict(rnd.radar.sigma)
-    chans = tuple(c for c in CHANNELS if c in sig)
+    chans = tuple(c for c in CHANNELS if c in sig)      # native channels: planned sites are issue 28 part 3
     if not chans:
         raise InputError(f"{rnd.path or 'round'}: plan needs the radar's noise: [radar] sigma = "
                          f"{{x = 1.0, y = 1.0, z = 1.0, v = 0.3}} (the channels it tracks and their sd)")
