@@ -31,7 +31,7 @@ from ..errors import InputError
 from ..track import ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 
 __all__ = ["RadarSite", "site_of", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
-           "gun_frame_track", "near_branch", "native_only", "EARTH_RADIUS"]
+           "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS"]
 
 #: mean Earth radius [m], for the curvature figure x^2 / (2 Re) of the docs
 EARTH_RADIUS = 6_371_000.0
@@ -283,6 +283,19 @@ def gun_frame_track(track, site=RadarSite()):
             out[c] = ch[c]
     note = f"{track.source or 'track'}: range, azimuth and elevation turned into x, y, z from the radar's site"
     return RadarTrack(track.t, out, {}, track.source, track.notes + (note,))
+
+
+#: the gun-frame quantity each native channel mainly observes, for decisions made by channel
+#: name (which initial-state components the data determine, which launch priors it checks)
+_OBSERVES = {"range": "x", "azimuth": "y", "elevation": "z", "range_rate": "v"}
+
+
+def gun_equivalent(names):
+    """The gun-frame channels a set of channels stands in for (tuple, ``GUN_CHANNELS`` order):
+    the gun channels themselves, ``range`` for ``x``, ``azimuth`` for ``y``, ``elevation`` for
+    ``z`` and ``range_rate`` for ``v`` (range and both angles locate the shell: ``x, y, z``)."""
+    have = {c for c in names if c in GUN_CHANNELS} | {_OBSERVES[c] for c in names if c in _OBSERVES}
+    return tuple(c for c in GUN_CHANNELS if c in have)
 
 
 def native_only(names):
