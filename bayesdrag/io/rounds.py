@@ -16,9 +16,9 @@ import tomli_w
 from ..atmosphere import Atmosphere, MetProfile
 from ..errors import InputError
 from ..track import ANGLE_CHANNELS, FILE_UNITS
-from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
+from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
                      Launch, Projectile, Radar, Round, Systematics)
-from ..validate import number, type_name
+from ..validate import number, positive, type_name
 from .csv import read_toml
 from .drag_tables import read_drag_table
 from .met import met_file_kind, read_met_profile, write_met_profile, write_wind_profile
@@ -74,10 +74,17 @@ def _radar(tab):
     angle bias sds) given in degrees, held in radians."""
     sigma = tab.get("sigma", {})
     if isinstance(sigma, dict):
-        sigma = {k: (math.radians(v) if k in ANGLE_CHANNELS and isinstance(v, (int, float))
+        sigma = {k: (math.radians(positive(f"sigma.{k}", v, "deg")) if k in ANGLE_CHANNELS and isinstance(v, (int, float))
                      and not isinstance(v, bool) else v) for k, v in sigma.items()}
-    ang = {k: (math.radians(tab[k]) if isinstance(tab.get(k), (int, float)) and not isinstance(tab[k], bool)
-               else tab.get(k)) for k in ("azimuth_bias_sd", "elevation_bias_sd")}
+    ang = {}
+    for k in ("azimuth_bias_sd", "elevation_bias_sd"):     # checked in the file's unit, held in rad
+        v = number(k, tab.get(k), "deg", optional=True)
+        if v is not None:
+            v = positive(k, v, "deg")
+            if v > math.degrees(ANGLE_BIAS_SD_MAX):
+                raise ValueError(f"{k} = {v:g} deg is larger than the plausible {math.degrees(ANGLE_BIAS_SD_MAX):g} deg")
+            v = math.radians(v)
+        ang[k] = v
     return Radar(sigma, tab.get("position", (0.0, 0.0, 0.0)), tab.get("range_bias_sd"), ang["azimuth_bias_sd"],
                  ang["elevation_bias_sd"], tab.get("position_sd"), tab.get("device_offset"))
 

@@ -177,7 +177,12 @@ def drag_assumption(rnd, assumed_drag=None):
 def radar_channels(rnd):
     """The channels the radar gives (those with a ``[radar] sigma``) and their sd."""
     sig = dict(rnd.radar.sigma)
-    chans = tuple(c for c in CHANNELS if c in sig)      # native channels: planned sites are issue 28 part 3
+    chans = tuple(c for c in CHANNELS if c in sig)
+    if not chans and sig:
+        # planning a radar's own channels needs its site among the planned cases: not yet
+        raise InputError(f"{rnd.path or 'round'}: plan predicts x, y, z, v tracks only; the round's [radar] sigma "
+                         f"gives {', '.join(sig)}: add the sd of the x, y, z, v channels the radar's track "
+                         f"would give to plan with them")
     if not chans:
         raise InputError(f"{rnd.path or 'round'}: plan needs the radar's noise: [radar] sigma = "
                          f"{{x = 1.0, y = 1.0, z = 1.0, v = 0.3}} (the channels it tracks and their sd)")

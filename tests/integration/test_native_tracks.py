@@ -130,3 +130,24 @@ def test_simulate_native_noise_needs_native_sigma(tmp_path):
                                        "sigma = {range = 2.0}"))
     with pytest.raises(InputError, match="missing: azimuth, elevation, range_rate"):
         simulate(read_round(f), radar="native", noise=True, seed=1)
+
+
+@pytest.mark.parametrize("line, message", [
+    ("azimuth_bias_sd = 0.05", r"\[radar\] azimuth_bias_sd = -1 must be > 0 \(deg\)"),
+    ("range_bias_sd = 1.0", r"\[radar\] range_bias_sd = -1 must be > 0"),
+])
+def test_round_refuses_bad_bias_sds(tmp_path, line, message):
+    f = _round(tmp_path)
+    f.write_text(f.read_text().replace(line, line.split("=")[0] + "= -1"))
+    with pytest.raises(InputError, match=message):
+        read_round(f)
+
+
+def test_round_refuses_an_implausible_angle_bias_and_a_far_site(tmp_path):
+    f = _round(tmp_path)
+    f.write_text(f.read_text().replace("elevation_bias_sd = 0.05", "elevation_bias_sd = 5.0"))
+    with pytest.raises(InputError, match=r"\[radar\] elevation_bias_sd = 5 deg is larger than the plausible 1 deg"):
+        read_round(f)
+    f = _round(tmp_path, px=-40000.0)
+    with pytest.raises(InputError, match=r"\[radar\] position = .* m from the muzzle, more than the plausible 20000 m"):
+        read_round(f)

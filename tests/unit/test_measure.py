@@ -125,3 +125,18 @@ def test_site_of_needs_the_azimuth_for_angles(m101):
 def test_state_shape_is_checked():
     with pytest.raises(ValueError, match="6 entries"):
         channel_values(np.zeros((3, 4)), ("range",))
+
+
+def test_problem_outputs_put_the_azimuth_on_the_measured_branch():
+    """The output-error problem's predictions of the azimuth lie within pi of the measurement,
+    so that its residual (measured minus predicted) is the wrapped angle difference."""
+    from bayesdrag.estimate.model.problem import outputs
+
+    site = RadarSite((0.0, 0.0, 0.0), math.radians(359.0))
+    st = np.array([[[1000.0, 0.0, 10.0, 800.0, 0.0, 100.0], [1000.0, 40.0, 10.0, 800.0, 0.0, 100.0]]])
+    meas = np.array([[math.radians(359.5)], [math.radians(1.0)]])
+    y = outputs(st, ("azimuth",), site, meas)
+    r = meas[None] - y
+    assert np.all(np.abs(r) < math.radians(2.0))
+    plain = channel_values(st, ("azimuth",), site)
+    assert np.allclose(wrap_angle(y - plain), 0.0, atol=1e-12)
