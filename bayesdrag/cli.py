@@ -189,7 +189,7 @@ def _add_fit_options(p, batch=False):
 
 
 def build_parser():
-    from .options import SIMULATION_MODELS, SimulateOptions
+    from .options import SIMULATION_MODELS, SIMULATION_RADARS, SimulateOptions
 
     p = _Parser(prog="bayesdrag", description=DESCRIPTION)
     p.add_argument("--version", action="version", version=_version())
@@ -205,6 +205,9 @@ def build_parser():
     s.add_argument("--seed", type=_seed, default=None, help="seed of the noise generator")
     s.add_argument("--clock-offset", type=_finite_float, default=so.clock_offset,
                    help="radar clock late by this many seconds (recorded = true - offset)")
+    s.add_argument("--radar", choices=SIMULATION_RADARS, default=so.radar,
+                   help="gun: x, y, z, v in the gun's frame (default); native: range, azimuth, elevation, "
+                        "range_rate from the round's [radar] position, noise in those coordinates")
     _add_quiet(s)
 
     f = sub.add_parser("fit", help="estimate Cd(M) from a track (ML with Cramér-Rao bounds, then emcee posterior)")
@@ -260,7 +263,7 @@ def build_parser():
 
 def _columns(value):
     """``--columns t=time,v=velocity``: ``{channel: header name}``."""
-    from .track import CHANNELS
+    from .track import ALL_CHANNELS as CHANNELS
 
     out = {}
     for part in value.split(","):
@@ -331,7 +334,8 @@ def cmd_simulate(args):
     if args.seed is not None and not args.noise:
         raise InputError("command line: --seed only makes sense with --noise")
     run_simulate(args.round, args.output, SimulateOptions(model=args.model, dt=args.dt, noise=args.noise,
-                                                          seed=args.seed, clock_offset=args.clock_offset),
+                                                          seed=args.seed, clock_offset=args.clock_offset,
+                                                          radar=args.radar),
                  echo=_stdout(args))
     return 0
 

@@ -14,10 +14,10 @@ from dataclasses import asdict, dataclass, fields
 from .drag import DRAG_MODEL_NAMES
 from .errors import InputError
 from .estimate.model.likelihood import LIKELIHOODS, STUDENT_T_NU
-from .track import CHANNELS
+from .track import ALL_CHANNELS, CHANNELS
 
 __all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "PlanOptions", "LIKELIHOODS", "MOVES",
-           "SIMULATION_MODELS", "JOBS"]
+           "SIMULATION_MODELS", "SIMULATION_RADARS", "JOBS"]
 
 #: emcee move sets (auto: independence proposal from the ML fit + a local move)
 MOVES = ("auto", "de", "stretch")
@@ -143,9 +143,9 @@ class FitOptions:
         if self.channels is not None:
             ch = tuple(self.channels) if not isinstance(self.channels, str) else tuple(
                 c.strip() for c in self.channels.split(",") if c.strip())
-            bad = [c for c in ch if c not in CHANNELS]
+            bad = [c for c in ch if c not in ALL_CHANNELS]
             if bad or not ch:
-                _bad("channels", self.channels, f"use a non-empty subset of {', '.join(CHANNELS)}")
+                _bad("channels", self.channels, f"use a non-empty subset of {', '.join(ALL_CHANNELS)}")
             twice = sorted({c for c in ch if ch.count(c) > 1})
             if twice:
                 # a channel named twice would be counted twice: its noise weight doubled
@@ -236,6 +236,10 @@ class FitOptions:
         return tuple(f.name for f in fields(cls))
 
 
+#: what ``simulate --radar`` records: the gun-frame channels or the radar's own
+SIMULATION_RADARS = ("gun", "native")
+
+
 @dataclass(frozen=True)
 class SimulateOptions:
     """Options of ``bayesdrag simulate`` / :func:`bayesdrag.simulate`.
@@ -251,6 +255,10 @@ class SimulateOptions:
         Seed of the noise generator.
     clock_offset : float
         The radar clock is late by this much [s] (recorded time = true time - offset).
+    radar : {"gun", "native"}
+        ``gun`` (default) writes ``x, y, z, v`` in the gun's frame; ``native`` what a tracking
+        radar at the round's ``[radar] position`` records: ``range, azimuth, elevation,
+        range_rate`` (noise in those coordinates).
     """
 
     model: str = "pointmass"
@@ -258,6 +266,7 @@ class SimulateOptions:
     noise: bool = False
     seed: int | None = None
     clock_offset: float = 0.0
+    radar: str = "gun"
 
     def __post_init__(self):
         if self.model not in SIMULATION_MODELS:
@@ -267,6 +276,8 @@ class SimulateOptions:
         if not (isinstance(self.clock_offset, (int, float)) and math.isfinite(self.clock_offset)
                 and abs(self.clock_offset) <= 1.0):
             _bad("clock_offset", self.clock_offset, "use a finite offset within +-1 s")
+        if self.radar not in SIMULATION_RADARS:
+            _bad("radar", self.radar, f"use one of {', '.join(SIMULATION_RADARS)}")
         if self.seed is not None:
             _int("seed", self.seed, 0)
             if not self.noise:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from .atmosphere import Atmosphere
 from .drag import ReferenceTable
-from .track import CHANNELS, UNITS
+from .track import ALL_CHANNELS, UNITS
 from .validate import number, positive, type_name
 
 __all__ = ["Projectile", "Launch", "Radar", "Systematics", "Round", "DEFAULT_VELOCITY_SD",
@@ -121,9 +121,11 @@ class Launch:
         Quadrant elevation, in (-10, 90). None: unknown (estimated from the track).
     velocity : float or None, m/s
         Launch (muzzle) velocity, in (0, 3000]. None: unknown.
-    azimuth_deg : float, deg
-        Firing azimuth clockwise from true north, normalised to [0, 360). Default 0 (north): it
-        only matters for Coriolis, which also needs ``latitude_deg``.
+    azimuth_deg : float or None, deg
+        Firing azimuth clockwise from true north, normalised to [0, 360). None (the default):
+        not given, held at 0 (north) and :attr:`azimuth_given` False; it matters for Coriolis
+        (with ``latitude_deg``), a METCM message's winds and a radar's azimuth channel, which
+        refuse a round without it.
     latitude_deg : float or None, deg
         Latitude of the gun, north positive, in [-90, 90]. None: unknown (no Coriolis geometry).
     altitude : float, m
@@ -141,7 +143,7 @@ class Launch:
 
     elevation_deg: float | None = None
     velocity: float | None = None
-    azimuth_deg: float = 0.0
+    azimuth_deg: float | None = None
     latitude_deg: float | None = None
     altitude: float = 0.0
     velocity_sd: float = DEFAULT_VELOCITY_SD
@@ -156,7 +158,9 @@ class Launch:
         vel = number("velocity", self.velocity, "m/s", optional=True)
         if vel is not None and not 0.0 < vel <= VELOCITY_MAX:
             raise ValueError(f"velocity = {vel:g} m/s is outside (0, {VELOCITY_MAX:g}] m/s")
-        az = number("azimuth", self.azimuth_deg, "deg") % 360.0
+        given = self.azimuth_deg is not None
+        az = number("azimuth", self.azimuth_deg, "deg", optional=True)
+        az = 0.0 if az is None else az % 360.0
         lat = number("latitude", self.latitude_deg, "deg", optional=True)
         if lat is not None and not -90.0 <= lat <= 90.0:
             raise ValueError(f"latitude = {lat:g} deg is outside [-90, 90] deg")
@@ -170,6 +174,12 @@ class Launch:
                       position_sd=positive("position_sd", self.position_sd, "m"))
         for k, v in values.items():
             object.__setattr__(self, k, v)
+        object.__setattr__(self, "_azimuth_given", given)
+
+    @property
+    def azimuth_given(self):
+        """Whether the firing azimuth was given (else it is held at 0, north)."""
+        return self._azimuth_given
 
     @property
     def elevation(self):
@@ -192,28 +202,78 @@ class Launch:
         return None if self.latitude_deg is None else math.radians(self.latitude_deg)
 
 
+#: largest plausible distance of the radar's site from the muzzle [m]: a tracking radar stands
+#: beside or behind the gun, at most a few km away; beyond this a position is in another unit
+RADAR_SITE_MAX = 20_000.0
+#: largest plausible a-priori sd of a radar bias: range [m], angles [rad] (1 deg: an encoder
+#: off by more is a setup mistake, not an uncertainty)
+RANGE_BIAS_SD_MAX = 100.0
+ANGLE_BIAS_SD_MAX = math.radians(1.0)
+
+
 @dataclass(frozen=True, eq=False)
 class Radar:
-    """A-priori radar noise.
+    """The radar: its a-priori noise, its site and its systematic errors.
 
     Attributes
     ----------
     sigma : dict of str -> float
-        Noise sd per channel (keys among ``x, y, z`` [m] and ``v`` [m/s]), each > 0; may be
-        empty (then the fit estimates the noise).
+        Noise sd per channel in the channel's unit inside the code (``x, y, z, range`` [m],
+        ``v, range_rate`` [m/s], ``azimuth, elevation`` [rad]; the round file gives the angles
+        in degrees), each > 0; may be empty (then the fit estimates the noise).
+    position : tuple of 3 floats, m
+        The radar's site in the gun's frame at launch (x downrange, y right, z up); default the
+        muzzle (0, 0, 0). Used only by radar-native channels.
+    range_bias_sd : float or None, m
+        A-priori sd of a constant range offset.
+    azimuth_bias_sd, elevation_bias_sd : float or None, rad
+        A-priori sd of a constant encoder / boresight offset of each angle.
+    position_sd : float or None, m
+        How well the site is known, per axis.
+    device_offset : float or None, m
+        A chronograph radar's offset from the line of fire as typed into the device (its own
+        correction of the radial speed, to be undone).
     """
 
     sigma: dict = field(default_factory=dict)
+    position: tuple = (0.0, 0.0, 0.0)
+    range_bias_sd: float | None = None
+    azimuth_bias_sd: float | None = None
+    elevation_bias_sd: float | None = None
+    position_sd: float | None = None
+    device_offset: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.sigma, dict):
             raise ValueError(f"sigma must be a table like {{x = 1.0, v = 0.3}}, got {type_name(self.sigma)}")
-        bad = [k for k in self.sigma if k not in CHANNELS]
+        bad = [k for k in self.sigma if k not in ALL_CHANNELS]
         if bad:
             raise ValueError(f"sigma has unknown channel(s) {', '.join(map(str, bad))}; "
-                             f"allowed: {', '.join(CHANNELS)}")
-        sig = {k: positive(f"sigma.{k}", self.sigma[k], UNITS[k]) for k in CHANNELS if k in self.sigma}
+                             f"allowed: {', '.join(ALL_CHANNELS)}")
+        sig = {k: positive(f"sigma.{k}", self.sigma[k], UNITS[k]) for k in ALL_CHANNELS if k in self.sigma}
         object.__setattr__(self, "sigma", sig)
+        pos = self.position
+        if isinstance(pos, dict):
+            unknown = [k for k in pos if k not in ("x", "y", "z")]
+            if unknown:
+                raise ValueError(f"position has unknown key(s) {', '.join(map(str, unknown))}; allowed: x, y, z")
+            pos = tuple(pos.get(k, 0.0) for k in ("x", "y", "z"))
+        if isinstance(pos, (str, bytes)) or not hasattr(pos, "__len__") or len(pos) != 3:
+            raise ValueError(f"position must be a table {{x = ..., y = ..., z = ...}} in m, got {type_name(pos)}")
+        pos = tuple(number(f"position.{k}", v, "m") for k, v in zip("xyz", pos))
+        if math.hypot(*pos) > RADAR_SITE_MAX:
+            raise ValueError(f"position = {pos} is {math.hypot(*pos):.0f} m from the muzzle, more than the plausible "
+                             f"{RADAR_SITE_MAX:g} m (metres, in the gun's frame: x downrange, y right, z up)")
+        object.__setattr__(self, "position", pos)
+        for key, unit, hi in (("range_bias_sd", "m", RANGE_BIAS_SD_MAX), ("azimuth_bias_sd", "rad", ANGLE_BIAS_SD_MAX),
+                              ("elevation_bias_sd", "rad", ANGLE_BIAS_SD_MAX), ("position_sd", "m", RADAR_SITE_MAX),
+                              ("device_offset", "m", None)):
+            val = number(key, getattr(self, key), unit, optional=True)
+            if val is not None and key != "device_offset":
+                val = positive(key, val, unit)
+                if val > hi:
+                    raise ValueError(f"{key} = {val:g} {unit} is larger than the plausible {hi:g} {unit}")
+            object.__setattr__(self, key, val)
 
 
 #: the systematic sources a round may declare: key stem -> (round-file section, unit, largest

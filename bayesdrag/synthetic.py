@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
-from .track import CHANNELS, RadarTrack
+from .measure import channel_values, site_of
+from .track import GUN_CHANNELS, RadarTrack
 
 __all__ = ["simulate_round", "add_noise", "add_outliers", "drop_samples", "ar1_noise"]
 
@@ -40,7 +41,7 @@ def _above_the_air(rnd, z, model):
 
 
 def simulate_round(rnd, model="pointmass", dt=0.027, *, clock_offset=0.0, wind=(0.0, 0.0, 0.0),
-                   channels=CHANNELS, max_time=600.0):
+                   channels=GUN_CHANNELS, max_time=600.0, site=None):
     """Noise-free radar track of one round from launch to impact (z back to 0).
 
     Parameters
@@ -60,7 +61,11 @@ def simulate_round(rnd, model="pointmass", dt=0.027, *, clock_offset=0.0, wind=(
     wind : (3,) m/s
         Constant wind in the track frame (x downrange, y right, z up; docs/formats.md).
     channels : sequence of str
-        Channels to record, among x, y, z, v.
+        Channels to record, among x, y, z, v and the radar-native range, azimuth, elevation,
+        range_rate (:mod:`bayesdrag.measure`).
+    site : bayesdrag.measure.RadarSite, optional
+        Where the radar stands; default the round's (``[radar] position``, ``[launch]
+        azimuth``, which angle channels require).
 
     Returns
     -------
@@ -78,9 +83,12 @@ def simulate_round(rnd, model="pointmass", dt=0.027, *, clock_offset=0.0, wind=(
         t, pos, vel = _pointmass(rnd, ref, L, dt, clock_offset, wind, max_time)
     else:
         t, pos, vel = _sixdof(rnd, ref, L, dt, clock_offset, wind, max_time)
-    data = {"x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2], "v": np.linalg.norm(vel, axis=1)}
+    channels = tuple(channels)
+    if site is None:
+        site = site_of(rnd, channels)
+    values = channel_values(np.concatenate([pos, vel], axis=1), channels, site)
     src = f"bayesdrag simulate --model {model} ({rnd.path})"
-    return RadarTrack(t, {c: data[c] for c in channels}, {}, source=src)
+    return RadarTrack(t, {c: values[:, j] for j, c in enumerate(channels)}, {}, source=src)
 
 
 def _sample_times(t_impact, dt, clock_offset):
@@ -170,7 +178,8 @@ def add_noise(track, sigma, rng, rho=0.0):
     Parameters
     ----------
     track : RadarTrack
-    sigma : dict channel -> sd (m or m/s); channels not in ``sigma`` stay noise-free
+    sigma : dict channel -> sd in the channel's unit (m, m/s, rad); channels not in ``sigma``
+        stay noise-free. A noisy azimuth is wrapped back into [0, 2 pi).
     rng : numpy.random.Generator
     rho : float
         Lag-one correlation of the noise (0 = white).
@@ -181,7 +190,7 @@ def add_noise(track, sigma, rng, rho=0.0):
         if sd < 0 or not np.isfinite(sd):
             raise ValueError(f"noise sd for {name} must be finite and >= 0, got {sd}")
         noise = ar1_noise(val.size, sd, rho, rng) if rho else rng.standard_normal(val.size) * sd
-        ch[name] = val + noise
+        ch[name] = (val + noise) % (2.0 * np.pi) if name == "azimuth" else val + noise
     return RadarTrack(track.t, ch, dict(track.extra), source=track.source)
 
 

@@ -6,12 +6,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CHANNELS", "UNITS", "RadarTrack", "MAX_FIT_SAMPLES", "thin_for_fit"]
+__all__ = ["CHANNELS", "ALL_CHANNELS", "GUN_CHANNELS", "NATIVE_CHANNELS", "ANGLE_CHANNELS", "UNITS", "FILE_UNITS",
+           "RadarTrack", "MAX_FIT_SAMPLES", "thin_for_fit"]
 
-#: measured channels of a track, in canonical order; SI units m, m, m, m/s
-CHANNELS = ("x", "y", "z", "v")
-#: unit of each column of a track file
-UNITS = {"t": "s", "x": "m", "y": "m", "z": "m", "v": "m/s"}
+#: channels in the gun's frame: positions x, y, z [m] and ground speed v [m/s]
+GUN_CHANNELS = ("x", "y", "z", "v")
+#: channels a radar measures from its own site (docs/radar.md): slant range [m], azimuth
+#: clockwise from true north [rad], elevation above the horizontal [rad], range rate [m/s]
+#: (positive receding). The angles are in radians inside the code, degrees in files.
+NATIVE_CHANNELS = ("range", "azimuth", "elevation", "range_rate")
+#: the native channels that are angles (degrees in files, radians inside)
+ANGLE_CHANNELS = ("azimuth", "elevation")
+#: the gun-frame channels (the name older code and users know)
+CHANNELS = GUN_CHANNELS
+#: every channel a track may hold, in canonical order
+ALL_CHANNELS = GUN_CHANNELS + NATIVE_CHANNELS
+#: unit of each channel inside the code (SI)
+UNITS = {"t": "s", "x": "m", "y": "m", "z": "m", "v": "m/s", "range": "m", "azimuth": "rad",
+         "elevation": "rad", "range_rate": "m/s"}
+#: unit of each column of a track file and of ``[radar] sigma`` in a round file
+FILE_UNITS = {**UNITS, "azimuth": "deg", "elevation": "deg"}
 #: the most samples a fit or a diagnosis uses: a denser track is thinned to every k-th sample.
 #: The work grows with the samples (~0.5 ms per sample per Scheme 1 fit on 2 cores, measured:
 #: 3 249 samples 4.0 s, 10 827 samples 6.6 s, 32 478 samples 17 s, 325 000 samples did not finish
@@ -30,7 +44,10 @@ class RadarTrack:
     t : ndarray, shape (N,), s
         Sample times since launch, strictly increasing.
     channels : dict of str -> ndarray (N,)
-        A non-empty subset of ``x, y, z`` [m] and ``v`` [m/s], stored in :data:`CHANNELS` order.
+        A non-empty subset of ``x, y, z`` [m] and ``v`` [m/s] (the gun's frame) and of the
+        radar-native ``range`` [m], ``azimuth`` [rad, clockwise from true north],
+        ``elevation`` [rad] and ``range_rate`` [m/s] (seen from the radar's site, which the
+        round gives), stored in :data:`ALL_CHANNELS` order.
     extra : dict of str -> ndarray (N,)
         Further columns of the file, kept but ignored by the fit.
     source : str
@@ -59,19 +76,19 @@ class RadarTrack:
         if t.size > 1 and np.any(np.diff(t) <= 0):
             i = int(np.argmax(np.diff(t) <= 0)) + 1
             raise ValueError(f"{src}: t must increase strictly; sample {i} has t = {t[i]} after {t[i - 1]}")
-        unknown = [k for k in self.channels if k not in CHANNELS]
+        unknown = [k for k in self.channels if k not in ALL_CHANNELS]
         if unknown:
             raise ValueError(f"{src}: unknown channel(s) {', '.join(map(str, unknown))}; "
-                             f"allowed: {', '.join(CHANNELS)}")
+                             f"allowed: {', '.join(ALL_CHANNELS)}")
         if not self.channels:
-            raise ValueError(f"{src}: a track needs at least one of the channels {', '.join(CHANNELS)}")
+            raise ValueError(f"{src}: a track needs at least one of the channels {', '.join(ALL_CHANNELS)}")
         ch = {}
-        for k in CHANNELS:
+        for k in ALL_CHANNELS:
             if k in self.channels:
                 ch[k] = self._column(k, self.channels[k], t.size, src)
                 if not np.all(np.isfinite(ch[k])):
                     raise ValueError(f"{src}: channel {k} contains non-finite values")
-        clash = [k for k in self.extra if k in CHANNELS or k == "t"]
+        clash = [k for k in self.extra if k in ALL_CHANNELS or k == "t"]
         if clash:
             raise ValueError(f"{src}: extra columns may not be named like channels: {', '.join(clash)}")
         ex = {str(k): self._column(k, a, t.size, src) for k, a in self.extra.items()}
@@ -97,9 +114,14 @@ class RadarTrack:
     v = property(lambda self: self._get("v"), doc="Ground speed [m/s], shape (N,), or None.")
 
     @property
+    def native(self):
+        """The radar-native channels present (tuple of str, :data:`NATIVE_CHANNELS` order)."""
+        return tuple(k for k in NATIVE_CHANNELS if k in self.channels)
+
+    @property
     def names(self):
-        """Present channels, in :data:`CHANNELS` order (tuple of str)."""
-        return tuple(k for k in CHANNELS if k in self.channels)
+        """Present channels, in :data:`ALL_CHANNELS` order (tuple of str)."""
+        return tuple(k for k in ALL_CHANNELS if k in self.channels)
 
     @property
     def n(self):

@@ -2,6 +2,7 @@
 (:func:`run_simulate`)."""
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -12,7 +13,7 @@ from ..errors import InputError
 from ..io.outputs import atomic_write
 from ..round import Round
 from ..synthetic import add_noise, simulate_round
-from ..track import RadarTrack
+from ..track import ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 from ..options import SimulateOptions
 
 __all__ = ["simulate", "run_simulate"]
@@ -36,10 +37,18 @@ def simulate(rnd: Round, options: SimulateOptions | None = None, **kwargs: Any) 
     opts = options if options is not None else SimulateOptions()
     if kwargs:
         opts = SimulateOptions(**{**opts.__dict__, **kwargs})
-    track = simulate_round(rnd, model=opts.model, dt=opts.dt, clock_offset=opts.clock_offset)
+    chans = NATIVE_CHANNELS if opts.radar == "native" else GUN_CHANNELS
+    track = simulate_round(rnd, model=opts.model, dt=opts.dt, clock_offset=opts.clock_offset, channels=chans)
     if opts.noise:
         if not rnd.radar.sigma:
-            raise InputError(f"{rnd.path or 'round'}: noise needs [radar] sigma = {{x = ..., z = ..., v = ...}}")
+            raise InputError(f"{rnd.path or 'round'}: noise needs [radar] sigma = {{x = ..., z = ..., v = ...}}"
+                             if opts.radar == "gun" else f"{rnd.path or 'round'}: noise needs [radar] sigma = "
+                             f"{{range = ..., azimuth = ..., elevation = ..., range_rate = ...}} (m, deg, deg, m/s)")
+        missing = [c for c in chans if c not in rnd.radar.sigma]
+        if opts.radar == "native" and missing:
+            raise InputError(f"{rnd.path or 'round'}: --radar native --noise needs [radar] sigma of every native "
+                             f"channel; missing: {', '.join(missing)} (range [m], azimuth, elevation [deg], "
+                             f"range_rate [m/s])")
         track = add_noise(track, rnd.radar.sigma, np.random.default_rng(opts.seed))
     return track
 
@@ -63,9 +72,16 @@ def run_simulate(round_path, output, options=None, *, echo=print):
             raise InputError(f"-o {output}: that is {what}, an input of this run; write the track to another file")
     track = simulate(rnd, opts)
     comment = f"synthetic track: {opts.model}, dt = {opts.dt} s, from {round_path}"
+    if opts.radar == "native":
+        comment += (f"; seen by a radar at {rnd.radar.position} m in the gun's frame, azimuth and elevation "
+                    f"in deg")
     if opts.noise:
-        comment += f"; Gaussian noise {rnd.radar.sigma}, seed {opts.seed}"
+        sig = {c: (f"{math.degrees(v):g} deg" if c in ANGLE_CHANNELS else f"{v:g}")
+               for c, v in rnd.radar.sigma.items() if c in track.channels}
+        comment += f"; Gaussian noise {sig}, seed {opts.seed}"
     atomic_write(output, lambda tmp: write_track(tmp, track, comment=comment))
     echo(f"wrote {output}: {track.n} samples, t = 0 .. {track.t[-1]:.2f} s, range {track.x[-1]:.0f} m"
-         if track.x is not None else f"wrote {output}")
+         if track.x is not None else
+         f"wrote {output}: {track.n} samples, t = 0 .. {track.t[-1]:.2f} s, last slant range "
+         f"{track.channels['range'][-1]:.0f} m" if "range" in track.channels else f"wrote {output}")
     return track

@@ -10,7 +10,8 @@ import numpy as np
 
 from .._threads import single_blas
 from ..effects import EFFECTS
-from ..errors import FitError
+from ..errors import FitError, InputError
+from ..track import NATIVE_CHANNELS
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
 from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
@@ -353,6 +354,12 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     if not (material_cd_shift >= 0 and material_end_sd >= 0):
         raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
                          f"material_end_sd={material_end_sd!r}")
+    native = [c for c in (channels or track.names) if c in NATIVE_CHANNELS]
+    if native:
+        # the diagnosis' problems do not carry the radar's site yet: refuse rather than misread
+        raise InputError(f"{track.source or 'track'}: the diagnosis does not take the radar's own channels "
+                         f"({', '.join(native)}) yet; fit them with bayesdrag fit, or diagnose the x, y, z, v "
+                         f"channels of the track (--channels)")
     setup = make_setup(track, rnd, sigma=sigma, channels=channels)
     chans = setup.channels
     sig_vec = np.array([setup.sigma[c] for c in chans])

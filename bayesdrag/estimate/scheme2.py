@@ -40,6 +40,7 @@ from .._threads import single_blas
 from ..drag import Constant
 from ..dynamics.pointmass import PointMassModel
 from ..errors import InputError
+from ..measure import gun_equivalent, gun_frame_track, site_of
 from .model.problem import OutputErrorProblem
 from .model.noise import noise_and_outliers
 from .cd.quality import assess_window
@@ -220,9 +221,14 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
     Scheme2Result
     """
     chans = tuple(channels) if channels is not None else track.names
-    if "x" not in chans or "z" not in chans:
-        raise InputError(f"{track.source}: Scheme 2 needs x and z in the track to start each window "
-                         f"(it has {', '.join(track.names)}); fit a speed-only track with Scheme 1")
+    site = site_of(rnd, chans)
+    seen = track.with_channels(chans) if set(chans) != set(track.names) else track
+    # window starts from positions: the gun-frame ones, or a radar's range and angles turned into them
+    view = gun_frame_track(seen, site) if ("x" not in chans or "z" not in chans) else seen
+    if view is None or "x" not in view.channels or "z" not in view.channels:
+        raise InputError(f"{track.source}: Scheme 2 needs x and z (or the radar's range, azimuth and elevation) in "
+                         f"the track to start each window (it has {', '.join(track.names)}); fit a speed-only "
+                         f"track with Scheme 1")
     slices = window_slices(track.n, window, overlap)
     if smooth is None:
         smooth = max(window | 1, 4 * polyorder + 1)
@@ -232,14 +238,14 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
                            coriolis=coriolis_of(rnd))
     ref = rnd.reference_drag
     sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
-    positions = [track.channels.get(c) for c in ("x", "y", "z")]
+    positions = [view.channels.get(c) for c in ("x", "y", "z")]
     t = track.t
     windows, results, problems, smoothed = [], [], [], []
     # the track's own noise, for each window's goodness of fit; the start curve for each
     # window's starting Cd (the round's table may be another shell's, or absent)
     sig_data, source, _ = noise_and_outliers(track, chans, sig)
     try:
-        start = data_start(track.with_channels(chans) if set(chans) != set(track.names) else track, rnd)
+        start = data_start(view, rnd)
     except InputError:
         start = None
     for k, (i0, i1) in enumerate(slices):
@@ -250,9 +256,9 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
         free = np.ones(7, bool)
         if not free_ic:
             free[1:] = False
-        if "y" not in chans:
+        if "y" not in gun_equivalent(chans):
             free[[2, 5]] = False
-        prob = OutputErrorProblem(model, sub, theta0, free=free, sigma=sig, channels=chans)
+        prob = OutputErrorProblem(model, sub, theta0, free=free, sigma=sig, channels=chans, site=site)
         res = prob.fit(fallback=True)
         mach = res.mach[np.isfinite(res.mach)] if res.mach is not None else np.array([np.nan])
         mmean = float(np.mean(mach))

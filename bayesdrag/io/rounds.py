@@ -15,9 +15,10 @@ import tomli_w
 
 from ..atmosphere import Atmosphere, MetProfile
 from ..errors import InputError
-from ..round import (DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
+from ..track import ANGLE_CHANNELS, FILE_UNITS
+from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
                      Launch, Projectile, Radar, Round, Systematics)
-from ..validate import number, type_name
+from ..validate import number, positive, type_name
 from .csv import read_toml
 from .drag_tables import read_drag_table
 from .met import met_file_kind, read_met_profile, write_met_profile, write_wind_profile
@@ -34,11 +35,14 @@ _SCHEMA = {
                    "temperature_offset": "K", "pressure_ratio": "-", "density_ratio": "-",
                    "density_sd": "relative", "temperature_sd": "K", "wind_sd": "m/s"},
     "radar": {"sigma": "table", "position_scale_sd": "relative", "velocity_scale_sd": "relative",
-              "time_offset_sd": "s"},
+              "time_offset_sd": "s", "position": "table {x, y, z} in m", "range_bias_sd": "m",
+              "azimuth_bias_sd": "deg", "elevation_bias_sd": "deg", "position_sd": "m", "device_offset": "m"},
 }
 ATMOSPHERE_MODELS = ("icao", "profile")
 #: smallest radar noise sd a round file may state [m, m/s]
 MIN_SIGMA = 1e-4
+#: smallest angle noise sd a round file may state [deg] (0.2 arc seconds)
+MIN_SIGMA_DEG = 5e-5
 #: plausible range of ``pressure_ratio`` and ``density_ratio`` (the Warner site's 0.78 is inside)
 PLAUSIBLE_AIR_RATIO = (0.5, 2.0)
 #: how far [Mach] the launch Mach may exceed the reference table's last row before the round is
@@ -55,10 +59,34 @@ def _unknown(path, what, key, allowed):
 
 def _check_sigma(path, radar):
     for c, v in radar.sigma.items():
-        if v < MIN_SIGMA:
-            raise InputError(f"{path}: [radar] sigma.{c} = {v:g} {'m/s' if c == 'v' else 'm'} is below "
-                             f"{MIN_SIGMA:g}: no radar measures that precisely (a unit mistake?); give the "
+        if c in ANGLE_CHANNELS:
+            v, lo = math.degrees(v), MIN_SIGMA_DEG
+        else:
+            lo = MIN_SIGMA
+        if v < lo:
+            raise InputError(f"{path}: [radar] sigma.{c} = {v:g} {FILE_UNITS[c]} is below "
+                             f"{lo:g}: no radar measures that precisely (a unit mistake?); give the "
                              f"noise sd of one sample, or leave sigma out to estimate it from the track")
+
+
+def _radar(tab):
+    """The ``[radar]`` table as a :class:`Radar`: angles (sigma of azimuth and elevation, the
+    angle bias sds) given in degrees, held in radians."""
+    sigma = tab.get("sigma", {})
+    if isinstance(sigma, dict):
+        sigma = {k: (math.radians(positive(f"sigma.{k}", v, "deg")) if k in ANGLE_CHANNELS and isinstance(v, (int, float))
+                     and not isinstance(v, bool) else v) for k, v in sigma.items()}
+    ang = {}
+    for k in ("azimuth_bias_sd", "elevation_bias_sd"):     # checked in the file's unit, held in rad
+        v = number(k, tab.get(k), "deg", optional=True)
+        if v is not None:
+            v = positive(k, v, "deg")
+            if v > math.degrees(ANGLE_BIAS_SD_MAX):
+                raise ValueError(f"{k} = {v:g} deg is larger than the plausible {math.degrees(ANGLE_BIAS_SD_MAX):g} deg")
+            v = math.radians(v)
+        ang[k] = v
+    return Radar(sigma, tab.get("position", (0.0, 0.0, 0.0)), tab.get("range_bias_sd"), ang["azimuth_bias_sd"],
+                 ang["elevation_bias_sd"], tab.get("position_sd"), tab.get("device_offset"))
 
 
 def _check_air_ratios(vals):
@@ -167,7 +195,12 @@ def read_round(path: str | os.PathLike[str]) -> Round:
       shipped METCM zone table), temperature_offset [K], pressure_ratio, density_ratio
       (applied on top of a profile too), wind_sd [m/s] (how well the winds are known per
       layer, :attr:`bayesdrag.round.Systematics.wind_profile`)
-    - ``[radar]`` sigma = {x, y, z [m], v [m/s]}
+    - ``[radar]`` sigma = {x, y, z [m], v [m/s], range [m], azimuth [deg], elevation [deg],
+      range_rate [m/s]} (the angles' sd held in radians inside), position = {x, y, z} [m] (the
+      radar's site in the gun's frame at launch, default the muzzle), range_bias_sd [m],
+      azimuth_bias_sd [deg], elevation_bias_sd [deg], position_sd [m] (how well the site is
+      known), device_offset [m] (a chronograph radar's offset as typed into the device);
+      docs/radar.md
     - systematic sources (optional; each declared sd makes that quantity a nuisance parameter
       of the fit, see :class:`bayesdrag.round.Systematics`): ``[projectile]`` mass_sd [kg],
       diameter_sd [m]; ``[atmosphere]`` density_sd [relative], temperature_sd [K]; ``[radar]``
@@ -237,13 +270,13 @@ def read_round(path: str | os.PathLike[str]) -> Round:
 
     lt = tables["launch"]
     launch = build("launch", lambda: Launch(
-        lt.get("elevation"), lt.get("velocity"), lt.get("azimuth", 0.0), lt.get("latitude"),
+        lt.get("elevation"), lt.get("velocity"), lt.get("azimuth"), lt.get("latitude"),
         lt.get("altitude", 0.0), lt.get("velocity_sd", DEFAULT_VELOCITY_SD),
         lt.get("elevation_sd", DEFAULT_ELEVATION_SD_DEG), lt.get("position_sd", DEFAULT_POSITION_SD)))
 
     atmosphere = build("atmosphere", lambda: _read_atmosphere(path, tables["atmosphere"], lt, launch))
     _check_reference_reach(path, pt, ref, launch, atmosphere)
-    radar = build("radar", lambda: Radar(tables["radar"].get("sigma", {})))
+    radar = build("radar", lambda: _radar(tables["radar"]))
     _check_sigma(path, radar)
     sds = {stem: tables[sec].get(f"{stem}_sd") for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items()}
     for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items():     # each error names its own section
@@ -318,7 +351,8 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
         launch["elevation"] = la.elevation_deg
     if la.velocity is not None:
         launch["velocity"] = la.velocity
-    launch["azimuth"] = la.azimuth_deg
+    if la.azimuth_given:
+        launch["azimuth"] = la.azimuth_deg
     if la.latitude_deg is not None:
         launch["latitude"] = la.latitude_deg
     launch.update(altitude=la.altitude, velocity_sd=la.velocity_sd, elevation_sd=la.elevation_sd_deg,
@@ -339,8 +373,18 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
     atm.update(temperature_offset=float(at.temperature_offset), pressure_ratio=float(at.pressure_ratio),
                density_ratio=float(at.density_ratio))
     doc = {"projectile": proj, "launch": launch, "atmosphere": atm}
-    if rnd.radar.sigma:
-        doc["radar"] = {"sigma": dict(rnd.radar.sigma)}
+    ra = rnd.radar
+    radar = {}
+    if ra.sigma:
+        radar["sigma"] = {c: (math.degrees(v) if c in ANGLE_CHANNELS else v) for c, v in ra.sigma.items()}
+    if any(ra.position):
+        radar["position"] = dict(zip("xyz", ra.position))
+    for key in ("range_bias_sd", "azimuth_bias_sd", "elevation_bias_sd", "position_sd", "device_offset"):
+        val = getattr(ra, key)
+        if val is not None:
+            radar[key] = math.degrees(val) if key in ("azimuth_bias_sd", "elevation_bias_sd") else val
+    if radar:
+        doc["radar"] = radar
     for stem, sd in rnd.systematics.declared().items():
         doc.setdefault(SYSTEMATIC_SOURCES[stem][0], {})[f"{stem}_sd"] = float(sd)
     if rnd.systematics.wind_profile is not None:

@@ -1,7 +1,9 @@
 """Track files (CSV): ``#`` comment lines, a header row naming ``t`` plus at
-least one of ``x, y, z, v`` (or an alias: ``time``, ``t_s``, ``speed``, ...; :data:`ALIASES`;
-or any names mapped with ``columns``), then one row of numbers per radar sample; SI units (t [s],
-x, y, z [m], v [m/s]). Extra columns (SNR, range rate, ...) are kept in ``RadarTrack.extra``, ignored
+least one of ``x, y, z, v`` or of the radar-native ``range, azimuth, elevation, range_rate`` (or an
+alias: ``time``, ``t_s``, ``speed``, ``slant_range``, ...; :data:`ALIASES`; or any names mapped with
+``columns``), then one row of numbers per radar sample; SI units (t [s], x, y, z, range [m], v,
+range_rate [m/s]) except the angles, in degrees in the file (radians in the ``RadarTrack``).
+Extra columns (SNR, per-sample ``sigma_<channel>``, ...) are kept in ``RadarTrack.extra``, ignored
 by the fit, and reported by one line in ``RadarTrack.notes``.
 
 Reading also checks that the channels agree with each other: the speed from the positions must
@@ -24,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..track import CHANNELS, UNITS, RadarTrack
+from ..track import (ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, FILE_UNITS, GUN_CHANNELS, NATIVE_CHANNELS,
+                     RadarTrack)
 from .csv import read_table
 
 __all__ = ["read_track", "write_track", "channel_names", "ALIASES"]
@@ -59,7 +62,10 @@ MIN_INDEPENDENT_CHORDS = 3
 #: own velocity, not measured (``--columns x=range_m`` maps it when it is). An alias is not used
 #: when its channel is already in the header (the column is then kept as an extra).
 ALIASES = {"time": "t", "t_s": "t", "time_s": "t", "x_m": "x", "y_m": "y", "z_m": "z",
-           "speed": "v", "v_mps": "v", "speed_mps": "v", "velocity": "v"}
+           "speed": "v", "v_mps": "v", "speed_mps": "v", "velocity": "v",
+           "slant_range": "range", "slant_range_m": "range", "azimuth_deg": "azimuth", "az_deg": "azimuth",
+           "elevation_deg": "elevation", "el_deg": "elevation", "range_rate_mps": "range_rate",
+           "radial_velocity": "range_rate", "radial_speed": "range_rate"}
 #: aliases read with a note
 _NOTED = {"velocity": "a Doppler radar's 'velocity' is often its radial speed (the range rate), "
                       "the ground speed only along the line of sight; map it with --columns, or rename "
@@ -123,7 +129,9 @@ def _check_units(path, t, channels):
 
 #: plausible values of each column of a track [SI]: beyond them a value is a unit or typing
 #: mistake (the longest ranges are a few hundred km, the fastest guns a few km/s)
-PLAUSIBLE = {"t": (-1e4, 1e5), "x": (-2e6, 2e6), "y": (-2e6, 2e6), "z": (-2e5, 2e5), "v": (-1e4, 1e4)}
+PLAUSIBLE = {"t": (-1e4, 1e5), "x": (-2e6, 2e6), "y": (-2e6, 2e6), "z": (-2e5, 2e5), "v": (-1e4, 1e4),
+             "range": (0.0, 2e6), "azimuth": (-360.0, 720.0), "elevation": (-90.0, 90.0),
+             "range_rate": (-1e4, 1e4)}
 #: a gap is refused as a stray sample when it is longer than this many median sample intervals
 #: and longer than the rest of the track lasts
 STRAY_GAP_INTERVALS = 50
@@ -182,7 +190,7 @@ def channel_names(path, line, names, columns=None):
             raise InputError(f"{path}: line {line}: columns {src[target]!r} and {n!r} both read as {target}; "
                              f"keep one, or say which with --columns {target}=NAME")
         out[k], src[target] = target, n
-        notes.append(f"{path}: column {n!r} read as {target} ({UNITS[target]})"
+        notes.append(f"{path}: column {n!r} read as {target} ({FILE_UNITS[target]})"
                      + (f"; {_NOTED[n.lower()]}" if n.lower() in _NOTED else ""))
     return out, tuple(notes)
 
@@ -201,7 +209,8 @@ def _track_header_check(path, line, names, columns=None):
                 f"(map it with --columns x={rng[0]} only if it is a measured downrange distance)" if rng else "")
         hint = hint or " (or an alias: speed, x_m, ...; or map a column with --columns v=NAME)"
         raise InputError(f"{path}: line {line}: track has 't' but none of the channels "
-                         f"{', '.join(CHANNELS)}; header has {', '.join(names)}{hint}")
+                         f"{', '.join(GUN_CHANNELS)}; header has {', '.join(names)}{hint}; a radar's own "
+                         f"channels are {', '.join(NATIVE_CHANNELS)}")
 
 
 def read_track(path: str | os.PathLike[str], *, quote: bool = True,
@@ -211,7 +220,8 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True,
     Parameters
     ----------
     path : str or os.PathLike
-        CSV with header ``t`` plus at least one of ``x, y, z, v``; SI units (s, m, m/s).
+        CSV with header ``t`` plus at least one of ``x, y, z, v, range, azimuth, elevation,
+        range_rate``; SI units (s, m, m/s), the angles in degrees (held in radians).
     quote : bool
         False for a track another file points to (a campaign's): a message never repeats the
         file's content (:func:`bayesdrag.io.csv.read_table`).
@@ -268,8 +278,11 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True,
         bad = np.flatnonzero((a < lo) | (a > hi))
         if bad.size:
             i = bad[0]
-            raise InputError(f"{path}: line {line_no[i]}: {c} = {a[i]:.6g} {UNITS[c]} is not plausible for a "
-                             f"projectile's track (allowed {lo:g} .. {hi:g} {UNITS[c]}); check the units")
+            raise InputError(f"{path}: line {line_no[i]}: {c} = {a[i]:.6g} {FILE_UNITS[c]} is not plausible for a "
+                             f"projectile's track (allowed {lo:g} .. {hi:g} {FILE_UNITS[c]}); check the units")
+    for c in ANGLE_CHANNELS:        # degrees in the file, radians inside
+        if c in channels:
+            channels[c] = np.radians(channels[c])
     extra = {n: cols[n] for n in names if n != "t" and n not in CHANNELS}
     notes = alias_notes
     if extra:
@@ -287,8 +300,9 @@ def write_track(path: str | os.PathLike[str], track: RadarTrack, comment: str | 
                 extra: bool = True) -> None:
     """Write a track as CSV: ``t`` then the present channels (then extra columns).
 
-    Precision: t with 6 decimals (1 us), x, y, z, v with 4 decimals (0.1 mm, 0.1 mm/s), extra
-    columns with 10 significant digits.
+    Precision: t with 6 decimals (1 us), x, y, z, v, range, range_rate with 4 decimals (0.1 mm,
+    0.1 mm/s), azimuth and elevation in degrees with 7 decimals (2 nrad), extra columns with 10
+    significant digits.
 
     Parameters
     ----------
@@ -300,8 +314,9 @@ def write_track(path: str | os.PathLike[str], track: RadarTrack, comment: str | 
         Also write ``track.extra`` columns (default True; :func:`read_track` notes them).
     """
     names = ["t", *track.names]
-    cols = [track.t, *(track.channels[k] for k in track.names)]
-    fmts = ["%.6f"] + ["%.4f"] * len(track.names)
+    cols = [track.t, *(np.degrees(track.channels[k]) if k in ANGLE_CHANNELS else track.channels[k]
+                       for k in track.names)]
+    fmts = ["%.6f"] + ["%.7f" if k in ANGLE_CHANNELS else "%.4f" for k in track.names]
     if extra:
         for k, a in track.extra.items():
             names.append(k)

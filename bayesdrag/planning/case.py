@@ -89,7 +89,7 @@ from ..errors import InputError
 from ..io.drag_tables import load_m101
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
-from ..track import CHANNELS, MAX_FIT_SAMPLES, RadarTrack
+from ..track import GUN_CHANNELS as CHANNELS, MAX_FIT_SAMPLES, RadarTrack
 from ..estimate.scheme1.launch import launch_state_priors
 from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
@@ -178,6 +178,11 @@ def radar_channels(rnd):
     """The channels the radar gives (those with a ``[radar] sigma``) and their sd."""
     sig = dict(rnd.radar.sigma)
     chans = tuple(c for c in CHANNELS if c in sig)
+    if not chans and sig:
+        # planning a radar's own channels needs its site among the planned cases: not yet
+        raise InputError(f"{rnd.path or 'round'}: plan predicts x, y, z, v tracks only; the round's [radar] sigma "
+                         f"gives {', '.join(sig)}: add the sd of the x, y, z, v channels the radar's track "
+                         f"would give to plan with them")
     if not chans:
         raise InputError(f"{rnd.path or 'round'}: plan needs the radar's noise: [radar] sigma = "
                          f"{{x = 1.0, y = 1.0, z = 1.0, v = 0.3}} (the channels it tracks and their sd)")

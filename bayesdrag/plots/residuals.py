@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import channel_unit, new_figure
+from .common import channel_scale, channel_unit, new_figure
 
 __all__ = ['plot_residuals', 'residual_acf', 'plot_residuals_acf']
 
@@ -28,9 +28,10 @@ def plot_residuals(t, residuals, sigma, fig=None):
         fig.subplots(len(chans), 1, sharex=True, squeeze=False)
     axes = np.array(fig.axes).reshape(-1)
     for ax, c in zip(axes, chans):
-        s = sigma[c]
+        k = channel_scale(c)[0]           # the radar's angles in degrees
+        s = k * sigma[c]
         ax.axhspan(-s, s, color="0.85", label="±σ")
-        ax.plot(t, residuals[c], ".", ms=2)
+        ax.plot(t, k * np.asarray(residuals[c]), ".", ms=2)
         ax.set_ylabel(f"{c} [{channel_unit(c)}]")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time [s]")
@@ -69,9 +70,10 @@ def plot_residuals_acf(t, residuals, sigma, fig=None, max_lag=60):
     axes = np.array(fig.axes).reshape(-1, 2)
     n = len(t)
     for (a, b), c in zip(axes, chans):
-        s = sigma[c]
+        k = channel_scale(c)[0]           # the radar's angles in degrees
+        s = k * sigma[c]
         a.axhspan(-s, s, color="0.85")
-        a.plot(t, residuals[c], ".", ms=2)
+        a.plot(t, k * np.asarray(residuals[c]), ".", ms=2)
         a.set_ylabel(f"{c} [{channel_unit(c)}]")
         a.grid(alpha=0.3)
         lag = min(max_lag, n - 1)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import channel_unit, new_axes, new_figure
+from .common import channel_scale, channel_unit, new_axes, new_figure
 
 __all__ = ['plot_track', 'plot_differences']
 
@@ -66,7 +66,7 @@ def plot_differences(t, diffs, ax=None, title="6-DOF minus point mass"):
     """
     ax = new_axes(ax, (7, 4))
     for name, d in diffs.items():
-        ax.plot(t, d, label=f"{name} [{channel_unit(name)}]")
+        ax.plot(t, channel_scale(name)[0] * np.asarray(d), label=f"{name} [{channel_unit(name)}]")
     ax.axhline(0, color="k", lw=0.5)
     ax.set(xlabel="time [s]", ylabel="difference", title=title)
     ax.grid(alpha=0.3)

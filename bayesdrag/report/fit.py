@@ -14,6 +14,7 @@ from ..io.outputs import OutputRun, atomic_write, ensure_space, write_bytes, wri
 from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
                         plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
+from ..plots.common import channel_scale
 from ..plots.residuals import plot_residuals, plot_residuals_acf
 from .render import figure_png, png_base64, render_report, versions
 
@@ -270,7 +271,10 @@ def _common(result, sources, title_kind):
     return {"title": f"bayesdrag fit{title_kind}: {track_name}", "answer": result.record.get("headline"),
             "created": datetime.datetime.now().isoformat(timespec="seconds"),
             "warnings": list(result.warnings), "versions": versions(),
-            "quality": result.record["ml"].get("quality")}
+            "quality": result.record["ml"].get("quality"),
+            # how each channel is shown: (factor, unit); the radar's angles in degrees
+            "channel_display": {c: channel_scale(c) for c in
+                                ((result.record["ml"].get("quality") or {}).get("channels") or {})}}
 
 
 #: a sampled noise sd this many times the round's (or the track's) is explained in the report
@@ -337,7 +341,8 @@ def _context_scheme1(result, sources):
               ("Mach range of the data", f"{s['ml']['mach_range_data'][0]:.3f} - {s['ml']['mach_range_data'][1]:.3f}"),
               ("Mach range determined (band sd < 1 % of Cd, inside the data, not clamped)",
                f"{det[0]:.2f} - {det[1]:.2f}" if det else "none"),
-              ("noise sd used by the ML fit", ", ".join(f"{c} {v:.3g}" for c, v in res.sigma.items())),
+              ("noise sd used by the ML fit", ", ".join(f"{c} {channel_scale(c)[0] * v:.3g} {channel_scale(c)[1]}"
+                                                         for c, v in res.sigma.items())),
               ("wall-clock time", f"{result.seconds:.1f} s")]
     conv = post_ctx = None
     if bayes is not None:

@@ -23,7 +23,7 @@ SKIP_MARK = "<!-- docs-test: skip -->"
 FENCE = re.compile(r"^(?P<skip><!-- docs-test: skip -->\n)?```(?P<lang>bash|python)\n(?P<code>.*?)^```\s*$",
                    re.S | re.M)
 #: the pages whose examples are run, in the order of the user guide
-PAGES = ("quickstart.md", "fitting.md", "diagnose.md", "python.md", "campaign.md", "planning.md")
+PAGES = ("quickstart.md", "fitting.md", "radar.md", "diagnose.md", "python.md", "campaign.md", "planning.md")
 #: seconds one page may take (the whole file runs in about a minute on 2 cores)
 PAGE_TIMEOUT = 300
 

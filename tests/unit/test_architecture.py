@@ -19,6 +19,7 @@ LAYERS = [
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],
     ["bayesdrag.dynamics"],
+    ["bayesdrag.measure"],
     ["bayesdrag.effects", "bayesdrag.effect_inputs", "bayesdrag.wind_layers"],
     ["bayesdrag.synthetic"],
     ["bayesdrag.estimate"],

@@ -69,7 +69,7 @@ def test_the_formats_page_states_the_aliases_the_reader_has():
         cells = [c.strip() for c in row.strip().strip("|").split("|")]
         if len(cells) == 2:
             names = re.findall(r"`([a-z_]+)`", cells[0])
-            targets = re.findall(r"`([txyzv])`", cells[1])
+            targets = re.findall(r"`([a-z_]+)`", cells[1])
             for n, tgt in zip(names, targets * len(names) if len(targets) == 1 else targets):
                 stated[n] = tgt
     assert stated == ALIASES

@@ -4,7 +4,9 @@
 * parameters ``theta`` = drag-model coefficients + initial state ``X0, Y0, Z0, Ux0, Uy0, Uz0``
   at ``t_ic`` (by default the first sample time), each free or fixed, then optional extra
   (effect) parameters;
-* outputs = the channels the track has (any subset of x, y, z, v);
+* outputs = the channels the track has (any subset of x, y, z, v and of the radar-native range,
+  azimuth, elevation, range_rate, computed by :mod:`bayesdrag.measure` from the state and the
+  radar's site: residuals in the radar's own units, azimuth residuals wrapped);
 * cost (Eq. 19) ``J = sum_i (z_i - y_i(theta))^T R^-1 (z_i - y_i(theta))`` with ``R`` diagonal
   (one noise variance per channel: the round's ``[radar] sigma`` where given, else estimated by
   relaxation), plus Gaussian priors as pseudo-measurements (extra weighted residuals).
@@ -36,7 +38,8 @@ import numpy as np
 
 from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ...errors import InputError
-from ...track import CHANNELS
+from ...measure import RadarSite, channel_values, near_branch
+from ...track import ALL_CHANNELS
 from . import colored
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
@@ -69,15 +72,23 @@ class Prior:
     row: object = None
 
 
-def outputs(traj_state, channels):
-    """Model outputs (B, N, C) for channels from states (B, N, 6)."""
-    out = np.empty(traj_state.shape[:-1] + (len(channels),))
-    for j, c in enumerate(channels):
-        if c == "v":
-            vx, vy, vz = traj_state[..., 3], traj_state[..., 4], traj_state[..., 5]
-            out[..., j] = np.sqrt(vx * vx + vy * vy + vz * vz)
-        else:
-            out[..., j] = traj_state[..., _CH_INDEX[c]]
+def outputs(traj_state, channels, site=None, measured=None):
+    """Model outputs (B, N, C) for channels from states (B, N, 6).
+
+    Parameters
+    ----------
+    traj_state : (B, N, 6) array
+    channels : sequence of str
+    site : RadarSite, optional
+        The radar's site (native channels); default the muzzle, azimuth 0.
+    measured : (N, C) array, optional
+        The measurements: a predicted azimuth is put on the branch (whole turns) nearest its
+        measurement, so that measurement minus prediction is the wrapped difference.
+    """
+    out = channel_values(traj_state, channels, RadarSite() if site is None else site)
+    if measured is not None and "azimuth" in channels:
+        j = list(channels).index("azimuth")
+        out[..., j] = near_branch(out[..., j], measured[:, j])
     return out
 
 
@@ -109,15 +120,19 @@ class OutputErrorProblem:
         Per-sample weights in [0, 1] on ``R^-1`` (0 drops a sample).
     noise_model : dict channel -> {"white", "ar1"}, optional
         Default white for every channel. ``ar1`` channels need unit weights.
+    site : RadarSite, optional
+        Where the radar stands (its native channels are seen from there); default the muzzle
+        with azimuth 0, which only gun-frame channels may rely on.
     """
 
     def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
-                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None):
+                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None, site=None):
         self.model = model
         self.track = track
+        self.site = RadarSite() if site is None else site
         self.channels = tuple(channels) if channels is not None else track.names
         for c in self.channels:
-            if c not in CHANNELS or track.channels.get(c) is None:
+            if c not in ALL_CHANNELS or track.channels.get(c) is None:
                 raise InputError(f"{track.source}: channel {c!r} is not in the track (has {', '.join(track.names)})")
         self.P = model.drag.n_params
         self.extras = tuple(extras)
@@ -247,7 +262,7 @@ class OutputErrorProblem:
         if not self.E:
             tr = self.model.simulate_batch(thetas[:, :P], thetas[:, P:P + 6], self.track.t,
                                            t_start=self.t_ic)
-            return outputs(tr.state, self.channels), tr.mach
+            return self.outputs(tr.state), tr.mach
         B = thetas.shape[0]
         inp = self.effect_fn(thetas[:, P + 6:])
         y, mach = self._predict_effects(thetas, inp)
@@ -256,6 +271,10 @@ class OutputErrorProblem:
                 if c in inp.output_scale:
                     y[:, :, j] *= np.asarray(inp.output_scale[c], float)[:, None]
         return y, mach
+
+    def outputs(self, state):
+        """The problem's channels (B, N, C) from states (B, N, 6), seen from its radar site."""
+        return outputs(state, self.channels, self.site, self.z)
 
     def _predict_effects(self, thetas, inp):
         """Outputs and Mach of a batch whose extras give ``inp`` (:class:`SimInputs`)."""
@@ -274,7 +293,7 @@ class OutputErrorProblem:
             if inp.atmosphere_tables is not None:
                 atm = np.asarray(inp.atmosphere_tables)[g]
             state, m = self._simulate_shifted(thetas[g], t_out, ov, atm)
-            y[g] = outputs(state, self.channels)
+            y[g] = self.outputs(state)
             mach[g] = m
         return y, mach
 

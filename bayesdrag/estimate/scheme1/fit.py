@@ -62,7 +62,9 @@ from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from ..model.problem import OutputErrorProblem
 from .systematics import fit_with_sources
 from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
+from .native_start import start_view
 from .start import DataStart, check_gravity_units, check_heights, data_start
+from ...measure import gun_equivalent, site_of
 
 __all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "coriolis_of"]
 
@@ -270,9 +272,10 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     check_heights(track, rnd)
     if smaller is not None:
         drag = smaller
+    site = site_of(rnd, chans)
     seen = track.with_channels(chans) if set(chans) != set(track.names) else track
     if start is None:
-        start = data_start(seen, rnd)
+        start = data_start(start_view(seen, rnd, site), rnd)
     check_gravity_units(start.kinematics, track.source)
     L = rnd.launch
     t0 = float(track.t[0])
@@ -280,13 +283,14 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     if not free_ic and abs(t0) < 1e-9 and L.velocity is not None and L.elevation_deg is not None:
         s0 = initial_state(L.velocity, L.elevation_deg)
     sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
-    if not any(c in chans for c in ("x", "y", "z")):
+    seen_as = gun_equivalent(chans)      # what a radar's own channels observe in the gun's frame
+    if not any(c in seen_as for c in ("x", "y", "z")):
         s0 = s0.copy()
         s0[:3] = 0.0 if abs(t0) < 1e-9 else s0[:3]
     # launch values the channels cannot see (no z: the muzzle height and the elevation) are
     # priors from the start; the others are checked against the track first
     unseen = unseen_launch_priors(track, rnd, chans)
-    if unseen and abs(t0) < 1e-9 and "z" not in chans:
+    if unseen and abs(t0) < 1e-9 and "z" not in seen_as:
         s0 = s0.copy()
         s0[2] = 0.0
     # stage A: the initial state and one scale of the start curve; its trajectory also gives the
@@ -298,7 +302,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     say = progress if progress is not None else (lambda step: None)
     say("the initial state and one scale of the drag read off the track")
     state, scale, span_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood,
-                                        launch_state_priors(L, 1, names=unseen) if unseen else ())
+                                        launch_state_priors(L, 1, names=unseen) if unseen else (), site=site)
     span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
                                                    max(start.mach_span[1], span_a[1]))
     size = {}
@@ -307,7 +311,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
     prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * start.curve(m),
                                state if free_ic else s0, free_mask(P, P + 6, chans, free_ic, dm.name, span), sig,
-                               chans, likelihood, fixed_pri)
+                               chans, likelihood, fixed_pri, site)
     # stage B: the full curve without the checked launch priors, then check them against it
     say(f"the whole curve ({P} drag coefficients)")
     res_b = prob.fit(fallback=True)
@@ -324,7 +328,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
         prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
                                    res_b.state0, free_mask(P, P + 6, chans, free_ic, dm.name, span), sig, chans,
-                                   likelihood, fixed_pri)
+                                   likelihood, fixed_pri, site)
         say(f"the whole curve over the flight's Mach span ({P} drag coefficients)")
         res_b = prob.fit(fallback=True)
         if np.all(np.isfinite(res_b.theta)):
@@ -367,7 +371,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
                       before if fitted_effects else None, size)
 
 
-def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chans, likelihood, fixed_pri):
+def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chans, likelihood, fixed_pri, site=None):
     """The problem of the whole curve (stage B): drag model ``dm`` started at ``cd_start(M)``
     and the initial ``state``, with the launch priors ``fixed_pri`` and, for a penalised model,
     the smoothness rows at the middle of the smoothing grid. The rows are part of the problem
@@ -384,7 +388,7 @@ def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chan
     pen = penalty(dm, base) if base is not None else None
     pen0 = pen(SMOOTHING_GRID[len(SMOOTHING_GRID) // 2])[0] if pen is not None else ()
     prob = OutputErrorProblem(base_model.with_(drag=dm), track, theta0, free=free, sigma=sig, channels=chans,
-                              priors=tuple(fixed_pri) + pen0)
+                              priors=tuple(fixed_pri) + pen0, site=site)
     if likelihood == "student-t":
         prob.sigma_fixed = {}
     return prob, pen
@@ -460,7 +464,7 @@ def _wider_span(dm, res, span):
     return min(span[0], lo), max(span[1], hi)
 
 
-def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=()):
+def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=(), site=None):
     """Fit the initial state and one scale factor of the start curve (7 parameters; ``model``'s
     drag is the start curve as a :class:`ReferenceScale`).
 
@@ -469,7 +473,7 @@ def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=()
     free = np.concatenate([[True], free_state])
     prob = OutputErrorProblem(model, track, np.concatenate([[1.0], s0]), free=free,
                               sigma={} if likelihood == "student-t" else sig, channels=chans,
-                              priors=priors)
+                              priors=priors, site=site)
     try:
         res = prob.fit(max_iter=30)
     except FitError:

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ...measure import gun_equivalent
 from ..model.problem import Prior
 
 __all__ = ["LAUNCH_CONFLICT_K", "ORIGIN_NOISE_K", "launch_state_priors", "unseen_launch_priors",
@@ -61,6 +62,7 @@ def unseen_launch_priors(track, rnd, chans):
     L = rnd.launch
     if abs(float(track.t[0])) > 1e-9 or L.velocity is None or L.elevation_deg is None:
         return ()
+    chans = gun_equivalent(chans)      # a radar's range, angles, range rate observe x, y, z, v
     out = []
     if "x" not in chans:
         out.append("X0_muzzle")

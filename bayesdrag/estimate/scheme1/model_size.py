@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import InputError
+from ...measure import gun_equivalent
 from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, coefficient_budget, rise_regions, sparse_knots
 from .launch import unseen_launch_priors
 
@@ -36,6 +37,7 @@ def free_mask(P, n, chans, free_ic, drag_name, span):
     ``y`` channel, no position without a position channel, and ``poly2-split``'s coefficients
     only on the sides of Mach 1 the data's Mach ``span`` reaches."""
     free = np.ones(n, bool)
+    chans = gun_equivalent(chans)      # a radar's range, angles, range rate observe x, y, z, v
     if not free_ic:
         free[P:P + 6] = False
     if "y" not in chans:

@@ -252,7 +252,8 @@ def fit_with_sources(prob, res, rnd, effects=()):
                             priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)),
                             channels=prob.channels,
                             extras=tuple(eff_extras) + tuple(e[1] for e in extras),
-                            effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model)
+                            effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model,
+                            site=prob.site)
     res2 = p2.fit(fallback=True)
     if not res2.success:
         return prob, res, (), ()

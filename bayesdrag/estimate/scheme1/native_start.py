@@ -1,0 +1,80 @@
+"""Starting values of a radar-native track: its range, angles or range rate read as the gun-frame
+channels the start from the data (:mod:`bayesdrag.estimate.scheme1.start`) works on. The fit
+itself compares the radar's own channels; this view only starts it."""
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import InputError
+from ...measure import channel_values, gun_frame_track
+from ...track import GUN_CHANNELS, RadarTrack
+
+__all__ = ["start_view", "MIN_RADIAL_FRACTION", "NOMINAL_CD"]
+
+#: a Doppler sample is used for the start only where the line of sight is within ~73 deg of the
+#: flight (range rate at least this fraction of the speed on the nominal flight): nearer
+#: perpendicular, the speed read off it is mostly the nominal flight's own guess
+MIN_RADIAL_FRACTION = 0.3
+#: the drag a nominal flight flies when the round has no reference table (a shell's Cd spans
+#: ~0.15-0.4; the nominal flight only gives the geometry of the line of sight)
+NOMINAL_CD = 0.3
+
+
+def start_view(track, rnd, site):
+    """The track as the start from the data reads it: gun-frame channels.
+
+    A track of gun-frame channels is itself. A radar's range, azimuth and elevation are turned
+    into ``x, y, z`` (:func:`bayesdrag.measure.gun_frame_track`); a range rate alone into a
+    speed, by the ratio of speed to range rate on the round's nominal flight (its launch
+    velocity and elevation, its reference drag) seen from the radar's site. The fit itself always
+    compares the radar's own channels; this only gives starting values.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    site : bayesdrag.measure.RadarSite
+
+    Returns
+    -------
+    RadarTrack
+        Channels among ``x, y, z, v``.
+    """
+    if not track.native:
+        return track
+    gun = tuple(c for c in track.names if c in GUN_CHANNELS)
+    if "x" in gun and "z" in gun:
+        return track.with_channels(gun)
+    view = gun_frame_track(track, site)
+    if view is not None:
+        return view
+    if "range_rate" in track.channels:
+        return _doppler_view(track, rnd, site)
+    if gun:
+        return track.with_channels(gun)
+    raise InputError(f"{track.source or 'track'}: the channels {', '.join(track.names)} do not locate the shell: a "
+                     f"fit needs range, azimuth and elevation together, or range_rate, or x, y, z, v")
+
+
+def _doppler_view(track, rnd, site):
+    """A speed track read off a range rate through the nominal flight's geometry."""
+    from ...drag import ReferenceTable
+    from ...dynamics.pointmass import PointMassModel
+    from ...dynamics.trajectory import initial_state
+
+    L = rnd.launch
+    rr = track.channels["range_rate"]
+    note = f"{track.source or 'track'}: starting values from the range rate "
+    if L.velocity is None or L.elevation_deg is None or np.any(track.t < 0):
+        return RadarTrack(track.t, {"v": np.abs(rr)}, {}, track.source,
+                          track.notes + (note + "taken as the speed (no [launch] velocity and elevation)",))
+    ref = rnd.reference_drag or ReferenceTable((0.0, 6.0), (NOMINAL_CD, NOMINAL_CD), source="nominal")
+    model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ref, rnd.atmosphere)
+    tr = model.simulate((), initial_state(L.velocity, L.elevation_deg), np.asarray(track.t, float), backend="scipy")
+    y = channel_values(tr.state, ("range_rate", "v"), site)
+    frac = y[:, 0] / np.maximum(y[:, 1], 1e-9)
+    keep = frac > MIN_RADIAL_FRACTION
+    keep[0] = True
+    v = np.abs(rr) / np.clip(frac, MIN_RADIAL_FRACTION, None)
+    return RadarTrack(track.t[keep], {"v": v[keep]}, {}, track.source,
+                      track.notes + (note + "through the nominal flight's line of sight",))
