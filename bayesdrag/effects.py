@@ -91,7 +91,6 @@ from .drag import DragModel, ReferenceTable, Spline
 from .dynamics import kernel as K
 from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from .effect_inputs import ExtraParam, SimInputs
-from .errors import InputError
 from .wind_layers import WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_PROFILE_KEY, WIND_STEP_SD, WindLayers, \
     WindProfileModel, wind_profile_free
 
@@ -223,10 +222,8 @@ class Effect:
             return {"overrides": {(DRAG_SHAPE_KEY, i): values[:, i] for i in range(self.k)}}
         if n == "wind_profile":
             if ctx.wind_layers is None:
-                # the diagnosis lays the layers over the track; a fit does not yet (issue 29 part B)
-                raise InputError("--with wind_profile: the fit cannot fly a wind profile yet; bayesdrag diagnose "
-                                 "names it and writes the air it found (diagnosis_met.csv, or "
-                                 "diagnosis_wind_downrange.csv): give that file as the round's [atmosphere] profile")
+                raise ValueError("the wind_profile effect needs its layers (EffectContext.wind_layers: axis and "
+                                 "edges, laid over the track by the fit or the diagnosis)")
             return {"overrides": {(WIND_PROFILE_KEY, i): values[:, i] for i in range(self.k)}}
         if n == "coriolis":
             if ctx.latitude_deg is None:
@@ -380,7 +377,7 @@ def static_model(model, effects, ctx):
         if e.name == "wind_profile":
             if ctx.wind_layers is None:
                 raise ValueError("the wind_profile effect needs its layers (EffectContext.wind_layers: axis and "
-                                 "edges, which the diagnosis sets from the track)")
+                                 "edges, laid over the track by the fit or the diagnosis)")
             model = WindProfileModel(model, ctx.wind_layers)
         if e.name == "drag_shape":
             if ctx.drag_shape is None:

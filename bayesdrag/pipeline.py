@@ -89,10 +89,10 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
-    with_effects, with_note = _with_effects(track, rnd, opts, log)
+    with_effects, with_note, layers = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
                      likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
-                     with_effects=with_effects, progress=ml_progress)
+                     with_effects=with_effects, progress=ml_progress, wind_layers=layers)
     res = f1.ml
     if not res.success:
         raise FitError(f"{track.source or 'track'}: {res.message}")
@@ -122,8 +122,14 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         ml_progress.done()
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
-    if with_note is not None:
+    if with_note is not None or "wind_profile" in f1.effects:
+        with_note = with_note if with_note is not None else {
+            "requested": [], "candidates": [], "skipped": {},
+            "added": {"wind_profile": "[atmosphere] wind_sd is declared: the layers' prior"}}
         with_note["fitted"] = list(f1.effects)
+        lay = _fitted_layers(f1)
+        if lay is not None:
+            with_note["wind_layers"] = lay
         summary["ml"]["with_effects"] = with_note
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
@@ -176,24 +182,63 @@ def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
 def _with_effects(track, rnd, opts, log):
     """The effects ``--with`` asks for (``auto``: the diagnosis' verdict), checked: those that
     share a declared source's quantity or are confounded with Cd are left out with a reason.
-    Returns ``(names, record)``; ``record`` (``requested``, ``skipped``) is None without
-    ``--with``."""
+    Returns ``(names, record, layers)``; ``record`` (``requested``, ``skipped``) is None without
+    ``--with``; ``layers`` the axis of the diagnosis's ``wind_profile`` when ``auto`` names it
+    (else None: the fit tries both)."""
     from .estimate.scheme1.systematics import plan_effects
 
     req = opts.with_effects
     if not req:
-        return (), None
+        return (), None, None
+    layers = None
     if req == "auto":
         from .diagnosis import diagnose
 
         d = diagnose(track, rnd)
         names = list(d.summary["verdict"])
+        if "wind_profile" in names:
+            layers = _diagnosis_layers(d.summary, track, rnd)
         if log is not None:
             log(f"--with auto: the diagnosis names {', '.join(names) if names else 'no material effect'}")
     else:
         names = list(req)
     keep, skipped = plan_effects(names, rnd)
-    return keep, {"requested": req if req == "auto" else list(req), "candidates": names, "skipped": skipped}
+    return keep, {"requested": req if req == "auto" else list(req), "candidates": names, "skipped": skipped}, layers
+
+
+def _diagnosis_layers(summary, track, rnd):
+    """The axis of the diagnosis's ``wind_profile`` row (``altitude`` or ``downrange``; the fit
+    lays its own layers on it), or None."""
+    row = next((e for e in summary.get("effects", []) if e.get("name") == "wind_profile"), None)
+    return ((row or {}).get("layers") or {}).get("axis")
+
+
+def _fitted_layers(f1):
+    """``ml.with_effects.wind_layers`` of a fit with ``wind_profile``: the axis, the edges and
+    each layer's fitted wind (the round's own wind not included) with its sd [m/s]."""
+    lay = getattr(f1.problem.model, "layers", None)
+    if "wind_profile" not in f1.effects or lay is None:
+        return None
+    res = f1.ml
+    names = list(res.names)
+    rows = []
+    for k in range(1, lay.n + 1):
+        row = {"layer": k, "from": lay.edges[k - 1], "to": lay.edges[k]}
+        for c in ("wx", "wy"):
+            key = f"wind_profile.{c}_{k if not (c == 'wy' and lay.constant_cross) else 1}"
+            j = names.index(key)
+            row[c] = float(res.theta[j]) if res.free[j] else 0.0
+            row[f"{c}_sd"] = float(res.crb[j]) if res.free[j] else None
+        rows.append(row)
+    return {"axis": lay.axis, "edges": list(lay.edges),
+            "edges_unit": "m above sea level" if lay.axis == "altitude" else "m downrange from the gun",
+            "wind_sd": _layers_wind_sd(f1), "layers": rows}
+
+
+def _layers_wind_sd(f1):
+    """The declared ``[atmosphere] wind_sd`` of the fit's layers' prior [m/s], or None."""
+    sds = [p.sd for p in f1.problem.priors if p.name.startswith("wind_sd.")]
+    return float(sds[0]) if sds else None
 
 
 def _budget(f1, grid, rows):
@@ -220,6 +265,8 @@ def _budget(f1, grid, rows):
     out = budget_rows(b, grid)
     declared = {s[0] for s in f1.sources}
     out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared]
+    if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
+        out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
     return out
 
 

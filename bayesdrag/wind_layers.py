@@ -10,11 +10,12 @@ import numpy as np
 
 from .wind import WindProfile
 
-__all__ = ["WindLayers", "WindProfileModel", "wind_profile_free", "WIND_LAYERS_MAX", "WIND_STEP_SD",
-           "WIND_LEVEL_SD", "WIND_PROFILE_KEY"]
+__all__ = ["WindLayers", "WindProfileModel", "wind_profile_free", "path_layers", "WIND_LAYERS_MAX", "WIND_STEP_SD",
+           "WIND_LEVEL_SD", "WIND_PROFILE_KEY", "PROFILE_LAYERS", "EDGE_ROUND"]
 
-#: most layers a wind_profile has
-WIND_LAYERS_MAX = 6
+#: most layers a wind_profile has (the fit lays this many, the diagnosis PROFILE_LAYERS; unused
+#: ones are held at 0 and cost nothing)
+WIND_LAYERS_MAX = 10
 #: prior sd [m/s] of the change of wind between neighbouring layers (the random walk that ties
 #: them): wind shear rarely exceeds a few m/s per km, and a layer spans a few km of height or
 #: range; the zone winds small-arms tools take change by up to ~15 m/s at one distance, which
@@ -25,6 +26,11 @@ WIND_STEP_SD = 5.0
 WIND_LEVEL_SD = 10.0
 #: override key of wind_profile's layer winds (not a kernel column: read by WindProfileModel)
 WIND_PROFILE_KEY = "wind_profile"
+#: layers laid over a flight on each axis: enough to follow a wind that turns or strengthens once
+#: along the flight, few enough that each layer holds a quarter of the track
+PROFILE_LAYERS = 4
+#: the edges of a layer grid are rounded to this [m]
+EDGE_ROUND = 10.0
 
 @dataclass(frozen=True)
 class WindLayers:
@@ -121,3 +127,61 @@ def wind_profile_free(ctx, name):
         return False
     k = int(name.rsplit("_", 1)[1])
     return k <= lay.n and not (lay.constant_cross and k > 1 and name.split(".")[-1].startswith("wy"))
+
+
+def path_layers(axis, x, z, gun_altitude, base_wind=None, n=PROFILE_LAYERS, edges=None):
+    """The ``wind_profile`` layers laid over a flight's path: ``n`` equal layers over the flown
+    range of the coordinate (height from the gun to the apex, or downrange distance from the gun
+    to the last point), the round's own wind carried onto that axis as their base.
+
+    Parameters
+    ----------
+    axis : {"altitude", "downrange"}
+    x, z : (N,) arrays or None, m
+        Downrange distance and height above the gun along the path (None: not known).
+    gun_altitude : float, m
+        Height of the gun above sea level (altitude layers are above sea level).
+    base_wind : WindProfile or None
+        The round's wind (on either axis); None: calm.
+    n : int
+        Number of layers (without ``edges``).
+    edges : sequence of float, optional
+        Layer edges already chosen (the diagnosis's): used as given.
+
+    Returns
+    -------
+    WindLayers or None when the coordinate has no span (no path along it).
+    """
+    h_gun = float(gun_altitude)
+    if edges is None:
+        if axis == "altitude":
+            lo, hi = h_gun, h_gun + float(np.nanmax(z)) if z is not None else None
+        else:
+            lo, hi = 0.0, float(np.nanmax(x)) if x is not None else None
+        if hi is None or not hi > lo + n * EDGE_ROUND:
+            return None
+        e = np.round(np.linspace(lo, hi, n + 1) / EDGE_ROUND) * EDGE_ROUND
+        e[0], e[-1] = lo, hi
+        edges = tuple(float(v) for v in e)
+    base = None
+    if base_wind is not None:
+        base = base_wind if base_wind.axis == axis else _mapped(base_wind, axis, x, z, h_gun)
+    return WindLayers(axis, tuple(float(v) for v in edges), base)
+
+
+def _mapped(wind, axis, x, z, h_gun):
+    """The round's wind by one coordinate carried onto the other along a path (downrange x is
+    single-valued along a flight; height is not, so a wind by downrange distance becomes one by
+    height on the ascent)."""
+    if x is None or z is None:
+        return None
+    x, z = np.asarray(x, float), np.asarray(z, float)
+    if axis == "downrange":
+        order = np.argsort(x)
+        s = np.linspace(0.0, float(np.max(x)), 200)
+        w = wind.at(np.interp(s, x[order], z[order]) + h_gun)
+    else:
+        top = int(np.argmax(z))
+        s = np.linspace(h_gun, h_gun + float(z[top]), 200)
+        w = wind.at(np.interp(s - h_gun, z[:top + 1], x[:top + 1]))
+    return WindProfile(axis, tuple(s), tuple(w[:, 0]), tuple(w[:, 1]))

@@ -28,15 +28,12 @@ import numpy as np
 
 from ..effects import EFFECTS
 from ..errors import FitError
-from ..wind_layers import WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, WindLayers
+from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, path_layers
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
            "wind_prior_precision", "occam", "data_cost", "fit_wind_profile", "rechoose_wind", "cannot_separate", "separable",
            "SEPARATE_SD", "TRADE_PARTNERS", "SHAPE_RIVAL_SHARE", "shape_rival_share"]
 
-#: layers of the wind_profile candidate on each axis: enough to follow a wind that turns or
-#: strengthens once along the flight, few enough that each layer holds a quarter of the track
-PROFILE_LAYERS = 4
 #: the wind models, simplest first: the evidence chooses one of them to stand for the wind
 WIND_FAMILY = ("wind", "wind_profile")
 #: effects whose signature trades against a wind that changes along the flight (an along-range
@@ -52,14 +49,13 @@ SEPARATE_SD = 3.0
 #: 6-DOF shell's drag from its yaw of repose near the apex, which the point mass lacks: 0.84; the
 #: winds that change along the flight of the suite's tuning cases: 0-0.55
 SHAPE_RIVAL_SHARE = 0.75
-#: the edges of a layer grid are rounded to this [m]
-EDGE_ROUND = 10.0
 
 
 def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     """The wind_profile layers of this track: ``n`` equal layers over the flown range of the
     coordinate (height from the gun to the apex, or downrange distance from the gun to the last
-    sample), read off the baseline's fitted outputs, with the round's own wind as the base.
+    sample), read off the baseline's fitted outputs, with the round's own wind as the base
+    (:func:`bayesdrag.wind_layers.path_layers`).
 
     Parameters
     ----------
@@ -73,21 +69,9 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     -------
     WindLayers or None when the coordinate has no span (no x or z channel and no model path).
     """
-    base_wind = getattr(setup.rnd.atmosphere, "wind", None)
-    h_gun = float(setup.rnd.atmosphere.gun_altitude)
     x, z = _path(setup, y_base)
-    if axis == "altitude":
-        lo, hi = h_gun, h_gun + float(np.nanmax(z)) if z is not None else None
-    else:
-        lo, hi = 0.0, float(np.nanmax(x)) if x is not None else None
-    if hi is None or not hi > lo + n * EDGE_ROUND:
-        return None
-    edges = np.round(np.linspace(lo, hi, n + 1) / EDGE_ROUND) * EDGE_ROUND
-    edges[0], edges[-1] = lo, hi
-    base = None
-    if base_wind is not None:
-        base = base_wind if base_wind.axis == axis else _mapped(base_wind, axis, x, z, h_gun)
-    return WindLayers(axis, tuple(float(e) for e in edges), base)
+    return path_layers(axis, x, z, setup.rnd.atmosphere.gun_altitude,
+                       getattr(setup.rnd.atmosphere, "wind", None), n)
 
 
 def _path(setup, y_base):
@@ -97,25 +81,6 @@ def _path(setup, y_base):
     x = y_base[:, ch.index("x")] if "x" in ch else None
     z = y_base[:, ch.index("z")] if "z" in ch else None
     return x, z
-
-
-def _mapped(wind, axis, x, z, h_gun):
-    """The round's wind by one coordinate carried onto the other along the baseline path
-    (downrange x is single-valued along a flight; height is not, so a wind by downrange distance
-    becomes one by height on the ascent)."""
-    from ..wind import WindProfile
-
-    if x is None or z is None:
-        return None
-    if axis == "downrange":
-        order = np.argsort(x)
-        s = np.linspace(0.0, float(np.max(x)), 200)
-        w = wind.at(np.interp(s, x[order], z[order]) + h_gun)
-    else:
-        top = int(np.argmax(z))
-        s = np.linspace(h_gun, h_gun + float(z[top]), 200)
-        w = wind.at(np.interp(s - h_gun, z[:top + 1], x[:top + 1]))
-    return WindProfile(axis, tuple(s), tuple(w[:, 0]), tuple(w[:, 1]))
 
 
 def _pidx(names, effect="wind_profile"):
@@ -131,7 +96,8 @@ def _pidx(names, effect="wind_profile"):
 
 def rw_priors(names_all, free):
     """The random-walk priors of ``wind_profile``'s used layers: each neighbouring pair's
-    difference ~ N(0, WIND_STEP_SD^2), per component (linear rows of the full parameter vector).
+    difference ~ N(0, WIND_STEP_SD^2), per component (linear rows of the full parameter vector;
+    the fit's :func:`bayesdrag.estimate.scheme1.winds.wind_layer_priors` without a level).
 
     Parameters
     ----------
@@ -144,20 +110,9 @@ def rw_priors(names_all, free):
     -------
     tuple of Prior
     """
-    from ..estimate.model.problem import Prior
+    from ..estimate.scheme1.winds import wind_layer_priors
 
-    idx = _pidx(names_all)
-    n = len(names_all)
-    out = []
-    for c in ("wx", "wy"):
-        ks = sorted(k for (cc, k) in idx if cc == c and free[idx[(c, k)]])
-        for k0, k1 in zip(ks, ks[1:]):
-            i0, i1 = idx[(c, k0)], idx[(c, k1)]
-            row = np.zeros(n)
-            row[i1], row[i0] = 1.0, -1.0
-            out.append(Prior(f"wind_profile.{c}_{k1}-{c}_{k0}", (lambda th, a=i1, b=i0: th[..., a] - th[..., b]),
-                             0.0, WIND_STEP_SD, row=row))
-    return tuple(out)
+    return wind_layer_priors(names_all, free)
 
 
 def rw_information(names, free):

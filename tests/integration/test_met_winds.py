@@ -292,8 +292,11 @@ TOL_CD_REL = 0.02
 def test_fit_and_plan_fly_the_rounds_met_winds(tmp_path, capsys):
     """The fit flies the met profile's winds: a track flown in layered winds by height gives the
     right Cd with them (every determined row within 2 %) and a misfit without them; plan takes
-    the round too. ``--with wind_profile`` is refused with one line (the fit does not fly the
-    diagnosis's layers yet)."""
+    the round too; the fit with the round's winds says its Cd is conditional on them. Without the
+    winds, ``--with wind_profile`` flies layers of its own: every determined row is right (within
+    2 % or 3 band_sd), at least 60 % of the flown span is determined, and the budget carries the
+    ``wind_profile`` source; with ``[atmosphere] wind_sd`` declared the windy round's layers are
+    fitted around its met winds without being asked."""
     import json
 
     from bayesdrag.io.drag_tables import load_m101
@@ -326,5 +329,42 @@ def test_fit_and_plan_fly_the_rounds_met_winds(tmp_path, capsys):
     assert code == 0, err
     code, err = _cli(["fit", tmp_path / "t.csv", tmp_path / "calm.toml", "-o", tmp_path / "wp", "--no-mcmc",
                       "--with", "wind_profile"], capsys)
-    assert code == 2 and len(err) == 1 and "--with wind_profile: the fit cannot fly a wind profile yet" in err[0]
-    assert not (tmp_path / "wp").exists()
+    assert code == 0, err
+    r = json.loads((tmp_path / "wp" / "result.json").read_text())
+    assert r["ml"]["with_effects"]["fitted"] == ["wind_profile"]
+    assert r["ml"]["with_effects"]["wind_layers"]["axis"] in ("altitude", "downrange")
+    assert "wind_profile" in r["uncertainty_budget"]["by_source"]
+    _assert_rows_right(r, ref)
+    (tmp_path / "sd.toml").write_text(body + '[atmosphere]\nprofile = "windy.csv"\nwind_sd = 2.0\n')
+    code, err = _cli(["fit", tmp_path / "t.csv", tmp_path / "sd.toml", "-o", tmp_path / "sd", "--no-mcmc"], capsys)
+    assert code == 0, err
+    r = json.loads((tmp_path / "sd" / "result.json").read_text())
+    assert r["ml"]["with_effects"]["fitted"] == ["wind_profile"] and "wind_profile" in r["ml"]["with_effects"]["added"]
+    assert r["ml"]["with_effects"]["wind_layers"]["wind_sd"] == 2.0
+    assert "wind_profile" in r["uncertainty_budget"]["by_source"]
+    assert "wind_profile" not in r["uncertainty_budget"]["conditional_on"]
+    _assert_rows_right(r, ref)
+    r = json.loads((tmp_path / "windy" / "result.json").read_text())
+    assert "wind_profile" in r["uncertainty_budget"]["conditional_on"]
+
+
+#: at least this share of the flown Mach span stays determined where an effect is fitted
+DETERMINED_SHARE_MIN = 0.6
+#: rows inside the flown span less this share of its width at each end are judged
+SPAN_TRIM = 0.05
+#: a row is also right within this many of its band_sd, and the truth is taken within this much Mach
+SD_TOL, MACH_SLACK = 3.0, 0.01
+
+
+def _assert_rows_right(r, ref):
+    """Every determined row within 2 % of the truth or 3 band_sd (the truth anywhere within
+    +-0.01 Mach), and >= 60 % of the flown span (5 % trimmed at each end) determined."""
+    for c in r["cd"]:
+        if c["determined"]:
+            tv = ref.value(np.linspace(c["mach"] - MACH_SLACK, c["mach"] + MACH_SLACK, 21))
+            err = np.min(np.abs(c["ml"] - tv))
+            assert err <= TOL_CD_REL * float(np.max(tv)) or err <= SD_TOL * (c.get("band_sd") or c["crb_sd"]), c
+    lo, hi = r["ml"]["mach_range_data"]
+    w = hi - lo
+    inside = [c for c in r["cd"] if lo + SPAN_TRIM * w <= c["mach"] <= hi - SPAN_TRIM * w]
+    assert sum(c["determined"] for c in inside) >= DETERMINED_SHARE_MIN * len(inside)

@@ -224,7 +224,7 @@ def build_drag_model(drag, reference, start, knots=None, penalise=True, span=Non
 @single_blas
 def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
                 penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white", with_effects=(),
-                progress=None):
+                progress=None, wind_layers=None):
     """Scheme 1 ML fit of one track.
 
     Parameters
@@ -260,6 +260,10 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     progress : callable, optional
         ``progress(step)`` receives a short description of each step as the fit reaches it
         (the command prints them when the fit is slow).
+    wind_layers : WindLayers or str, optional
+        The layers of a ``wind_profile`` in ``with_effects``, or the axis to lay them on (the
+        diagnosis's); default: laid over the fitted flight on the better axis
+        (:func:`bayesdrag.estimate.scheme1.systematics.fit_with_sources`).
 
     Returns
     -------
@@ -346,7 +350,35 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     else:
         prob.priors = tuple(used)
         res = prob.fit(fallback=True) if used else res_b
-    white_ml = None
+    prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before = _noise_and_effects(
+        prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
+    if pen is not None:
+        res = drop_coefficient_correlations(res, P)
+    if smaller is not None:
+        size["note"] = (f"{track.n} samples x {len(chans)} channels are too few for the default spline: Cd is the "
+                        f"firing table times one fitted factor (reference-scale)")
+    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
+                      before if fitted_effects else None, size)
+
+
+def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say):
+    """The noise model (robust reweighting or white / AR(1)) and stage C, the declared sources and
+    ``--with`` effects (:func:`fit_with_sources`), in that order -- except a wind profile, which is
+    model, not noise: fitted before the noise model is chosen (model-error noise chosen first took
+    the wind's signature, and the layers stayed at zero).
+
+    Returns
+    -------
+    (prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before)
+    """
+    rejected = white_ml = None
+    sources, fitted_effects = (), ()
+    winds_first = ("wind_profile" in with_effects or rnd.systematics.wind_profile is not None) \
+        and likelihood != "student-t"
+    before = res
+    if winds_first:
+        say("the declared systematic sources and effects")
+        prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects, wind_layers)
     if likelihood == "student-t":
         say("reweighting outliers (Student-t)")
         res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
@@ -358,17 +390,12 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
         if noise_model == "auto" and "ar1" in noise.get("model", {}).values():
             white_ml = white
-    before = res
-    if with_effects or rnd.systematics.declared():
-        say("the declared systematic sources and effects")
-    prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects)
-    if pen is not None:
-        res = drop_coefficient_correlations(res, P)
-    if smaller is not None:
-        size["note"] = (f"{track.n} samples x {len(chans)} channels are too few for the default spline: Cd is the "
-                        f"firing table times one fitted factor (reference-scale)")
-    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
-                      before if fitted_effects else None, size)
+    if not winds_first:
+        before = res
+        if with_effects or rnd.systematics.declared():
+            say("the declared systematic sources and effects")
+        prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects, wind_layers)
+    return prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before
 
 
 def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chans, likelihood, fixed_pri, site=None):

@@ -202,13 +202,15 @@ def plan_effects(names, rnd):
     return tuple(keep), skipped
 
 
-def fit_with_sources(prob, res, rnd, effects=()):
+def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
     """Stage C of Scheme 1: the fit again with the declared sources and the ``--with`` effects
     as nuisance parameters.
 
     The drag model, the chosen smoothing, the launch priors, the sample weights and the noise
     model stay as ``prob`` has them; the sources start at their nominal values with their
-    priors, the effects at "no effect" (no prior: bounded only).
+    priors, the effects at "no effect" (no prior: bounded only; ``wind_profile``'s layers tied
+    by their random walk, and held near the round's winds by a declared ``[atmosphere] wind_sd``,
+    which also adds the effect when it is not asked for: :mod:`.winds`).
 
     Parameters
     ----------
@@ -219,6 +221,9 @@ def fit_with_sources(prob, res, rnd, effects=()):
     rnd : Round
     effects : sequence of str
         Effects of :mod:`bayesdrag.effects` to fit (already checked by :func:`plan_effects`).
+    wind_layers : WindLayers or str, optional
+        The layers of ``wind_profile``, or the axis to lay them on (the diagnosis's); default:
+        laid over the fitted flight by height and by downrange distance, the better fit kept.
 
     Returns
     -------
@@ -227,17 +232,44 @@ def fit_with_sources(prob, res, rnd, effects=()):
         and the effects fitted; the inputs and empty tuples when there is nothing to add or the
         fit fails.
     """
-    from ...effects import EffectContext, effect_fn, extra_params, get_effect, static_model
+    from ...effects import EffectContext
+    from .winds import WIND_AXES, fit_layers
+
+    effects = tuple(effects)
+    if rnd.systematics.wind_profile is not None and "wind_profile" not in effects:
+        effects = effects + ("wind_profile",)
+    L = rnd.launch
+    ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg, azimuth_deg=L.azimuth_deg,
+                        v0=L.velocity)
+    if "wind_profile" not in effects:
+        return _fit_with(prob, res, rnd, effects, ctx)
+    if wind_layers is None or isinstance(wind_layers, str):
+        axes = WIND_AXES if wind_layers is None else (wind_layers,)
+        layers = [fit_layers(prob, res, rnd, ax) for ax in axes]
+    else:
+        layers = [wind_layers]
+    layers = [lay for lay in layers if lay is not None]
+    if not layers:   # no span to lay layers over (no path): the wind stays the round's
+        return _fit_with(prob, res, rnd, tuple(e for e in effects if e != "wind_profile"), ctx)
+    best = None
+    for lay in layers:
+        out = _fit_with(prob, res, rnd, effects, replace(ctx, wind_layers=lay))
+        if out[3] and (best is None or out[1].cost < best[1].cost):
+            best = out
+    return best if best is not None else (prob, res, (), ())
+
+
+def _fit_with(prob, res, rnd, effects, ctx):
+    """:func:`fit_with_sources` with the effects' context (and wind layers) settled."""
+    from ...effects import effect_fn, extra_params, get_effect, static_model
     from ..model.problem import OutputErrorProblem
+    from .winds import layer_free, wind_layer_priors
 
     extras = source_extras(rnd)
     effs = tuple(get_effect(n) for n in effects)
     if not extras and not effs:
         return prob, res, (), ()
-    L = rnd.launch
-    ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg, azimuth_deg=L.azimuth_deg,
-                        v0=L.velocity)
-    model = static_model(prob.model, [e for e in effs if e.k == 0], ctx)
+    model = static_model(prob.model, [e for e in effs if e.k == 0 or e.name == "wind_profile"], ctx)
     with_par = [e for e in effs if e.k > 0]
     eff_extras = extra_params(with_par)
     if prob.E:
@@ -246,10 +278,14 @@ def fit_with_sources(prob, res, rnd, effects=()):
     inner_fn = effect_fn(with_par, ctx, res.theta[prob.P:prob.P + 6]) if with_par else None
     n_inner = len(eff_extras)
     theta0 = np.concatenate([res.theta, [e.start for e in eff_extras], [e[2] for e in extras]])
-    free = np.concatenate([res.free, np.ones(len(eff_extras) + len(extras), bool)])
+    eff_free = [layer_free(ctx.wind_layers, e.name, prob.channels) if e.name.startswith("wind_profile.") else True
+                for e in eff_extras]
+    free = np.concatenate([res.free, eff_free, np.ones(len(extras), bool)])
+    names = [""] * n0 + [e.name for e in eff_extras] + [e[1].name for e in extras]
+    walk = wind_layer_priors(names, free, rnd.systematics.wind_profile) if ctx.wind_layers is not None else ()
     fn = source_fn(extras, rnd, model, inner=inner_fn, n_inner=n_inner)
     p2 = OutputErrorProblem(model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
-                            priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)),
+                            priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)) + walk,
                             channels=prob.channels,
                             extras=tuple(eff_extras) + tuple(e[1] for e in extras),
                             effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model,
@@ -258,4 +294,3 @@ def fit_with_sources(prob, res, rnd, effects=()):
     if not res2.success:
         return prob, res, (), ()
     return p2, res2, extras, tuple(e.name for e in effs)
-

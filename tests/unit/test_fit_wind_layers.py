@@ -1,0 +1,59 @@
+"""The wind_profile layers a Scheme 1 fit lays over a flight and the priors that tie them
+(issue 29 part B): equal layers over the flown height or downrange distance, the round's wind as
+their base, a random walk between neighbours and a declared wind_sd as each layer's prior."""
+import numpy as np
+import pytest
+
+from bayesdrag.estimate.scheme1.winds import layer_free, wind_layer_priors
+from bayesdrag.wind import WindProfile
+from bayesdrag.wind_layers import PROFILE_LAYERS, WIND_STEP_SD, path_layers
+
+#: a layer edge is rounded to 10 m; its place is checked within this [m]
+EDGE_TOL_M = 10.0
+
+
+def _path():
+    x = np.linspace(0.0, 12000.0, 200)
+    z = 4000.0 * np.sin(np.pi * x / 12000.0)           # apex 4000 m above the gun at 6 km
+    return x, z
+
+
+def test_layers_span_the_flown_height_and_range():
+    x, z = _path()
+    up = path_layers("altitude", x, z, 300.0)
+    assert up.n == PROFILE_LAYERS and up.edges[0] == 300.0 and abs(up.edges[-1] - 4300.0) < 1.0
+    assert np.allclose(np.diff(up.edges), 1000.0, atol=EDGE_TOL_M)
+    down = path_layers("downrange", x, z, 300.0)
+    assert down.edges[0] == 0.0 and abs(down.edges[-1] - 12000.0) < 1e-6
+    assert path_layers("altitude", x, None, 300.0) is None
+
+
+def test_the_rounds_wind_on_the_other_axis_becomes_the_base_along_the_path():
+    x, z = _path()
+    by_height = WindProfile("altitude", (300.0, 4300.0), (0.0, -8.0), (2.0, 2.0))
+    lay = path_layers("downrange", x, z, 300.0, by_height)
+    w = lay.profile(np.zeros(2 * lay.n)).at(np.array([0.0, 6000.0]))
+    assert np.allclose(w[:, 0], [0.0, -8.0], atol=0.1) and np.allclose(w[:, 1], 2.0)
+
+
+def test_random_walk_and_declared_level_priors():
+    names = ["c1", "x0"] + [f"wind_profile.{c}_{k}" for k in (1, 2, 3) for c in ("wx", "wy")]
+    free = np.ones(len(names), bool)
+    free[names.index("wind_profile.wy_3")] = False
+    walk = wind_layer_priors(names, free)
+    assert [p.name for p in walk] == ["wind_profile.wx_2-wx_1", "wind_profile.wx_3-wx_2", "wind_profile.wy_2-wy_1"]
+    assert all(p.sd == WIND_STEP_SD for p in walk)
+    th = np.zeros(len(names))
+    th[names.index("wind_profile.wx_2")], th[names.index("wind_profile.wx_1")] = 5.0, 2.0
+    assert walk[0].fn(th) == pytest.approx(3.0) and np.asarray(walk[0].row) @ th == pytest.approx(3.0)
+    both = wind_layer_priors(names, free, level_sd=1.5)
+    levels = [p for p in both if p.name.startswith("wind_sd.")]
+    assert len(levels) == 5 and all(p.sd == 1.5 and p.mean == 0.0 for p in levels)
+
+
+def test_a_cross_wind_without_a_y_channel_is_held():
+    x, z = _path()
+    lay = path_layers("altitude", x, z, 0.0)
+    assert layer_free(lay, "wind_profile.wy_2", ("x", "y", "z"))
+    assert not layer_free(lay, "wind_profile.wy_2", ("x", "z", "v"))
+    assert not layer_free(lay, f"wind_profile.wx_{PROFILE_LAYERS + 1}", ("x", "y", "z"))
