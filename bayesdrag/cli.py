@@ -177,9 +177,11 @@ def _add_fit_options(p, batch=False):
     p.add_argument("--sample-ar", action="store_true",
                    help="sample the AR(1) model-error coefficients in the posterior (default: held at their ML "
                         "values; slow mixing where rho reaches its bound)")
-    p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto",
+    p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto|none",
                    help="fit these effects of the diagnosis library with Cd as nuisance parameters (auto: the ones "
-                        "`bayesdrag diagnose` names); the report shows Cd with and without them")
+                        "`bayesdrag diagnose` names; none: never). Default: when the quality gate finds that the "
+                        "model misses the track, the effects the diagnosis names are added; the report shows Cd "
+                        "with and without them")
     p.add_argument("--nu", type=_nu, default=d.nu,
                    help=f"Student-t degrees of freedom: a number (default {d.nu:g}) or 'sample'")
 

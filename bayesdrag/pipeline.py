@@ -86,33 +86,26 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
+    timing = {}
+    t0 = time.perf_counter()
     with_effects, with_note = _with_effects(track, rnd, opts, log)
-    f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
-                     likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
-                     with_effects=with_effects, progress=ml_progress)
-    res = f1.ml
-    if not res.success:
-        raise FitError(f"{track.source or 'track'}: {res.message}")
-    dm = f1.drag_model
+    if with_note is not None:
+        timing["effect_search"] = round(time.perf_counter() - t0, 3)
+    t0 = time.perf_counter()
+    stage = _ml_stage(track, rnd, opts, chans, with_effects, ml_progress)
+    timing["ml"] = round(time.perf_counter() - t0, 3)
+    if opts.with_effects == "default":
+        stage, with_note = _default_effects(track, rnd, opts, chans, stage, log, ml_progress, timing)
+    f1, res, rows, grid, budget, floored, quality = stage
     lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
-    grid = cd_grid(lo, hi)
-    rows = cd_table(res, dm, grid, rnd.reference_drag)
-    if f1.ml_without_effects is not None:
-        for r, v in zip(rows, dm.cd(f1.ml_without_effects.drag_params, grid)):
-            r["ml_without_effects"] = float(v)
-    budget = _budget(f1, grid, rows)
-    floored = model_error_floor(f1, rows)
-    quality = assess(f1, rows, track, rnd.radar.sigma)
-    if dm.name != "spline":
-        if ml_progress is not None:
-            ml_progress("the flexible fit the rigid model is checked against")
-        _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality)
     if ml_progress is not None and hasattr(ml_progress, "done"):
         ml_progress.done()
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
     if with_note is not None:
         with_note["fitted"] = list(f1.effects)
+        with_note.setdefault("added_by", "user")
+        with_note.setdefault("effects", list(f1.effects))
         summary["ml"]["with_effects"] = with_note
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
@@ -129,9 +122,123 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
         if ratios:
             summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
+        timing["sampling"] = round(float(bayes.elapsed), 3)
+    timing["total"] = round(time.perf_counter() - t_start, 3)
+    summary["timing"] = timing
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
+
+
+def _ml_stage(track, rnd, opts, chans, with_effects, ml_progress, start=None):
+    """The maximum-likelihood part of a Scheme 1 fit with the given effects: the fit, its ``cd``
+    rows on the result's grid, the budget and the quality gate (and, for a rigid drag model, its
+    check against the flexible fit). Returns ``(f1, res, rows, grid, budget, floored, quality)``."""
+    f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
+                     likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
+                     with_effects=with_effects, progress=ml_progress, start=start)
+    res = f1.ml
+    if not res.success:
+        raise FitError(f"{track.source or 'track'}: {res.message}")
+    dm = f1.drag_model
+    grid = cd_grid(float(np.min(res.mach)), float(np.max(res.mach)))
+    rows = cd_table(res, dm, grid, rnd.reference_drag)
+    if f1.ml_without_effects is not None:
+        for r, v in zip(rows, dm.cd(f1.ml_without_effects.drag_params, grid)):
+            r["ml_without_effects"] = float(v)
+    budget = _budget(f1, grid, rows)
+    floored = model_error_floor(f1, rows)
+    quality = assess(f1, rows, track, rnd.radar.sigma)
+    if dm.name != "spline":
+        if ml_progress is not None:
+            ml_progress("the flexible fit the rigid model is checked against")
+        _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality)
+    return f1, res, rows, grid, budget, floored, quality
+
+
+def misses_track(quality):
+    """Whether the quality gate found that the model misses the track: a channel's residuals far
+    above its noise, or structured (lag-1 autocorrelation above the limit over more than 20
+    samples). A parameter at a bound or a late clock alone is not a missed track."""
+    from .estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
+
+    chans = (quality.get("channels") or {}).values()
+    return any(c["chi2_per_sample"] > CHI2_LIMIT or (c["lag1"] > ACF_LIMIT and c["n"] > 20) for c in chans)
+
+
+def _default_effects(track, rnd, opts, chans, stage, log, ml_progress, timing):
+    """The default fit's search for the cause (``--with`` not given): when the gate finds that
+    the model misses the track, the diagnosis's selection names the material effects, and the
+    fit is made again with them as nuisance parameters (the rows keep the plain Cd as
+    ``ml_without_effects``). Nothing is added when the gate passes, when the diagnosis names no
+    effect that can be fitted with Cd, or when the refit fails (then the plain fit stands, and
+    ``ml.with_effects`` says why). Returns the stage to report and the ``ml.with_effects``
+    record."""
+    from .diagnosis import MIN_DIAGNOSIS_SAMPLES
+    from .estimate.scheme1.systematics import plan_effects
+
+    quality = stage[-1]
+    if not misses_track(quality):
+        return stage, None
+    record = {"added_by": "default", "requested": "default", "effects": [], "candidates": [], "skipped": {}}
+    if track.n < MIN_DIAGNOSIS_SAMPLES:
+        record["reason"] = (f"the model misses the track, but {track.n} samples are too few for the search for "
+                            f"the cause (needs >= {MIN_DIAGNOSIS_SAMPLES}); nothing added")
+        return stage, record
+    t0 = time.perf_counter()
+    if ml_progress is not None:
+        ml_progress("the model misses the track: searching for the cause (diagnosis)")
+    elif log is not None:
+        log("the model misses the track: searching for the cause (diagnosis) ...")
+    try:
+        verdict = list(diagnose(track, rnd, channels=chans).verdict)
+    except (InputError, FitError) as exc:
+        timing["effect_search"] = round(time.perf_counter() - t0, 3)
+        record["reason"] = f"the model misses the track; the search for the cause failed ({exc}); nothing added"
+        return stage, record
+    timing["effect_search"] = round(time.perf_counter() - t0, 3)
+    keep, skipped = plan_effects(verdict, rnd)
+    record.update(candidates=verdict, skipped=skipped)
+    if not keep:
+        why = ("the diagnosis names no material effect" if not verdict else
+               f"the diagnosis names {', '.join(verdict)}, which cannot be fitted with Cd here ("
+               + "; ".join(f"{k}: {v}" for k, v in skipped.items()) + ")")
+        record["reason"] = f"the model misses the track; {why}; nothing added"
+        return stage, record
+    if log is not None and ml_progress is None:
+        log(f"the diagnosis names {', '.join(verdict)}: fitting Cd with {', '.join(keep)} ...")
+    t0 = time.perf_counter()
+    try:
+        refit = _ml_stage(track, rnd, opts, chans, keep, ml_progress, start=stage[0].start)
+    except (InputError, FitError) as exc:
+        refit, failure = None, str(exc)
+    timing["refit"] = round(time.perf_counter() - t0, 3)
+    if refit is None or not refit[0].effects:
+        record["reason"] = (f"the model misses the track; the diagnosis names {', '.join(verdict)}, but the fit with "
+                            f"{', '.join(keep)} failed" + (f" ({failure})" if refit is None else "") + "; nothing added")
+        return stage, record
+    plain = stage[0]
+    for r, v in zip(refit[2], plain.drag_model.cd(plain.ml.drag_params, refit[3])):
+        r["ml_without_effects"] = float(v)      # the plain fit the gate judged, on the refit's grid
+    record["effects"] = list(refit[0].effects)
+    record["fitted"] = list(refit[0].effects)
+    record["reason"] = ("the model missed the track (" + _missed_channels(quality) + "); the diagnosis names "
+                        + ", ".join(verdict) + "; Cd is fitted with " + ", ".join(refit[0].effects)
+                        + " as nuisance parameters (ml_without_effects: the plain fit)")
+    return refit, record
+
+
+def _missed_channels(quality):
+    """The channels whose residuals the gate found off, e.g. ``x chi2/n 85, v lag-1 0.93``."""
+    from .estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
+
+    out = []
+    for c, q in (quality.get("channels") or {}).items():
+        if q["chi2_per_sample"] > CHI2_LIMIT:
+            out.append(f"{c} chi2/n {q['chi2_per_sample']:.3g}")
+        elif q["lag1"] > ACF_LIMIT and q["n"] > 20:
+            out.append(f"{c} lag-1 {q['lag1']:.2f}")
+    return ", ".join(out)
 
 
 def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
@@ -167,7 +274,7 @@ def _with_effects(track, rnd, opts, log):
     from .estimate.scheme1.systematics import plan_effects
 
     req = opts.with_effects
-    if not req:
+    if not req or req == "default":
         return (), None
     if req == "auto":
         from .diagnosis import diagnose
@@ -179,7 +286,9 @@ def _with_effects(track, rnd, opts, log):
     else:
         names = list(req)
     keep, skipped = plan_effects(names, rnd)
-    return keep, {"requested": req if req == "auto" else list(req), "candidates": names, "skipped": skipped}
+    return keep, {"added_by": "user", "requested": req if req == "auto" else list(req), "candidates": names,
+                  "skipped": skipped,
+                  "reason": "asked for with --with " + (req if req == "auto" else ",".join(req))}
 
 
 def _budget(f1, grid, rows):
@@ -314,7 +423,8 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     warnings += quality["problems"]
     summary = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
                "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
-                      "windows": len(rows), "notes": list(r2.notes), "quality": quality},
+                      "windows": len(rows), "notes": list(r2.notes) + _scheme2_effects_note(opts, quality),
+                      "quality": quality},
                "cd": cd_rows, "windows": rows, "uncertainty_budget": budget}
     if draws:
         summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
@@ -323,6 +433,15 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
                      window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
 
+
+
+def _scheme2_effects_note(opts, quality):
+    """Scheme 2 takes no effects (a window's constant Cd cannot carry them): with the default
+    ``--with``, a note says the search for the cause of a missed window was skipped."""
+    if opts.with_effects != "default" or quality["ok"]:
+        return []
+    return ["Scheme 2 fits no effects: the default search for the cause of a missed window is skipped "
+            "(Scheme 1 with the default --with, or bayesdrag diagnose, finds it)"]
 
 def _window_budget(rows, ok, draws, rnd, seed):
     """Scheme 2's budget: the declared level sources (density, mass, diameter: one factor on
