@@ -177,9 +177,11 @@ def _add_fit_options(p, batch=False):
     p.add_argument("--sample-ar", action="store_true",
                    help="sample the AR(1) model-error coefficients in the posterior (default: held at their ML "
                         "values; slow mixing where rho reaches its bound)")
-    p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto",
+    p.add_argument("--with", dest="with_effects", default="", metavar="EFFECT[,EFFECT]|auto|none",
                    help="fit these effects of the diagnosis library with Cd as nuisance parameters (auto: the ones "
-                        "`bayesdrag diagnose` names); the report shows Cd with and without them")
+                        "`bayesdrag diagnose` names; none: never). Default: when the model check finds material "
+                        "effects the round does not declare, the answer is the fit with them; the report shows Cd "
+                        "with and without them")
     p.add_argument("--no-model-check", dest="model_check", action="store_false",
                    help="skip the check of the Cd against the misfit that remains (the diagnosis's undeclared "
                         "effects and a robust fit, whose Cd shifts widen the bands as model error): faster, and the "

@@ -15,11 +15,14 @@ from .estimate.scheme1.fit import fit_scheme1
 __all__ = ["model_error", "note_model_error", "air", "why_not_clean", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD"]
 
 
-def model_error(track, rnd, opts, chans, f1, grid, rows):
+def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True):
     """The model-error term of each row (:mod:`bayesdrag.estimate.cd.model_error`): the Cd shift
     of the material effects the diagnosis finds and the round does not declare (fitted), and of
     a robust fit where the noise is not white or has gross outliers. Sets each row's
-    ``model_error_sd``; returns the record of ``ml.quality.model_error``."""
+    ``model_error_sd``; returns the record of ``ml.quality.model_error`` and the fit with the
+    effects (a ``Scheme1Fit``, or None when none is found or it fails), which the default fit
+    takes as its answer (:func:`bayesdrag.pipeline.fit`). ``diagnose_effects=False`` makes the
+    noise check only (the fit already carries the effects)."""
     from .estimate.model.noise import noise_and_outliers
     from .estimate.scheme1.systematics import plan_effects
 
@@ -29,8 +32,10 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
     parts = {}
     from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 
-    verdict = []
-    if track.n < MIN_DIAGNOSIS_SAMPLES:
+    verdict, effects_fit = [], None
+    if not diagnose_effects:
+        pass                          # the fit carries the effects: the caller records them
+    elif track.n < MIN_DIAGNOSIS_SAMPLES:
         rec["diagnosis_skipped"] = f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"
     else:
         try:
@@ -46,6 +51,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
         if alt is not None:
             parts["effects"] = shift_sd(ml, band, alt[0], alt[1])
             rec["effects"] = list(keep)
+            effects_fit = alt[2]
     noisy = f1.white_ml is not None or opts.noise_model == "ar1"
     flagged = 0
     if opts.likelihood == "gaussian":
@@ -58,7 +64,8 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
             parts["noise"] = shift_sd(ml, band, alt[0])
             rec["noise_check"] = {"why": "gross outliers" + (" and correlated (AR(1)) residuals" if noisy else ""),
                                   "against": "student-t", "outlier_samples": flagged}
-    elif f1.white_ml is not None:
+    elif f1.white_ml is not None and diagnose_effects:
+        # (a fit carrying effects chose its noise model on the plain residuals: no white check)
         # correlated residuals the auto noise model took as AR(1): the white-noise fit it started
         # from is the check (no new fit: both are consistent when the model is right)
         parts["noise"] = shift_sd(ml, band, f1.drag_model.cd(f1.white_ml.drag_params, grid))
@@ -68,12 +75,12 @@ def model_error(track, rnd, opts, chans, f1, grid, rows):
     if me is not None:
         for r, v in zip(rows, me):
             r["model_error_sd"] = float(v)
-    return rec
+    return rec, effects_fit
 
 
 def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
-    """``(cd, band_sd)`` on ``grid`` of the same fit with ``change`` (effects, likelihood); None
-    when it fails."""
+    """``(cd, band_sd, fit)`` on ``grid`` of the same fit with ``change`` (effects, likelihood);
+    None when it fails."""
     kw = dict(drag=f1.drag_model.name, channels=chans, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
               nu=opts.ml_nu, noise_model=opts.noise_model, start=f1.start)   # the plain fit's start: no new search
     kw.update(change)
@@ -86,7 +93,7 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
     ra = cd_table(alt.ml, alt.drag_model, grid)
     model_error_floor(alt, ra)
     assess(alt, ra, track, rnd.radar.sigma)
-    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra])
+    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra]), alt
 
 
 #: how the noise checks are named in the problem line

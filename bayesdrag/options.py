@@ -93,9 +93,12 @@ class FitOptions:
         channel) in the posterior instead of holding them at their ML values (default False:
         where the data push rho to its bound, as on the shipped demo's v channel, the posterior
         is truncated there and the chain mixes slowly, acceptance 0.04-0.07; see docs/bayes.md).
-    with_effects : tuple of str or "auto"
-        Effects of the diagnosis library fitted with Cd as nuisance parameters (``--with``);
-        ``auto``: the ones the diagnosis names. Effects that share a declared source's quantity
+    with_effects : "default", "none", "auto" or tuple of str
+        Effects of the diagnosis library fitted with Cd as nuisance parameters (``--with``).
+        ``default``: the model check's diagnosis names the material effects the round does not
+        declare, and when it finds any the answer is the fit with them (nothing is added to a
+        track the model fits); ``none`` (or an empty tuple): never, the check only widens the
+        bands; ``auto``: the ones the diagnosis names, always; names: those effects. Effects that share a declared source's quantity
         (density, temperature, radar_time) or are confounded with Cd (density without
         ``density_sd``, drag_scale, drag_shape) are left out and the result says why.
     model_check : bool
@@ -126,7 +129,7 @@ class FitOptions:
     nu: float | str = DEFAULT_NU
     noise_model: str = "auto"
     sample_ar: bool = False
-    with_effects: tuple | str = ()
+    with_effects: tuple | str = "default"
     model_check: bool = True
     window: int = 50
     overlap: int = 0
@@ -153,23 +156,24 @@ class FitOptions:
             object.__setattr__(self, "channels", ch)
         if self.likelihood not in LIKELIHOODS:
             _bad("likelihood", self.likelihood, f"use one of {', '.join(LIKELIHOODS)}")
-        if isinstance(self.with_effects, (list, tuple)) and len(self.with_effects) == 0:
+        if (isinstance(self.with_effects, (list, tuple)) and len(self.with_effects) == 0) or \
+                self.with_effects in (None, "none", ("none",)):
             object.__setattr__(self, "with_effects", ())
-        elif self.with_effects not in (None, "auto"):
+        elif self.with_effects not in ("auto", "default"):
             from .effects import EFFECTS
 
             w = self.with_effects
             names = tuple(c.strip() for c in w.split(",") if c.strip()) if isinstance(w, str) else tuple(w)
-            if names == ("auto",):
-                names = "auto"
+            if names in (("auto",), ("default",)):
+                names = names[0]
+            elif names == ("none",):
+                names = ()
             else:
                 bad = [n for n in names if n not in EFFECTS]
                 if bad or not names:
-                    _bad("with_effects", w, f"use auto or effects among {', '.join(EFFECTS)}")
+                    _bad("with_effects", w, f"use default, none, auto or effects among {', '.join(EFFECTS)}")
             object.__setattr__(self, "with_effects", names)
-        elif self.with_effects is None:
-            object.__setattr__(self, "with_effects", ())
-        if self.with_effects and self.scheme == 2:
+        if self.with_effects and self.with_effects != "default" and self.scheme == 2:
             _bad("with_effects", self.with_effects, "--with fits effects with the Scheme 1 curve; use it without "
                  "--scheme 2 (a window's constant Cd cannot carry them)")
         if self.noise_model not in NOISE_MODELS:

@@ -89,6 +89,7 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
+    timing = {}
     with_effects, with_note, layers = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
                      likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
@@ -105,11 +106,39 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             r["ml_without_effects"] = float(v)
     budget = _budget(f1, grid, rows)
     floored = model_error_floor(f1, rows)
-    gap = None
-    if opts.model_check and not opts.with_effects:
+    gap = effects_fit = None
+    default = opts.with_effects == "default"
+    timing["ml"] = round(time.perf_counter() - t_start, 3)
+    if opts.model_check and (default or not opts.with_effects):
         if ml_progress is not None:
             ml_progress("checking the Cd against the misfit that remains")
-        gap = model_error(track, rnd, opts, chans, f1, grid, rows)
+        t0 = time.perf_counter()
+        gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
+        timing["model_check"] = round(time.perf_counter() - t0, 3)
+    if default and effects_fit is not None and effects_fit.effects:
+        # the default fit fits the cause: the check's fit with the undeclared material effects
+        # (already made, from the plain fit's start) is the answer; the plain Cd stays beside it
+        t0 = time.perf_counter()
+        plain, f1 = f1, effects_fit
+        res, dm = f1.ml, f1.drag_model
+        lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
+        grid = cd_grid(lo, hi)
+        rows = cd_table(res, dm, grid, rnd.reference_drag)
+        for r, v in zip(rows, plain.drag_model.cd(plain.ml.drag_params, grid)):
+            r["ml_without_effects"] = float(v)
+        budget = _budget(f1, grid, rows)
+        floored = model_error_floor(f1, rows)
+        found = gap
+        gap, _ = model_error(track, rnd, opts, chans, f1, grid, rows, diagnose_effects=False)
+        gap.update(verdict=found["verdict"], skipped=found["skipped"], conditional_air=found["conditional_air"],
+                   effects_fitted=list(f1.effects))
+        with_note = {"added_by": "default", "requested": "default", "effects": list(f1.effects),
+                     "candidates": list(found["verdict"]), "skipped": found["skipped"],
+                     "reason": (f"the model check's diagnosis names {', '.join(found['verdict'])}, which the round "
+                                f"does not declare: Cd is fitted with {', '.join(f1.effects)} as nuisance "
+                                f"parameters (ml_without_effects: the plain fit; --with none keeps the plain fit "
+                                f"with the shift as model error)")}
+        timing["refit"] = round(time.perf_counter() - t0, 3)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if gap is not None:
         note_model_error(gap, quality, grid, rows)
@@ -124,9 +153,11 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     summary["uncertainty_budget"] = budget
     if with_note is not None or "wind_profile" in f1.effects:
         with_note = with_note if with_note is not None else {
-            "requested": [], "candidates": [], "skipped": {},
-            "added": {"wind_profile": "[atmosphere] wind_sd is declared: the layers' prior"}}
+            "added_by": "round", "requested": [], "candidates": [], "skipped": {},
+            "added": {"wind_profile": "[atmosphere] wind_sd is declared: the layers' prior"},
+            "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
         with_note["fitted"] = list(f1.effects)
+        with_note.setdefault("effects", list(f1.effects))
         lay = _fitted_layers(f1)
         if lay is not None:
             with_note["wind_layers"] = lay
@@ -147,6 +178,9 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
         if ratios:
             summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
+        timing["sampling"] = round(float(bayes.elapsed), 3)
+    timing["total"] = round(time.perf_counter() - t_start, 3)
+    summary["timing"] = timing
     summary["headline"] = headline(summary["cd"], summary["ml"]["mach_range_determined"], quality["ok"],
                                    None if quality["ok"] else why_not_clean(quality))
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
@@ -188,7 +222,7 @@ def _with_effects(track, rnd, opts, log):
     from .estimate.scheme1.systematics import plan_effects
 
     req = opts.with_effects
-    if not req:
+    if not req or req == "default":
         return (), None, None
     layers = None
     if req == "auto":
@@ -203,7 +237,9 @@ def _with_effects(track, rnd, opts, log):
     else:
         names = list(req)
     keep, skipped = plan_effects(names, rnd)
-    return keep, {"requested": req if req == "auto" else list(req), "candidates": names, "skipped": skipped}, layers
+    return keep, {"added_by": "user", "requested": req if req == "auto" else list(req), "candidates": names,
+                  "skipped": skipped, "reason": "asked for with --with " + (req if req == "auto" else ",".join(req))}, \
+        layers
 
 
 def _diagnosis_layers(summary, track, rnd):
@@ -374,7 +410,8 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     warnings += quality["problems"]
     summary = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
                "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
-                      "windows": len(rows), "notes": list(r2.notes), "quality": quality},
+                      "windows": len(rows), "notes": list(r2.notes) + _scheme2_effects_note(opts, quality),
+                      "quality": quality},
                "cd": cd_rows, "windows": rows, "uncertainty_budget": budget}
     if draws:
         summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
@@ -386,6 +423,15 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
                      window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
 
+
+
+def _scheme2_effects_note(opts, quality):
+    """Scheme 2 takes no effects (a window's constant Cd cannot carry them): with the default
+    ``--with``, a note says the search for the cause of a missed window was skipped."""
+    if opts.with_effects != "default" or quality["ok"]:
+        return []
+    return ["Scheme 2 fits no effects: the default search for the cause of a missed window is skipped "
+            "(Scheme 1 with the default --with, or bayesdrag diagnose, finds it)"]
 
 def _window_budget(rows, ok, draws, rnd, seed):
     """Scheme 2's budget: the declared level sources (density, mass, diameter: one factor on

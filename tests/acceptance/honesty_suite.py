@@ -339,4 +339,6 @@ def run_case(case, **fit_options):
     we = d["ml"].get("with_effects")
     if we:
         out["effects_added"] = we.get("fitted") or we.get("effects")
+        out["effect_params"] = {n: (v, d["ml"]["crb"].get(n)) for n, v in d["ml"]["params"].items()
+                                if n.split(".")[0] in (out["effects_added"] or ())}
     return out

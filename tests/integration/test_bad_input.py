@@ -220,7 +220,7 @@ OPTION_CASES = [
     ("fit-with-scheme-2", _fit(extra=["--scheme", "2", "--with", "wind"]),
      r"with_effects = .*--with fits effects with the Scheme 1 curve"),
     ("fit-with-unknown-effect", _fit(extra=["--with", "wind,gremlins"]),
-     r"with_effects = 'wind,gremlins' is not allowed; use auto or effects among wind"),
+     r"with_effects = 'wind,gremlins' is not allowed; use default, none, auto or effects among wind"),
     ("fit-output-is-a-file", lambda d: ["fit", "track.csv", "round.toml", "-o", "out/result.json", "--no-mcmc"],
      r"out/result\.json: output path exists and is not a folder"),
     ("fit-reference-scale-without-reference", _fit(_sub('reference_drag = "cd.csv"\n', ""), ["--drag", "reference-scale"]),
