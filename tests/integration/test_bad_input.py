@@ -462,6 +462,16 @@ def test_attack_refused_by_diagnose_before_any_work(name, setup, match, tmp_path
     assert calls == [], f"diagnosis work ran before the refusal: {calls}"
 
 
+@pytest.mark.parametrize("name, setup, match", _params(
+    [c for c in OPTION_CASES if c[0] == "fit-reference-scale-without-reference"]))
+def test_a_drag_model_without_its_table_is_refused_before_any_fitting(name, setup, match, tmp_path, good, capsys,
+                                                                       monkeypatch):
+    """``--drag reference-scale`` on a round without a table: refused before the start is read
+    off the track (it was refused after seconds of fitting, whose progress line then made the
+    catalogue's one-line check fail on a loaded machine)."""
+    test_attack_refused_before_any_fitting(name, setup, match, tmp_path, good, capsys, monkeypatch)
+
+
 def _truth(d):
     from bayesdrag.io.drag_tables import read_drag_table
 

@@ -109,6 +109,10 @@ def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=Non
     """
     n, c = int(track.n), len(chans)
     check_constant_channels(track, chans)
+    if drag == "reference-scale" and rnd.reference_drag is None:
+        # refused here, before the start is read off the track (it was found after seconds of fitting)
+        raise InputError("drag model 'reference-scale' needs a reference drag table: set [projectile] "
+                         "reference_drag in the round file")
     ic = _ic_unknowns(track, rnd, chans, free_ic)
     table = rnd.reference_drag is not None
     small = ("reference-scale", "one factor on the firing table") if table else (
