@@ -118,9 +118,9 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
-    bayes = post = None
+    bayes = post = cd = None
     if opts.mcmc:
-        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored)
+        bayes, post, rows, cd = _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored)
         summary["cd"] = rows
         summary["posterior"] = _posterior_json(bayes)
         summary["mcmc"] = _mcmc_json(bayes, post)
@@ -131,7 +131,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
-                     seconds=time.perf_counter() - t_start)
+                     seconds=time.perf_counter() - t_start, cd_draws=cd)
 
 
 def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
@@ -247,7 +247,7 @@ def _sample(f1, rows, grid, opts, chain_path, resume, log, progress, floored=Fal
     cd = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
     if floored:
         cd = widen_to_floor(cd, rows)
-    return bayes, post, cd_posterior_rows(rows, cd)
+    return bayes, post, cd_posterior_rows(rows, cd), cd
 
 
 

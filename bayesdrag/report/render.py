@@ -3,15 +3,20 @@ formatting and the versions table."""
 from __future__ import annotations
 
 import base64
+import contextlib
 import functools
 import io
+import os
 import platform
+import signal
+import sys
+import warnings
 from importlib.resources import files
 from pathlib import Path
 
-from ..io.outputs import atomic_write
+from ..io.outputs import atomic_write, write_bytes
 
-__all__ = ["figure_png", "png_base64", "versions", "fmt", "render_report"]
+__all__ = ["figure_png", "png_base64", "versions", "fmt", "render_report", "rendered_elsewhere"]
 
 #: resolution of figures written and embedded [dots per inch]
 DPI = 110
@@ -22,6 +27,77 @@ def figure_png(fig, dpi=DPI):
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
+
+
+@contextlib.contextmanager
+def rendered_elsewhere(jobs, out):
+    """Draw and save figures in a forked process while the body of the ``with`` runs.
+
+    ``jobs`` is a list of ``(file name, make, dpi)``: ``make()`` returns a Figure (or None:
+    nothing to draw). The ``with`` yields a dict that holds, once the body has finished,
+    ``{file name: PNG bytes or None}``, each also written to ``out/<file name>``. The process
+    is forked (it inherits the computed arrays: nothing is pickled or computed twice) only on
+    Linux when a core is free (:func:`_free_core`), and the child only draws with matplotlib
+    (no compiled kernel, no threads). Without a fork, or when the child fails, the figures are
+    drawn here after the body: the same files either way.
+    """
+    out = Path(out)
+    pid = _fork_renderer(jobs, out) if jobs and _free_core() else None
+    pngs = {}
+    try:
+        yield pngs
+    except BaseException:
+        if pid is not None:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+        raise
+    ok = False
+    if pid is not None:
+        _, status = os.waitpid(pid, 0)
+        ok = os.waitstatus_to_exitcode(status) == 0
+    for name, make, dpi in jobs:
+        path = out / name
+        if ok and path.is_file():
+            pngs[name] = path.read_bytes()
+        elif ok:
+            pngs[name] = None       # the child drew nothing for it
+        else:
+            fig = make()
+            pngs[name] = None if fig is None else figure_png(fig, dpi or DPI)
+            if pngs[name] is not None:
+                write_bytes(path, pngs[name])
+
+
+def _free_core():
+    """A second core is idle (Linux, fork available, 1-minute load below the cores minus one
+    half): only then does a forked renderer run beside this process instead of taking turns."""
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
+        return False
+    cpus = os.cpu_count() or 1
+    return cpus >= 2 and os.getloadavg()[0] < cpus - 0.5
+
+
+def _fork_renderer(jobs, out):
+    """Fork a child that draws ``jobs`` into ``out`` and exits (0: all written); returns its
+    pid, or None when the fork fails."""
+    with warnings.catch_warnings():          # Python >= 3.12 warns about forking with threads alive
+        warnings.simplefilter("ignore", DeprecationWarning)
+        try:
+            pid = os.fork()
+        except OSError:
+            return None
+    if pid:
+        return pid
+    code = 1
+    try:                                      # the child: draw, save, leave without cleanup handlers
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        for name, make, dpi in jobs:
+            fig = make()
+            if fig is not None:
+                write_bytes(out / name, figure_png(fig, dpi or DPI))
+        code = 0
+    finally:
+        os._exit(code)
 
 
 def png_base64(png):
