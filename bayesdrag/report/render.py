@@ -14,6 +14,7 @@ import warnings
 from importlib.resources import files
 from pathlib import Path
 
+from .._gc import paused_gc
 from ..io.outputs import atomic_write, write_bytes
 
 __all__ = ["figure_png", "png_base64", "versions", "fmt", "render_report", "rendered_elsewhere"]
@@ -57,15 +58,22 @@ def rendered_elsewhere(jobs, out):
         ok = os.waitstatus_to_exitcode(status) == 0
     for name, make, dpi in jobs:
         path = out / name
-        if ok and path.is_file():
-            pngs[name] = path.read_bytes()
-        elif ok:
-            pngs[name] = None       # the child drew nothing for it
+        if ok:
+            pngs[name] = path.read_bytes() if path.is_file() else None    # None: the child drew nothing for it
         else:
-            fig = make()
-            pngs[name] = None if fig is None else figure_png(fig, dpi or DPI)
-            if pngs[name] is not None:
-                write_bytes(path, pngs[name])
+            pngs[name] = _draw(name, make, dpi, out)
+
+
+def _draw(name, make, dpi, out):
+    """Draw one figure and write it to ``out/name``; its PNG bytes, or None (nothing to draw).
+    The collector is paused: a figure's artists come by the thousand."""
+    with paused_gc():
+        fig = make()
+        if fig is None:
+            return None
+        png = figure_png(fig, dpi or DPI)
+    write_bytes(out / name, png)
+    return png
 
 
 def _free_core():
@@ -92,9 +100,7 @@ def _fork_renderer(jobs, out):
     try:                                      # the child: draw, save, leave without cleanup handlers
         signal.signal(signal.SIGINT, signal.SIG_DFL)
         for name, make, dpi in jobs:
-            fig = make()
-            if fig is not None:
-                write_bytes(out / name, figure_png(fig, dpi or DPI))
+            _draw(name, make, dpi, out)
         code = 0
     finally:
         os._exit(code)
