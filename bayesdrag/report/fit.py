@@ -146,9 +146,11 @@ def fit_figures(result):
     return out
 
 
-#: figures a forked process renders while the report's other work goes on (the costly ones:
-#: the corner plot's 64 panels, the traces), when a core is free (:func:`render.rendered_elsewhere`)
+#: figures a forked process renders while the report's other work goes on, when a core is free
+#: (:func:`render.rendered_elsewhere`): after sampling the costly ones (the corner plot's 64
+#: panels, the traces) beside posterior.nc and the rest; without, the residuals beside the rest
 BACKGROUND_FIGURES = ("corner.png", "traces.png")
+BACKGROUND_FIGURES_ML = ("residuals.png",)
 
 
 def fit_figure_specs(result):
@@ -231,7 +233,8 @@ def write_fit_files(result, directory, *, sources=None):
     out = Path(directory)
     written = [out / "result.json"]
     specs = fit_figure_specs(result)
-    background = [(n, make, dpi) for n, _, _, make, dpi in specs if n in BACKGROUND_FIGURES]
+    names = BACKGROUND_FIGURES if result.posterior is not None else BACKGROUND_FIGURES_ML
+    background = [(n, make, dpi) for n, _, _, make, dpi in specs if n in names]
     with paused_gc():       # thousands of figure artists: no collections over the fit's objects
         # the costly figures drawn by a forked process meanwhile, where a core is free
         with rendered_elsewhere(background, out) as pngs:
@@ -242,7 +245,7 @@ def write_fit_files(result, directory, *, sources=None):
                 ensure_space(out, netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
                 atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
                 written.append(out / "posterior.nc")
-            here = _render_specs([sp for sp in specs if sp[0] not in BACKGROUND_FIGURES], out)
+            here = _render_specs([sp for sp in specs if sp[0] not in names], out)
         written += _write_report(out, result, specs, {**here, **pngs}, sources or {})
     return written
 
