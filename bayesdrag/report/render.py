@@ -52,10 +52,7 @@ def rendered_elsewhere(jobs, out):
             os.kill(pid, signal.SIGKILL)
             os.waitpid(pid, 0)
         raise
-    ok = False
-    if pid is not None:
-        _, status = os.waitpid(pid, 0)
-        ok = os.waitstatus_to_exitcode(status) == 0
+    ok = pid is not None and _wait(pid, FORK_WAIT_SECONDS)
     for name, make, dpi in jobs:
         path = out / name
         if ok:
@@ -76,10 +73,36 @@ def _draw(name, make, dpi, out):
     return png
 
 
+#: the longest a forked renderer is waited for after the body [s]; then it is killed and its
+#: figures are drawn here (a hung child never hangs the run)
+FORK_WAIT_SECONDS = 120.0
+
+
+def _wait(pid, seconds):
+    """Wait up to ``seconds`` for child ``pid``; True when it exited with status 0 (a child still
+    running then is killed)."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return os.waitstatus_to_exitcode(status) == 0
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return False
+        time.sleep(0.005)
+
+
 def _free_core():
-    """A second core is idle (Linux, fork available, 1-minute load below the cores minus one
-    half): only then does a forked renderer run beside this process instead of taking turns."""
-    if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
+    """A forked renderer can run beside this process: Linux with fork, this process's only
+    Python thread (a thread holding a lock at the fork would leave it held in the child: a Dask
+    worker's), and a second core idle (1-minute load below the cores minus one half; on a busy
+    machine the two would only take turns)."""
+    import threading
+
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork") or threading.active_count() != 1:
         return False
     cpus = os.cpu_count() or 1
     return cpus >= 2 and os.getloadavg()[0] < cpus - 0.5

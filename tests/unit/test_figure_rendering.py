@@ -83,3 +83,40 @@ def test_an_error_in_the_body_stops_the_renderer_and_propagates(tmp_path, monkey
     with pytest.raises(KeyError, match="body"):
         with render.rendered_elsewhere([("d.png", _line_figure, None)], tmp_path):
             raise KeyError("body")
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_hung_renderer_is_killed_and_its_figures_drawn_here(tmp_path, monkeypatch):
+    import time
+
+    parent = os.getpid()
+
+    def hangs_in_child():
+        if os.getpid() != parent:
+            time.sleep(60)
+        return _line_figure()
+
+    monkeypatch.setattr(render, "_free_core", lambda: True)
+    monkeypatch.setattr(render, "FORK_WAIT_SECONDS", 0.5)
+    t0 = time.monotonic()
+    with render.rendered_elsewhere([("e.png", hangs_in_child, None)], tmp_path) as pngs:
+        pass
+    assert time.monotonic() - t0 < 30          # s: far below the child's sleep
+    assert pngs["e.png"] == (tmp_path / "e.png").read_bytes()
+
+
+def test_no_fork_beside_other_python_threads(monkeypatch):
+    import threading
+
+    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    alone = render._free_core()
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait)
+    t.start()
+    try:
+        assert render._free_core() is False
+    finally:
+        stop.set()
+        t.join()
+    assert alone is (hasattr(os, "fork") and os.sys.platform.startswith("linux") and threading.active_count() == 1)
