@@ -167,9 +167,9 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
-    bayes = post = None
+    bayes = post = cd = None
     if opts.mcmc:
-        bayes, post, rows = _sample(f1, rows, grid, opts, chain_path, resume, log, progress)
+        bayes, post, rows, cd = _sample(f1, rows, grid, opts, chain_path, resume, log, progress)
         summary["cd"] = rows
         summary["posterior"] = _posterior_json(bayes)
         summary["mcmc"] = _mcmc_json(bayes, post)
@@ -185,7 +185,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                                    None if quality["ok"] else why_not_clean(quality))
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
-                     seconds=time.perf_counter() - t_start)
+                     seconds=time.perf_counter() - t_start, cd_draws=cd)
 
 
 def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
@@ -343,7 +343,7 @@ def _sample(f1, rows, grid, opts, chain_path, resume, log, progress):
                              progress=progress, log=log)
     sampled = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
     cd = widen_to_floor(sampled, rows) if needs_widening(rows) else sampled
-    return bayes, post, cd_posterior_rows(rows, cd, sampled)
+    return bayes, post, cd_posterior_rows(rows, cd, sampled), cd
 
 
 

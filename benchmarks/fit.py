@@ -23,11 +23,27 @@ The older synthetic-track timings (keys ``ml_*``, ``bayes_reference-scale`` and,
   barely identified by a track that ends at Mach 0.92): the default independence mix gets an
   acceptance of ~0.02 there, which is why ``fit --moves de`` exists.
 
+The user's loop around that fit (issue 31), measured in the same run (``--no-outputs`` skips it):
+
+* ``write_seconds``: ``res.write(DIR)`` of the timed fit's result (warm: the warm-up fit's
+  result was written first), with ``write_ratio`` = write / fit;
+* ``demo_seconds``: wall time of ``python -m bayesdrag demo`` in a fresh process (numba's
+  cache warm: the second of two demos), with ``demo_ratio`` to the fit above and
+  ``demo_fit_seconds`` (the demo's own fit, as its report states it) and ``demo_ratio_own_fit``;
+* ``no_mcmc_seconds``: wall time of ``python -m bayesdrag fit TRACK ROUND -o DIR --no-mcmc`` on
+  the demo track, with ``no_mcmc_fit_seconds`` (its report's fit time) and their ratio;
+* ``first_run_compile_seconds``: the numba compile time of a demo on a fresh install
+  (``NUMBA_CACHE_DIR`` an empty temporary folder; from its ``summary.json``), with the functions
+  compiled and the demo's wall time.
+
+The fit is pinned to no added effects: ``with_effects="none"`` where the option takes that
+value, else the default (which adds none); ``effects_option`` says which.
+
 Every timing is the second of two runs (numba's compiled kernel and caches warm). The machine's
 load average is printed with the results: on a shared 2-core machine the kernel time scales
 with it. The last line is one JSON object.
 
-    python3 benchmarks/fit.py [--moves] [--quick] [--reference FILE] [--save-reference FILE]
+    python3 benchmarks/fit.py [--moves] [--quick] [--no-outputs] [--reference FILE] [--save-reference FILE]
 """
 from __future__ import annotations
 
@@ -163,18 +179,59 @@ def compare_posterior(new, ref):
             "ok": bool(worst <= REFERENCE_Z and rhat < 1.01)}
 
 
-def time_demo_bayes(seed=DEMO_SEED):
-    """The ``bayes_spline`` benchmark: ``bayesdrag.fit`` of the shipped demo track
-    with the default options (spline, ML + sampling to convergence), the second of two runs."""
-    from bayesdrag.pipeline import fit
+def pinned_options(seed):
+    """The benchmark's fit options: no added effects (``with_effects="none"`` where the option
+    takes it, else the default, which adds none). Returns ``(FitOptions, which)``."""
+    from bayesdrag.errors import InputError
     from bayesdrag.options import FitOptions
+
+    try:
+        return FitOptions(seed=seed, with_effects="none"), 'with_effects="none"'
+    except (InputError, ValueError):
+        return FitOptions(seed=seed), "default (no added effects)"
+
+
+def time_default_fit(none_seconds, seed=DEMO_SEED):
+    """The demo's fit with the default options as a user runs it (the model check's search for
+    the cause and the refit with the effects it names included), the second of two runs, against
+    the ``with_effects="none"`` fit of the same run (``none_seconds``)."""
+    from bayesdrag.options import FitOptions
+    from bayesdrag.pipeline import fit
 
     track, rnd = demo_round_and_track()
     fit(track, rnd, FitOptions(seed=seed))
-    with KernelCount() as kc:
-        t = time.perf_counter()
-        res = fit(track, rnd, FitOptions(seed=seed))
-        seconds = time.perf_counter() - t
+    t = time.perf_counter()
+    res = fit(track, rnd, FitOptions(seed=seed))
+    seconds = time.perf_counter() - t
+    d = res.to_dict()
+    return {"seconds": round(seconds, 3), "ratio_to_none": round(seconds / none_seconds, 2),
+            "effects_added": (d["ml"].get("with_effects") or {}).get("effects", []), "timing": d.get("timing")}
+
+
+def time_demo_bayes(seed=DEMO_SEED, outputs=True):
+    """The ``bayes_spline`` benchmark: ``bayesdrag.fit`` of the shipped demo track
+    with the default options (spline, ML + sampling to convergence), the second of two runs;
+    with ``outputs`` also ``res.write`` of that result (the first run's result written first,
+    to warm the figure code)."""
+    import tempfile
+
+    from bayesdrag.pipeline import fit
+
+    track, rnd = demo_round_and_track()
+    opts, which = pinned_options(seed)
+    first = fit(track, rnd, opts)
+    with tempfile.TemporaryDirectory() as tmp:
+        if outputs:
+            first.write(Path(tmp) / "warm")
+        with KernelCount() as kc:
+            t = time.perf_counter()
+            res = fit(track, rnd, opts)
+            seconds = time.perf_counter() - t
+        write_seconds = None
+        if outputs:
+            t = time.perf_counter()
+            res.write(Path(tmp) / "timed")
+            write_seconds = time.perf_counter() - t
     b = res.posterior
     post = res.log_posterior
     us = kernel_us_per_trajectory(res.scheme1.problem, post.mode, post.laplace_cov[:post.n_theta, :post.n_theta])
@@ -190,8 +247,68 @@ def time_demo_bayes(seed=DEMO_SEED):
            "ess_per_sampling_second": round(ess_bulk / b.elapsed, 1),
            "parameters": post.ndim, "steps": b.steps, "walkers": b.nwalkers, "tau_max": float(np.max(b.tau)),
            "acceptance": round(b.acceptance, 3), "converged": b.converged,
-           "r_hat_max": float(b.summary["r_hat"].max()), "samples": track.n, "seed": seed}
+           "r_hat_max": float(b.summary["r_hat"].max()), "samples": track.n, "seed": seed,
+           "effects_option": which}
+    if write_seconds is not None:
+        out["write_seconds"] = round(write_seconds, 3)
+        out["write_ratio"] = round(write_seconds / seconds, 2)
     return out, demo_posterior(res)
+
+
+def _command(args, env=None):
+    """Wall time [s] of ``python -m bayesdrag ARGS`` in a fresh process (this checkout's
+    package); raises when it fails."""
+    import subprocess
+
+    root = str(Path(__file__).resolve().parents[1])
+    full = dict(os.environ, **(env or {}))
+    full["PYTHONPATH"] = root + os.pathsep + full.get("PYTHONPATH", "")
+    t = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "bayesdrag", *args], env=full, capture_output=True, text=True)
+    seconds = time.perf_counter() - t
+    if done.returncode != 0:
+        raise RuntimeError(f"bayesdrag {' '.join(args)} failed ({done.returncode}): {done.stderr[-2000:]}")
+    return seconds
+
+
+def _report_fit_seconds(folder):
+    """The fit's wall-clock time a report states (``report.html``, one decimal) [s]."""
+    import re
+
+    m = re.search(r"wall-clock time</th><td[^>]*>([0-9.]+) s", (Path(folder) / "report.html").read_text())
+    return float(m.group(1)) if m else None
+
+
+def time_user_loop(fit_seconds):
+    """``demo`` warm, ``fit --no-mcmc`` and a first demo's compile time, each in a fresh
+    process (module docstring)."""
+    import tempfile
+
+    from bayesdrag.commands.demo import demo_inputs
+
+    track_path, round_path = demo_inputs()
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        _command(["demo", "-o", str(tmp / "demo0")])           # numba's cache and the .pyc files warm
+        out["demo_seconds"] = round(_command(["demo", "-o", str(tmp / "demo1")]), 2)
+        out["demo_ratio"] = round(out["demo_seconds"] / fit_seconds, 2)
+        own = _report_fit_seconds(tmp / "demo1")
+        out["demo_fit_seconds"] = own
+        out["demo_ratio_own_fit"] = round(out["demo_seconds"] / own, 2) if own else None
+        out["no_mcmc_seconds"] = round(_command(["fit", str(track_path), str(round_path), "-o", str(tmp / "nomcmc"),
+                                                 "--no-mcmc", "-q"]), 2)
+        own = _report_fit_seconds(tmp / "nomcmc")
+        out["no_mcmc_fit_seconds"] = own
+        out["no_mcmc_ratio"] = round(out["no_mcmc_seconds"] / own, 2) if own else None
+        cache = tmp / "numba-cache"
+        cache.mkdir()
+        wall = _command(["demo", "-o", str(tmp / "cold")], env={"NUMBA_CACHE_DIR": str(cache)})
+        compiled = json.loads((tmp / "cold" / "summary.json").read_text())["compiled_code"]
+        out["first_run_compile_seconds"] = compiled["compile_seconds"]
+        out["first_run_compiled"] = compiled["compiled"]
+        out["first_run_demo_seconds"] = round(wall, 2)
+    return out
 
 
 def round_and_track(dt=0.0217):
@@ -265,6 +382,8 @@ def main(argv=None):
     ap.add_argument("--moves", action="store_true", help="also compare the move mixes")
     ap.add_argument("--quick", action="store_true", help="skip the synthetic spline Bayesian fit")
     ap.add_argument("--demo-only", action="store_true", help="only the bayes_spline benchmark on the demo track")
+    ap.add_argument("--no-outputs", action="store_true",
+                    help="skip the user's loop (write, demo, fit --no-mcmc, first-run compile)")
     ap.add_argument("--reference", type=Path, default=None,
                     help="compare the demo posterior with this stored run (reference_posterior_demo.json)")
     ap.add_argument("--save-reference", type=Path, default=None, help="store the demo posterior here")
@@ -272,8 +391,14 @@ def main(argv=None):
     warnings.simplefilter("ignore")
     load = os.getloadavg()[0]
     out = {"load_average_1min": load, "cpus": os.cpu_count()}
-    spline, cd = time_demo_bayes()
+    spline, cd = time_demo_bayes(outputs=not a.no_outputs)
+    if not a.no_outputs:
+        spline.update(time_user_loop(spline["seconds"]))
     out["bayes_spline"] = spline
+    out["default"] = time_default_fit(spline["seconds"])
+    print(f"default fit (effect search included): {out['default']['seconds']:.2f} s = "
+          f"{out['default']['ratio_to_none']:.2f} x the with_effects=none fit; added "
+          f"{out['default']['effects_added'] or 'nothing'}", flush=True)
     print(f"Bayes, default spline on the demo track ({spline['parameters']} sampled parameters, "
           f"{spline['samples']} samples): {spline['seconds']:.2f} s warm (fit), sampling {spline['sampling_seconds']:.2f} s, "
           f"{spline['steps']} steps x {spline['walkers']} walkers, tau max {spline['tau_max']:.1f}; "
@@ -281,6 +406,14 @@ def main(argv=None):
           f"us/trajectory on large batches -> limit {spline['kernel_limit_seconds']:.2f} s, ratio "
           f"{spline['ratio_to_limit']:.1f}; ESS (bulk, min) {spline['ess_bulk_min']:.0f} -> "
           f"{spline['ess_per_second']:.0f} per second", flush=True)
+    if not a.no_outputs:
+        print(f"user's loop ({spline['effects_option']}): res.write {spline['write_seconds']:.2f} s = "
+              f"{spline['write_ratio']:.2f} x the fit; bayesdrag demo warm {spline['demo_seconds']:.2f} s = "
+              f"{spline['demo_ratio']:.2f} x the fit ({spline['demo_ratio_own_fit']} x its own fit of "
+              f"{spline['demo_fit_seconds']} s); fit --no-mcmc {spline['no_mcmc_seconds']:.2f} s wall = "
+              f"{spline['no_mcmc_ratio']} x its fit ({spline['no_mcmc_fit_seconds']} s); first demo on a fresh "
+              f"install: {spline['first_run_compile_seconds']:.1f} s compiling {len(spline['first_run_compiled'])} "
+              f"functions, {spline['first_run_demo_seconds']:.1f} s wall", flush=True)
     if a.save_reference is not None:
         a.save_reference.write_text(json.dumps({"what": "Cd posterior of bayesdrag.fit on the shipped demo track, "
                                                         "default options, seed %d" % DEMO_SEED,

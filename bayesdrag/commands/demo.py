@@ -76,6 +76,7 @@ def _demo_run(run, track, rnd, track_path, round_path, seed, quiet):
     from ..plots.cd import plot_cd_ml, plot_drag_curve
     from ..plots.residuals import plot_residuals
     from ..plots.track import plot_differences, plot_track
+    from ..report.render import rendered_elsewhere
     from ..track import RadarTrack
 
     stage = run.staging
@@ -88,23 +89,31 @@ def _demo_run(run, track, rnd, track_path, round_path, seed, quiet):
     rms = {c: float(np.sqrt(np.mean(d**2))) for c, d in diffs.items()}
     final = {c: float(d[-1]) for c, d in diffs.items()}
 
-    with paused_gc():       # the figures' artists: no collections over every object in memory
+    mach = sim.mach
+
+    def track_figure():
         fig = plot_track(track, label="radar track (6-DOF + noise)", style=".")
         plot_track(sim_track, fig=fig, label="point mass, M101 drag")
         fig.suptitle("bayesdrag demo: paper Table 1 shell, 818 m/s, QE 15 deg")
-        write_figure(stage / "track_vs_pointmass.png", fig)
-        ax = plot_differences(track.t, diffs, title="radar track minus point-mass simulation")
-        write_figure(stage / "differences.png", ax.figure)
+        return fig
+
+    def reference_figure():
         m = np.linspace(0.5, 2.6, 400)
         ax = plot_drag_curve(m, rnd.reference_drag.value(m), label="M101 (BRL MR-1167)")
-        mach = sim.mach
         ax.axvspan(mach.min(), mach.max(), color="C1", alpha=0.15, label="Mach range of the flight")
         ax.legend(fontsize="small")
-        write_figure(stage / "reference_cd.png", ax.figure)
+        return ax.figure
 
-    # the whole fit pipeline (ML + emcee + report), as `bayesdrag fit` runs it
-    fitted = run_fit(track_path, round_path, run.folder, FitOptions(seed=seed),
-                     resume=(run.folder / "chain.partial.h5").exists(), quiet=quiet, echo=lambda *a: None, run=run)
+    figures = [("track_vs_pointmass.png", track_figure, None),
+               ("differences.png", lambda: plot_differences(track.t, diffs, title="radar track minus point-mass "
+                                                            "simulation").figure, None),
+               ("reference_cd.png", reference_figure, None)]
+    # the whole fit pipeline (ML + emcee + report), as `bayesdrag fit` runs it; the figures of the
+    # comparison are drawn meanwhile by a forked process where a core is free
+    with rendered_elsewhere(figures, stage):
+        fitted = run_fit(track_path, round_path, run.folder, FitOptions(seed=seed),
+                         resume=(run.folder / "chain.partial.h5").exists(), quiet=quiet, echo=lambda *a: None,
+                         run=run)
     result = fitted.to_dict()
     det = result["ml"]["mach_range_determined"]
     rows = result["cd"]

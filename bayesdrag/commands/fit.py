@@ -57,7 +57,6 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     -------
     FitResult
     """
-    from ..io.chain import ChainFile
     from ..io.rounds import read_round
     from ..io.tracks import read_track
     from .runs import StageProgress, output_run, throttled
@@ -86,7 +85,11 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         if talk and track.n >= PROGRESS_SAMPLES:   # long work: say what is happening
             _echo_err(f"bayesdrag: fitting {track.n} samples: maximum likelihood"
                       + (", then the posterior (progress below)" if sampling else "") + " ...")
-        chain = ChainFile(partial, inputs=run.inputs_digest, max_steps=opts.max_steps) if sampling else None
+        chain = None
+        if sampling:          # emcee and h5py: imported only by a fit that samples
+            from ..io.chain import ChainFile
+
+            chain = ChainFile(partial, inputs=run.inputs_digest, max_steps=opts.max_steps)
         ml_progress = StageProgress(_echo_err) if talk else None
         result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar,
                      ml_progress=ml_progress)

@@ -410,10 +410,9 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     h2 = 0.5 * h
     h6 = h / 6.0
     n_blk = (B + nl - 1) // nl
-    yaw = False
-    for b in range(B):
-        if par[b, P_YAW_AMP] != 0.0:
-            yaw = True
+    # a run-time bool, never the literal False: numba otherwise compiled the lane helpers twice,
+    # once for a constant yaw it then did not use (first-run compile time, docs/report.md "Speed")
+    yaw = bool(np.any(par[:, P_YAW_AMP] != 0.0))
     # All scratch is allocated here, outside the prange: the parallel body then holds no
     # array views, numba marks its array arguments noalias, and LLVM vectorises the lane loops.
     BL = np.empty((n_blk, nl), dtype=np.int64)

@@ -34,7 +34,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import savgol_coeffs
 
 from .._threads import single_blas
 from ..drag import Constant
@@ -42,6 +41,7 @@ from ..dynamics.pointmass import PointMassModel
 from ..errors import InputError
 from ..measure import gun_equivalent, gun_frame_track, site_of
 from .model.problem import OutputErrorProblem
+from .model.filters import savgol_coeffs
 from .model.noise import noise_and_outliers
 from .cd.quality import assess_window
 from .scheme1.fit import coriolis_of

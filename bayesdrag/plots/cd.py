@@ -1,9 +1,15 @@
 """Figures of Cd(M): the ML curve with its band, the posterior bands, relative panels, Scheme 2 windows."""
 from __future__ import annotations
 
+import statistics
+
 import numpy as np
 
-from .common import new_axes
+from .common import MARGINS, new_axes
+
+#: the standard normal (its quantiles set the bands' widths; the standard library's, so drawing a
+#: figure does not import scipy.stats)
+_NORMAL = statistics.NormalDist()
 
 __all__ = ['plot_drag_curve', 'plot_cd_ml', 'plot_cd_posterior', 'plot_cd_posterior_relative', 'plot_cd_relative', 'plot_windows']
 
@@ -20,7 +26,7 @@ def plot_drag_curve(mach, cd, ax=None, label=None, **kw):
     -------
     matplotlib.axes.Axes
     """
-    ax = new_axes(ax, (6, 4))
+    ax = new_axes(ax, (6, 4), MARGINS)
     ax.plot(mach, cd, label=label, **kw)
     ax.set(xlabel="Mach number", ylabel="drag coefficient Cd")
     ax.grid(alpha=0.3)
@@ -47,14 +53,12 @@ def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
     -------
     matplotlib.axes.Axes
     """
-    from scipy.stats import norm
-
-    ax = new_axes(ax, (7, 4.5))
+    ax = new_axes(ax, (7, 4.5), MARGINS)
     m = np.array([r["mach"] for r in rows])
     cd = np.array([r["ml"] for r in rows])
     honest = all(r.get("band_sd") is not None for r in rows)
     sd = np.array([r["band_sd"] if honest else r["crb_sd"] for r in rows])
-    k = norm.ppf(0.5 + band / 2)
+    k = _NORMAL.inv_cdf(0.5 + band / 2)
     ax.fill_between(m, cd - k * sd, cd + k * sd, alpha=0.3, label=f"{band:.0%} band" if honest else f"{band:.0%} CRB band")
     ax.plot(m, cd, label=label)
     ref = [r.get("reference") for r in rows]
@@ -85,9 +89,7 @@ def plot_cd_posterior(rows, ax=None, truth=None, label="posterior", crb_band=0.9
     -------
     matplotlib.axes.Axes
     """
-    from scipy.stats import norm
-
-    ax = new_axes(ax, (7.5, 4.8))
+    ax = new_axes(ax, (7.5, 4.8), MARGINS)
     m = np.array([r["mach"] for r in rows])
     g = {k: np.array([r[k] for r in rows], float) for k in ("q05", "q25", "q50", "q75", "q95", "ml", "crb_sd")}
     widened = any(r.get("model_error_widening", 1.0) > 1.0 + 1e-9 for r in rows) and "sampled_q05" in rows[0]
@@ -101,7 +103,7 @@ def plot_cd_posterior(rows, ax=None, truth=None, label="posterior", crb_band=0.9
             ax.plot(m, [r[k] for r in rows], color="C1", lw=0.9, ls="-.",
                     label="90 % posterior as sampled" if j == 0 else None)
     ax.plot(m, g["q50"], color="C0", lw=1.4, label=f"{label} median")
-    k = norm.ppf(0.5 + crb_band / 2)
+    k = _NORMAL.inv_cdf(0.5 + crb_band / 2)
     ax.plot(m, g["ml"] - k * g["crb_sd"], color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
     ax.plot(m, g["ml"] + k * g["crb_sd"], color="C3", ls=":", lw=1.1)
     ref = [r.get("reference") for r in rows]
@@ -133,9 +135,7 @@ def plot_cd_posterior_relative(rows, ax=None, truth=None, crb_band=0.90):
     -------
     matplotlib.axes.Axes
     """
-    from scipy.stats import norm
-
-    ax = new_axes(ax, (7.5, 4.2))
+    ax = new_axes(ax, (7.5, 4.2), MARGINS)
     m = np.array([r["mach"] for r in rows])
     ref = np.array([r["reference"] for r in rows], float)
     pct = lambda v: 100 * (np.asarray(v, float) / ref - 1)  # noqa: E731
@@ -143,7 +143,7 @@ def plot_cd_posterior_relative(rows, ax=None, truth=None, crb_band=0.90):
     ax.fill_between(m, pct(g["q05"]), pct(g["q95"]), color="C0", alpha=0.22, lw=0, label="90 % posterior")
     ax.fill_between(m, pct(g["q25"]), pct(g["q75"]), color="C0", alpha=0.45, lw=0, label="50 % posterior")
     ax.plot(m, pct(g["q50"]), color="C0", lw=1.2, label="posterior median")
-    k = norm.ppf(0.5 + crb_band / 2)
+    k = _NORMAL.inv_cdf(0.5 + crb_band / 2)
     ax.plot(m, pct(g["ml"] - k * g["crb_sd"]), color="C3", ls=":", lw=1.1, label=f"{crb_band:.0%} CRB band (ML)")
     ax.plot(m, pct(g["ml"] + k * g["crb_sd"]), color="C3", ls=":", lw=1.1)
     edges = [pct(g["q05"]), pct(g["q95"]), pct(g["ml"] - k * g["crb_sd"]), pct(g["ml"] + k * g["crb_sd"])]
@@ -182,7 +182,7 @@ def plot_cd_relative(rows, ax=None):
     -------
     matplotlib.axes.Axes
     """
-    ax = new_axes(ax, (6, 3))
+    ax = new_axes(ax, (6, 3), MARGINS)
     m = np.array([r["mach"] for r in rows])
     q = np.array([np.nan if r.get("sd_over_crb") is None else r["sd_over_crb"] for r in rows])
     tot = np.array([np.nan if r.get("total_sd_over_crb") is None else r["total_sd_over_crb"] for r in rows])
@@ -214,7 +214,7 @@ def plot_windows(windows, ax=None, reference=None):
     -------
     matplotlib.axes.Axes
     """
-    ax = new_axes(ax, (7, 4.5))
+    ax = new_axes(ax, (7, 4.5), MARGINS)
     m = np.array([w["mach"] for w in windows])
     if all(w.get("q05") is not None for w in windows):
         mid = np.array([w["mean"] for w in windows])
@@ -251,7 +251,7 @@ def plot_uncertainty_budget(budget, ax=None, cd=None):
     -------
     matplotlib.axes.Axes
     """
-    ax = new_axes(ax, (7.5, 4.0))
+    ax = new_axes(ax, (7.5, 4.0), MARGINS)
     m = np.asarray(budget["mach"], float)
     scale = 100.0 / np.asarray(cd, float) if cd is not None else 1.0
     unit = " [% of Cd]" if cd is not None else ""

@@ -3,9 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import new_figure
+from .common import Margins, fixed_figure, new_figure
 
 __all__ = ['plot_corner', 'plot_traces']
+
+#: fixed layout of the traces [inch]: panels stacked on a shared step axis
+TRACE_MARGINS = Margins(hgap=0.15)
 
 
 def plot_corner(samples, truths=None, fig=None):
@@ -83,14 +86,25 @@ def plot_traces(chains, fig=None, max_walkers=32):
     """
     names = list(chains)
     if fig is None:
-        fig = new_figure((8, 1.5 * len(names) + 0.6))
-        fig.subplots(len(names), 1, sharex=True, squeeze=False)
+        fig = fixed_figure((8, 1.5 * len(names) + 0.6), len(names), 1, TRACE_MARGINS, sharex=True, squeeze=False)
     axes = np.array(fig.axes).reshape(-1)
     for ax, n in zip(axes, names):
-        c = np.asarray(chains[n])
-        ax.plot(c[:, :max_walkers], lw=0.4, alpha=0.6)
+        c = np.asarray(chains[n])[:, :max_walkers]
+        _walker_lines(ax, c)
         ax.set_ylabel(n, fontsize="small")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("step")
     axes[0].set_title("traces (one line per walker)")
     return fig
+
+
+def _walker_lines(ax, c):
+    """One thin line per walker of ``c`` (steps, walkers), in the colour cycle's order, as one
+    LineCollection: the look of one ``plot`` line per walker with one artist per panel."""
+    from matplotlib.collections import LineCollection
+
+    steps = np.arange(c.shape[0], dtype=float)
+    segs = np.stack([np.broadcast_to(steps, c.T.shape), c.T], axis=-1)    # (walkers, steps, 2)
+    colors = [f"C{k % 10}" for k in range(c.shape[1])]
+    ax.add_collection(LineCollection(segs, colors=colors, linewidths=0.4, alpha=0.6))
+    ax.autoscale_view()

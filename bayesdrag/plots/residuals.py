@@ -3,9 +3,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import channel_scale, channel_unit, new_figure
+from .common import Margins, channel_scale, channel_unit, fixed_figure
 
 __all__ = ['plot_residuals', 'residual_acf', 'plot_residuals_acf']
+
+#: fixed layouts [inch]: panels stacked on a shared time axis (no tick labels between them)
+RESIDUAL_MARGINS = Margins(hgap=0.15)
+#: residuals beside their autocorrelation: tick labels between rows and columns
+ACF_MARGINS = Margins(hgap=0.35, wgap=0.75)
 
 
 def plot_residuals(t, residuals, sigma, fig=None):
@@ -24,8 +29,7 @@ def plot_residuals(t, residuals, sigma, fig=None):
     """
     chans = list(residuals)
     if fig is None:
-        fig = new_figure((8, 2.2 * len(chans)))
-        fig.subplots(len(chans), 1, sharex=True, squeeze=False)
+        fig = fixed_figure((8, 2.2 * len(chans)), len(chans), 1, RESIDUAL_MARGINS, sharex=True, squeeze=False)
     axes = np.array(fig.axes).reshape(-1)
     for ax, c in zip(axes, chans):
         k = channel_scale(c)[0]           # the radar's angles in degrees
@@ -65,8 +69,8 @@ def plot_residuals_acf(t, residuals, sigma, fig=None, max_lag=60):
     """
     chans = list(residuals)
     if fig is None:
-        fig = new_figure((10, 2.1 * len(chans) + 0.5))
-        fig.subplots(len(chans), 2, squeeze=False, gridspec_kw={"width_ratios": [3, 1.3]})
+        fig = fixed_figure((10, 2.1 * len(chans) + 0.5), len(chans), 2, ACF_MARGINS, width_ratios=[3, 1.3],
+                           squeeze=False)
     axes = np.array(fig.axes).reshape(-1, 2)
     n = len(t)
     for (a, b), c in zip(axes, chans):

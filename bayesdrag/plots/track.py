@@ -3,9 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import channel_scale, channel_unit, new_axes, new_figure
+from .common import MARGINS, Margins, channel_scale, channel_unit, fixed_figure, new_axes
 
 __all__ = ['plot_track', 'plot_differences']
+
+#: fixed layout of the 2 x 2 track figure [inch]: room above for a figure title (``suptitle``)
+TRACK_MARGINS = Margins(top=0.6, hgap=0.75)
 
 
 def plot_track(track, fig=None, label=None, style="-"):
@@ -26,8 +29,7 @@ def plot_track(track, fig=None, label=None, style="-"):
     matplotlib.figure.Figure
     """
     if fig is None:
-        fig = new_figure((10, 6.5))
-        fig.subplots(2, 2)
+        fig = fixed_figure((10, 6.5), 2, 2, TRACK_MARGINS)
     axes = np.array(fig.axes).reshape(2, 2)
     t = track.t
     if track.x is not None and track.z is not None:
@@ -64,7 +66,7 @@ def plot_differences(t, diffs, ax=None, title="6-DOF minus point mass"):
     -------
     matplotlib.axes.Axes
     """
-    ax = new_axes(ax, (7, 4))
+    ax = new_axes(ax, (7, 4), MARGINS)
     for name, d in diffs.items():
         ax.plot(t, channel_scale(name)[0] * np.asarray(d), label=f"{name} [{channel_unit(name)}]")
     ax.axhline(0, color="k", lw=0.5)

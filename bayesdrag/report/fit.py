@@ -16,9 +16,9 @@ from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relativ
 from ..plots.mcmc import plot_corner, plot_traces
 from ..plots.common import channel_scale
 from ..plots.residuals import plot_residuals, plot_residuals_acf
-from .render import figure_png, png_base64, render_report, versions
+from .render import figure_png, png_base64, render_report, rendered_elsewhere, versions
 
-__all__ = ["write_fit", "write_fit_files", "write_fit_report", "fit_figures", "cd_figure", "cd_relative_figure",
+__all__ = ["write_fit", "write_fit_files", "write_fit_report", "fit_figures", "fit_figure_specs", "cd_figure", "cd_relative_figure",
            "sd_ratio_figure", "budget_figure", "residuals_figure", "corner_figure", "traces_figure"]
 
 #: resolution of the corner plot [dpi] (many panels)
@@ -139,9 +139,28 @@ def traces_figure(result, fig=None):
 
 def fit_figures(result):
     """The figures of a fit: ``[(file name, title, caption, Figure, dpi)]``."""
+    out = []
+    for name, title, caption, make, dpi in fit_figure_specs(result):
+        fig = make()
+        if fig is not None:
+            out.append((name, title, caption, fig, dpi))
+    return out
+
+
+#: figures a forked process renders while the report's other work goes on, when a core is free
+#: (:func:`render.rendered_elsewhere`): after sampling the costly ones (the corner plot's 64
+#: panels, the traces) beside posterior.nc and the rest; without, the residuals beside the rest
+BACKGROUND_FIGURES = ("corner.png", "traces.png")
+BACKGROUND_FIGURES_ML = ("residuals.png",)
+
+
+def fit_figure_specs(result):
+    """The figures of a fit, not drawn yet: ``[(file name, title, caption, make, dpi)]`` with
+    ``make()`` returning the Figure (None when there is nothing to draw), so that each can be
+    drawn where and when it is rendered."""
     if result.record["scheme"] == 2:
         return [("windows.png", "Cd per window", "Each window's Cd at its mean Mach number with its 90 % interval; "
-                 "the reference curve dashed.", cd_figure(result).figure, None)]
+                 "the reference curve dashed.", lambda: cd_figure(result).figure, None)]
     rows = _rows(result)
     budget = result.record.get("uncertainty_budget")
     budget_fig = []
@@ -151,37 +170,36 @@ def fit_figures(result):
                        "or model-error-floor sd where the residuals show model error); each source's share; "
                        "model_error = the Cd shift the remaining misfit implies; the total is the band the cd rows "
                        "report; dash-dot the model-error floor where the residuals show model error.",
-                       budget_figure(result).figure, None)]
+                       lambda: budget_figure(result).figure, None)]
     if result.posterior is None:
         return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the "
                  "Cramér-Rao sd, or the colored-residual sd where the residuals show model error) and the reference.",
-                 cd_figure(result).figure, None),
-                ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.", residuals_figure(result),
-                 None)] + budget_fig
+                 lambda: cd_figure(result).figure, None),
+                ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.",
+                 lambda: residuals_figure(result), None)] + budget_fig
     figs = [("cd.png", "Cd(M) posterior", "Posterior median with the 50 % and 90 % bands the cd rows report "
              "(q05/q95: where the residuals show model error, widened beyond the posterior as sampled, drawn "
              "dash-dot), the ML curve's 90 % Cramér-Rao band (dotted) and the reference firing table (dashed).",
-             cd_figure(result).figure, None)]
+             lambda: cd_figure(result).figure, None)]
     if all(r.get("reference") for r in rows):
         figs.append(("cd_relative.png", "Cd(M) relative to the reference", "The same bands in percent of the "
-                     "reference curve, where their widths are visible.", cd_relative_figure(result).figure, None))
+                     "reference curve, where their widths are visible.", lambda: cd_relative_figure(result).figure,
+                     None))
     figs += budget_fig
     figs.append(("cd_sd_ratio.png", "Posterior sd over Cramér-Rao sd", "The posterior as sampled (solid): 1 = as "
                  "wide as the bound, above 1 where the noise is estimated larger than the round's or the data are "
                  "weak. Dashed, where drawn: the total band the cd rows report (q05/q95), wider by the model-error "
                  "widening (the model-error floor and the Cd shift of the remaining misfit), which the sampler "
                  "does not see.",
-                 sd_ratio_figure(result).figure, None))
+                 lambda: sd_ratio_figure(result).figure, None))
     figs.append(("corner.png", "Corner plot", "Cd at three Mach numbers of the determined range and the initial "
-                 "state; lines at the 5, 50 and 95 % quantiles.", corner_figure(result), CORNER_DPI))
-    traces = traces_figure(result)
-    if traces is not None:
-        figs.append(("traces.png", "Traces", f"Walkers against step; burn-in ({result.posterior.burn} steps) left "
-                     "of the dashed line.", traces, None))
+                 "state; lines at the 5, 50 and 95 % quantiles.", lambda: corner_figure(result), CORNER_DPI))
+    figs.append(("traces.png", "Traces", f"Walkers against step; burn-in ({result.posterior.burn} steps) left "
+                 "of the dashed line.", lambda: traces_figure(result), None))
     figs.append(("residuals.png", "Residuals and their autocorrelation",
                  "Measured minus the posterior-mean trajectory with ±σ (posterior median noise sd); right: "
                  "autocorrelation with the white-noise band ±2/√N. Correlated residuals mean model error: the "
-                 "bands are then too narrow (compare the colored CRB).", residuals_figure(result), None))
+                 "bands are then too narrow (compare the colored CRB).", lambda: residuals_figure(result), None))
     return figs
 
 
@@ -221,15 +239,21 @@ def write_fit_files(result, directory, *, sources=None):
     """
     out = Path(directory)
     written = [out / "result.json"]
+    specs = fit_figure_specs(result)
+    names = BACKGROUND_FIGURES if result.posterior is not None else BACKGROUND_FIGURES_ML
+    background = [(n, make, dpi) for n, _, _, make, dpi in specs if n in names]
     with paused_gc():       # thousands of figure artists: no collections over the fit's objects
-        write_json(out / "result.json", result.to_dict())
-        idata = result.to_inference_data()
-        if idata is not None:
-            # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
-            ensure_space(out, netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
-            atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
-            written.append(out / "posterior.nc")
-        written += write_fit_report(out, result, sources=sources or {})
+        # the costly figures drawn by a forked process meanwhile, where a core is free
+        with rendered_elsewhere(background, out) as pngs:
+            write_json(out / "result.json", result.to_dict())
+            idata = result.to_inference_data()
+            if idata is not None:
+                # HDF5 crashes the process (segfault) when the disk fills up inside a write: refuse first
+                ensure_space(out, netcdf_bytes(idata) + (256 << 10), "posterior.nc")   # uncompressed: an upper bound
+                atomic_write(out / "posterior.nc", lambda tmp: idata.to_netcdf(tmp))
+                written.append(out / "posterior.nc")
+            here = _render_specs([sp for sp in specs if sp[0] not in names], out)
+        written += _write_report(out, result, specs, {**here, **pngs}, sources or {})
     return written
 
 
@@ -252,13 +276,29 @@ def write_fit_report(out, result, sources=None):
         The files written.
     """
     out = Path(out)
-    sources = sources or {}
+    specs = fit_figure_specs(result)
+    return _write_report(out, result, specs, _render_specs(specs, out), sources or {})
+
+
+def _render_specs(specs, out):
+    """Draw and save the figures of ``specs`` into ``out``: ``{file name: PNG bytes or None}``."""
+    pngs = {}
+    for name, _, _, make, dpi in specs:
+        fig = make()
+        pngs[name] = None if fig is None else figure_png(fig, dpi) if dpi else figure_png(fig)
+        if pngs[name] is not None:
+            write_bytes(out / name, pngs[name])
+    return pngs
+
+
+def _write_report(out, result, specs, pngs, sources):
+    """``report.html`` with the figures of ``specs`` (their PNG bytes in ``pngs``; None: not
+    drawn); returns the files written (figures and report)."""
     written, embedded = [], []
-    for name, title, caption, fig, dpi in fit_figures(result):
-        png = figure_png(fig, dpi) if dpi else figure_png(fig)
-        write_bytes(out / name, png)
-        written.append(out / name)
-        embedded.append({"title": title, "caption": caption, "png": png_base64(png)})
+    for name, title, caption, _, _ in specs:
+        if pngs.get(name) is not None:
+            written.append(out / name)
+            embedded.append({"title": title, "caption": caption, "png": png_base64(pngs[name])})
     ctx = _context_scheme2(result, sources) if result.record["scheme"] == 2 else _context_scheme1(result, sources)
     ctx["figures"] = embedded
     render_report(out / "report.html", ctx)

@@ -3,15 +3,21 @@ formatting and the versions table."""
 from __future__ import annotations
 
 import base64
+import contextlib
 import functools
 import io
+import os
 import platform
+import signal
+import sys
+import warnings
 from importlib.resources import files
 from pathlib import Path
 
-from ..io.outputs import atomic_write
+from .._gc import paused_gc
+from ..io.outputs import atomic_write, write_bytes
 
-__all__ = ["figure_png", "png_base64", "versions", "fmt", "render_report"]
+__all__ = ["figure_png", "png_base64", "versions", "fmt", "render_report", "rendered_elsewhere"]
 
 #: resolution of figures written and embedded [dots per inch]
 DPI = 110
@@ -22,6 +28,105 @@ def figure_png(fig, dpi=DPI):
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
+
+
+@contextlib.contextmanager
+def rendered_elsewhere(jobs, out):
+    """Draw and save figures in a forked process while the body of the ``with`` runs.
+
+    ``jobs`` is a list of ``(file name, make, dpi)``: ``make()`` returns a Figure (or None:
+    nothing to draw). The ``with`` yields a dict that holds, once the body has finished,
+    ``{file name: PNG bytes or None}``, each also written to ``out/<file name>``. The process
+    is forked (it inherits the computed arrays: nothing is pickled or computed twice) only on
+    Linux when a core is free (:func:`_free_core`), and the child only draws with matplotlib
+    (no compiled kernel, no threads). Without a fork, or when the child fails, the figures are
+    drawn here after the body: the same files either way.
+    """
+    out = Path(out)
+    pid = _fork_renderer(jobs, out) if jobs and _free_core() else None
+    pngs = {}
+    try:
+        yield pngs
+    except BaseException:
+        if pid is not None:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+        raise
+    ok = pid is not None and _wait(pid, FORK_WAIT_SECONDS)
+    for name, make, dpi in jobs:
+        path = out / name
+        if ok:
+            pngs[name] = path.read_bytes() if path.is_file() else None    # None: the child drew nothing for it
+        else:
+            pngs[name] = _draw(name, make, dpi, out)
+
+
+def _draw(name, make, dpi, out):
+    """Draw one figure and write it to ``out/name``; its PNG bytes, or None (nothing to draw).
+    The collector is paused: a figure's artists come by the thousand."""
+    with paused_gc():
+        fig = make()
+        if fig is None:
+            return None
+        png = figure_png(fig, dpi or DPI)
+    write_bytes(out / name, png)
+    return png
+
+
+#: the longest a forked renderer is waited for after the body [s]; then it is killed and its
+#: figures are drawn here (a hung child never hangs the run)
+FORK_WAIT_SECONDS = 30.0
+
+
+def _wait(pid, seconds):
+    """Wait up to ``seconds`` for child ``pid``; True when it exited with status 0 (a child still
+    running then is killed)."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return os.waitstatus_to_exitcode(status) == 0
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return False
+        time.sleep(0.005)
+
+
+def _free_core():
+    """A forked renderer can run beside this process: Linux with fork, this process's only
+    Python thread (a thread holding a lock at the fork would leave it held in the child: a Dask
+    worker's), and a second core idle (1-minute load below the cores minus one half; on a busy
+    machine the two would only take turns)."""
+    import threading
+
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork") or threading.active_count() != 1:
+        return False
+    cpus = os.cpu_count() or 1
+    return cpus >= 2 and os.getloadavg()[0] < cpus - 0.5
+
+
+def _fork_renderer(jobs, out):
+    """Fork a child that draws ``jobs`` into ``out`` and exits (0: all written); returns its
+    pid, or None when the fork fails."""
+    with warnings.catch_warnings():          # Python >= 3.12 warns about forking with threads alive
+        warnings.simplefilter("ignore", DeprecationWarning)
+        try:
+            pid = os.fork()
+        except OSError:
+            return None
+    if pid:
+        return pid
+    code = 1
+    try:                                      # the child: draw, save, leave without cleanup handlers
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        for name, make, dpi in jobs:
+            _draw(name, make, dpi, out)
+        code = 0
+    finally:
+        os._exit(code)
 
 
 def png_base64(png):

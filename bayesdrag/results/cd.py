@@ -6,6 +6,7 @@ back from a written folder equals the one of the fit that wrote it.
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
 
@@ -212,8 +213,6 @@ class CdTable:
 
 def band_z(level: float) -> float:
     """The Gaussian quantile of a central band of probability ``level`` (0.9 -> 1.645)."""
-    from scipy.stats import norm
-
     if not (isinstance(level, (int, float)) and 0.0 < float(level) < 1.0 and math.isfinite(level)):
         raise InputError(f"band level {level!r} is not a probability strictly between 0 and 1 (e.g. 0.9)")
-    return float(norm.ppf(0.5 + float(level) / 2.0))
+    return float(statistics.NormalDist().inv_cdf(0.5 + float(level) / 2.0))   # stdlib: no scipy.stats import

@@ -116,7 +116,8 @@ class FitResult:
                  scheme2: Scheme2Result | None = None, window_draws: dict[int, np.ndarray] | None = None,
                  windows_ok: tuple[int, ...] | None = None, grid: np.ndarray | None = None,
                  warnings: tuple[str, ...] = (), seconds: float = 0.0, *, summary: dict[str, Any] | None = None,
-                 inference_data: arviz.InferenceData | None = None, folder: Path | None = None) -> None:
+                 inference_data: arviz.InferenceData | None = None, folder: Path | None = None,
+                 cd_draws: np.ndarray | None = None) -> None:
         if (record is None) == (summary is None):
             raise TypeError("FitResult: give the result.json content as record= (summary= is its older name)")
         rec = record if record is not None else summary
@@ -130,6 +131,8 @@ class FitResult:
                       grid=np.asarray(grid if grid is not None else table.mach, float), warnings=tuple(warnings),
                       seconds=float(seconds), folder=None if folder is None else Path(folder),
                       _cache={} if inference_data is None else {("idata", LOG_LIKELIHOOD_DRAWS): inference_data})
+        if cd_draws is not None:   # the draws result.json's rows were made of: one set for rows, idata and report
+            values["_cache"]["cd_draws"] = np.asarray(cd_draws, dtype=np.float64)
         for k, v in values.items():
             object.__setattr__(self, k, v)
 

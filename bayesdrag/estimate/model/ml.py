@@ -44,9 +44,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from ...errors import FitError
+from .filters import convolve_same
 
 #: a fit that no step improves has converged when Gauss-Newton predicts a cost decrease below
 #: this (the cost is a chi2: 1e-3 is far below what the data can tell)
@@ -384,7 +384,7 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
             # sum_k r_k (s[:-k]' s[k:] + its transpose) = s' (T s), T the Toeplitz matrix of
             # r_1..r_kmax: one FFT convolution instead of kmax matrix products
             ker = np.concatenate([r[kmax:0:-1], [0.0], r[1:kmax + 1]])
-            D += s.T @ fftconvolve(s, ker[:, None], mode="same", axes=0)
+            D += s.T @ convolve_same(s, ker)
     cov_c = Minv @ (D + (pJ.T @ pJ if pr.size else 0.0)) @ Minv
     cov = np.zeros((n, n))
     covc = np.zeros((n, n))

@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
+
+from .filters import savgol_coeffs, savgol_smooth
 
 #: gross-outlier threshold in robust sd of the high-frequency residual
 OUTLIER_K = 5.0
@@ -85,7 +86,7 @@ def hf_residual(z, window=HF_WINDOW, order=HF_ORDER):
     w = min(window, n if n % 2 else n - 1)
     if w <= order + 1:
         return np.zeros_like(z), 1.0
-    e = z - savgol_filter(z, w, order, mode="interp")
+    e = z - savgol_smooth(z, w, order)
     h0 = float(savgol_coeffs(w, order)[w // 2])  # central weight of the smoother
     return e, max(1.0 - h0, 1e-3)
 

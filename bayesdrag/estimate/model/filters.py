@@ -1,0 +1,96 @@
+"""Savitzky-Golay coefficients and smoothing, and an FFT convolution: the few signal filters
+the estimators use, in numpy, so that a fit does not import ``scipy.signal`` (which imports
+``scipy.stats``: ~0.6 s of a command's start-up, measured in docs/report.md "Speed"). Each
+follows scipy's algorithm (``scipy.signal.savgol_coeffs``, ``savgol_filter(mode="interp")``,
+``fftconvolve(mode="same")``) and agrees with it to round-off (tests/unit/test_filters.py).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["savgol_coeffs", "savgol_smooth", "convolve_same"]
+
+
+def savgol_coeffs(window, order, deriv=0, delta=1.0, pos=None, use="conv"):
+    """Savitzky-Golay filter coefficients (as ``scipy.signal.savgol_coeffs``).
+
+    Parameters
+    ----------
+    window : int
+        Samples in the window (> ``order``).
+    order : int
+        Degree of the local polynomial.
+    deriv : int
+        Derivative order of the estimate (0: the value).
+    delta : float
+        Sample spacing [s] (for ``deriv > 0``).
+    pos : float, optional
+        The estimate's place in the window (default its middle).
+    use : {"conv", "dot"}
+        Coefficients for a convolution (reversed) or for a dot product with the window.
+
+    Returns
+    -------
+    (window,) ndarray
+    """
+    if order >= window:
+        raise ValueError(f"Savitzky-Golay order {order} must be less than the window ({window} samples)")
+    half, rem = divmod(window, 2)
+    if pos is None:
+        pos = half if rem else half - 0.5
+    x = np.arange(-pos, window - pos, dtype=float)
+    if use == "conv":
+        x = x[::-1]
+    A = x ** np.arange(order + 1).reshape(-1, 1)
+    y = np.zeros(order + 1)
+    y[deriv] = math.factorial(deriv) / delta ** deriv
+    return np.linalg.lstsq(A, y, rcond=None)[0]
+
+
+def savgol_smooth(z, window, order):
+    """The local-polynomial smooth of ``z`` (as ``scipy.signal.savgol_filter(z, window, order,
+    mode="interp")``): the filter inside, and at each end the polynomial fitted to the first or
+    last ``window`` samples.
+
+    Parameters
+    ----------
+    z : (N,) ndarray
+    window : int, odd, <= N
+    order : int, < window
+
+    Returns
+    -------
+    (N,) ndarray
+    """
+    z = np.asarray(z, dtype=float)
+    if window % 2 == 0 or window > z.size:
+        raise ValueError(f"Savitzky-Golay window {window} must be odd and at most the {z.size} samples")
+    out = np.convolve(z, savgol_coeffs(window, order), mode="same")
+    half = window // 2
+    i = np.arange(window)
+    for lo, sl in ((0, slice(0, half)), (z.size - window, slice(z.size - half, z.size))):
+        poly = np.polyfit(i, z[lo:lo + window], order)
+        out[sl] = np.polyval(poly, np.arange(sl.start, sl.stop) - lo)
+    return out
+
+
+def convolve_same(s, kernel):
+    """Each column of ``s`` convolved with ``kernel``, the middle ``N`` rows (as
+    ``scipy.signal.fftconvolve(s, kernel[:, None], mode="same", axes=0)``).
+
+    Parameters
+    ----------
+    s : (N, p) ndarray
+    kernel : (K,) ndarray
+
+    Returns
+    -------
+    (N, p) ndarray
+    """
+    N, K = s.shape[0], kernel.size
+    n = N + K - 1
+    full = np.fft.irfft(np.fft.rfft(s, n, axis=0) * np.fft.rfft(kernel, n)[:, None], n, axis=0)
+    start = (K - 1) // 2
+    return full[start:start + N]

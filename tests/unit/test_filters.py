@@ -1,0 +1,40 @@
+"""The numpy signal filters agree with scipy.signal's to round-off."""
+import numpy as np
+import pytest
+from scipy import signal
+
+from bayesdrag.estimate.model.filters import convolve_same, savgol_coeffs, savgol_smooth
+
+#: agreement with scipy [relative to the data's scale]: round-off of a least-squares solve
+ROUNDOFF = 1e-11
+
+
+@pytest.mark.parametrize("window,order,deriv,pos,use", [(15, 3, 0, None, "conv"), (7, 2, 0, 2, "dot"),
+                                                         (9, 2, 1, 0, "dot"), (8, 3, 0, None, "conv")])
+def test_savgol_coeffs_match_scipy(window, order, deriv, pos, use):
+    got = savgol_coeffs(window, order, deriv=deriv, delta=0.027, pos=pos, use=use)
+    want = signal.savgol_coeffs(window, order, deriv=deriv, delta=0.027, pos=pos, use=use)
+    assert np.allclose(got, want, rtol=0, atol=ROUNDOFF * np.abs(want).max())
+
+
+@pytest.mark.parametrize("n,window,order", [(200, 15, 3), (15, 15, 3), (40, 7, 2)])
+def test_savgol_smooth_matches_scipy_interp_mode(n, window, order):
+    rng = np.random.default_rng(4)
+    t = np.linspace(0, 3, n)
+    z = 800 * t - 30 * t**2 + rng.normal(0, 1.0, n)
+    want = signal.savgol_filter(z, window, order, mode="interp")
+    assert np.allclose(savgol_smooth(z, window, order), want, rtol=0, atol=ROUNDOFF * np.abs(z).max())
+
+
+def test_savgol_smooth_refuses_an_even_window():
+    with pytest.raises(ValueError, match="must be odd"):
+        savgol_smooth(np.zeros(20), 8, 2)
+
+
+@pytest.mark.parametrize("N,kmax", [(500, 12), (30, 1), (64, 31)])
+def test_convolve_same_matches_fftconvolve(N, kmax):
+    rng = np.random.default_rng(5)
+    s = rng.normal(size=(N, 4))
+    ker = rng.normal(size=2 * kmax + 1)
+    want = signal.fftconvolve(s, ker[:, None], mode="same", axes=0)
+    assert np.allclose(convolve_same(s, ker), want, rtol=0, atol=ROUNDOFF * np.abs(want).max())
