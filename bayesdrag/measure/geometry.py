@@ -120,7 +120,8 @@ def _parts(state, site):
         raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
     d = state[..., :3] - np.asarray(site.position)
     u = state[..., 3:]
-    at = np.sum(d * d, axis=-1) < AT_SITE ** 2
+    with np.errstate(over="ignore", invalid="ignore"):     # a diverged trial state: inf, rejected by the fit
+        at = np.sum(d * d, axis=-1) < AT_SITE ** 2
     if np.any(at):
         d = np.where(at[..., None], d + AT_SITE * u / np.maximum(np.linalg.norm(u, axis=-1), 1e-300)[..., None], d)
     return d, u
@@ -144,12 +145,18 @@ def channel_values(state, channels, site=RadarSite()):
         ``x, y, z, range`` [m], ``v, range_rate`` [m/s], ``azimuth`` [rad] in [0, 2 pi),
         ``elevation`` [rad] in [-pi/2, pi/2]; biases added.
     """
-    d, u = _parts(state, site)
-    out = np.empty(d.shape[:-1] + (len(channels),))
+    state = np.asarray(state, float)
+    if any(c in NATIVE_CHANNELS for c in channels):
+        d, u = _parts(state, site)
+    else:                                # the gun-frame channels need no line of sight
+        if state.shape[-1] != 6:
+            raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
+        d, u = None, state[..., 3:]
+    out = np.empty(state.shape[:-1] + (len(channels),))
     rho = None
     for j, c in enumerate(channels):
         if c in ("x", "y", "z"):
-            out[..., j] = np.asarray(state)[..., "xyz".index(c)]
+            out[..., j] = state[..., "xyz".index(c)]
         elif c == "v":
             out[..., j] = np.sqrt(np.sum(u * u, axis=-1))
         elif c == "range":
