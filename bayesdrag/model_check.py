@@ -4,6 +4,8 @@ fit where the noise is correlated or has gross outliers), what the Cd assumes of
 the reason and next step a not-clean answer's summary gives."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import FitError, InputError
@@ -32,14 +34,16 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     parts = {}
     from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 
-    verdict, effects_fit = [], None
+    verdict, shifts, effects_fit = [], {}, None
     if not diagnose_effects:
         pass                          # the fit carries the effects: the caller records them
     elif track.n < MIN_DIAGNOSIS_SAMPLES:
         rec["diagnosis_skipped"] = f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"
     else:
         try:
-            verdict = list(diagnose(track, rnd, channels=chans).summary["verdict"])
+            dsum = diagnose(track, rnd, channels=chans).summary
+            verdict = list(dsum["verdict"])
+            shifts = {e["name"]: e.get("cd_shift_max") for e in dsum.get("effects", [])}
         except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
             # the check never costs the fit its answer: the record says it could not be made
             rec["diagnosis_failed"] = f"{type(exc).__name__}: {exc}"
@@ -50,8 +54,17 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=keep)
         if alt is not None:
             parts["effects"] = shift_sd(ml, band, alt[0], alt[1])
-            rec["effects"] = list(keep)
             effects_fit = alt[2]
+        else:
+            # the effect could not be fitted with Cd: the diagnosis's own largest Cd shift of each,
+            # taken at every row (a bound where the fit cannot say where along the flight)
+            rel = [shifts.get(n) for n in keep]
+            rec["effects_from"] = "the diagnosis's Cd shift (the fit with the effects failed)"
+            if all(r is not None for r in rel):
+                parts["effects"] = np.full(ml.size, math.sqrt(sum(r**2 for r in rel))) * np.abs(ml)
+            else:
+                rec["unsized"] = [n for n, r in zip(keep, rel) if r is None]   # no size: no row is claimed
+        rec["effects"] = list(keep)
     noisy = f1.white_ml is not None or opts.noise_model == "ar1"
     flagged = 0
     if opts.likelihood == "gaussian":
@@ -105,10 +118,11 @@ def note_model_error(gap, quality, grid, rows):
     quality["model_error"] = gap
     me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
     ml = np.array([r["ml"] for r in rows], float)
-    if gap["effects"]:
+    if gap["effects"] and "effects" in gap["parts"]:
         eff, them = ", ".join(gap["effects"]), "it" if len(gap["effects"]) == 1 else "them"
         quality["problems"].append(
-            f"the diagnosis finds {eff} that the round does not declare: fitting {them} moves Cd by "
+            f"the diagnosis finds {eff} that the round does not declare: "
+            f"{'fitting ' + them if 'effects_from' not in gap else 'by its own estimate ' + them} moves Cd by "
             f"{describe(grid, ml, gap['parts']['effects'])}; the bands include this as model error and rows whose "
             f"band then exceeds 1 % are not determined (`bayesdrag fit ... --with {','.join(gap['effects'])}` fits "
             f"the cause)")
@@ -121,6 +135,14 @@ def note_model_error(gap, quality, grid, rows):
                 f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
                 f"it as model error")
+    if gap.get("unsized"):
+        for r in rows:
+            r["determined"] = False
+        quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
+        quality["problems"].append(
+            f"the diagnosis finds {', '.join(gap['unsized'])}, which could not be fitted with Cd nor its Cd shift "
+            f"sized: no row is claimed determined (`bayesdrag diagnose TRACK ROUND -o DIR` shows the gap)")
+        quality["ok"] = False
     why = gap.get("diagnosis_skipped") or gap.get("diagnosis_failed")
     if why:
         quality.setdefault("notes", []).append(
@@ -186,11 +208,15 @@ def why_not_clean(quality):
     from .estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
 
     me = quality.get("model_error") or {}
+    if me.get("unsized"):
+        return (f"the diagnosis finds {', '.join(me['unsized'])}, whose Cd shift could not be sized: no row is "
+                f"claimed; next: `bayesdrag diagnose TRACK ROUND -o DIR`")
     if me.get("effects"):
         eff = ",".join(me["effects"])
         rel = 100 * me.get("effects_max_rel", 0.0)
-        return (f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); "
-                f"next: `bayesdrag fit ... --with {eff}` fits it")
+        nxt = (f"`bayesdrag fit ... --with {eff}` fits it" if "effects_from" not in me else
+               "`bayesdrag diagnose TRACK ROUND -o DIR` (the fit with it failed)")
+        return f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); next: {nxt}"
     chans = quality.get("channels") or {}
     bad = {c: f for c, f in chans.items()
            if f["chi2_per_sample"] > CHI2_LIMIT or (f["lag1"] > ACF_LIMIT and f["n"] > 20)}
