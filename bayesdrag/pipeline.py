@@ -115,7 +115,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         t0 = time.perf_counter()
         gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
         timing["model_check"] = round(time.perf_counter() - t0, 3)
-    if default and effects_fit is not None and effects_fit.effects:
+    if default and effects_fit is not None and effects_fit.effects and not _trades_with_cd(effects_fit, rnd):
         # the default fit fits the cause: the check's fit with the undeclared material effects
         # (already made, from the plain fit's start) is the answer; the plain Cd stays beside it
         t0 = time.perf_counter()
@@ -187,6 +187,19 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start, cd_draws=cd)
 
+
+
+#: effects whose fit with Cd free trades against the Cd level unless the round declares how well
+#: the quantity is known: the temperature's density part is a factor on the drag
+LEVEL_EFFECTS = ("temperature",)
+
+
+def _trades_with_cd(f1, rnd):
+    """Whether a fit with effects carries one that trades against the Cd level (an undeclared
+    temperature offset): the default does not take such a fit as its answer, the plain fit stands
+    with the shift as model error and the Cd conditional on the stated air."""
+    declared = rnd.systematics.declared()
+    return any(e in LEVEL_EFFECTS and e not in declared for e in f1.effects)
 
 def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
     """A rigid model's band holds no shape error: check its curve against the flexible fit of
