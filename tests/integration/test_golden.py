@@ -49,7 +49,7 @@ MCSE_K = 4.0
 #: MCSE of a 5 % / 95 % quantile in units of sd / sqrt(ESS) (Gaussian: sqrt(p (1 - p)) / phi(z_p))
 QUANTILE_MCSE_FACTOR = 2.11
 #: keys whose values are wall-clock times
-TIMING_KEYS = {"seconds"}
+TIMING_KEYS = {"seconds", "timing"}
 #: posterior keys compared statistically in the sampled case
 POSTERIOR_ROW_KEYS = {"mean", "q05", "q25", "q50", "q75", "q95", "sd", "sd_over_crb"}
 #: keys of the sampled case that depend on the chain itself (steps, acceptance, ESS): not compared
