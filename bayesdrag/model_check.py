@@ -78,11 +78,17 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             rec["noise_check"] = {"why": "gross outliers" + (" and correlated (AR(1)) residuals" if noisy else ""),
                                   "against": "student-t", "outlier_samples": flagged}
     elif f1.white_ml is not None and diagnose_effects:
-        # (a fit carrying effects chose its noise model on the plain residuals: no white check)
         # correlated residuals the auto noise model took as AR(1): the white-noise fit it started
         # from is the check (no new fit: both are consistent when the model is right)
         parts["noise"] = shift_sd(ml, band, f1.drag_model.cd(f1.white_ml.drag_params, grid))
         rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
+    elif f1.white_ml is not None:
+        # a fit carrying effects started from a white fit without them: the check is the same
+        # effects fitted with white noise (one more fit)
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=tuple(f1.effects), noise_model="white")
+        if alt is not None:
+            parts["noise"] = shift_sd(ml, band, alt[0], alt[1])
+            rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     me = combine(*parts.values())
     rec["parts"] = {k: [float(f"{v:.4g}") for v in p] for k, p in parts.items()}
     if me is not None:

@@ -132,6 +132,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         gap, _ = model_error(track, rnd, opts, chans, f1, grid, rows, diagnose_effects=False)
         gap.update(verdict=found["verdict"], skipped=found["skipped"], conditional_air=found["conditional_air"],
                    effects_fitted=list(f1.effects))
+        _effect_residual(rows, gap)
         with_note = {"added_by": "default", "requested": "default", "effects": list(f1.effects),
                      "candidates": list(found["verdict"]), "skipped": found["skipped"],
                      "reason": (f"the model check's diagnosis names {', '.join(found['verdict'])}, which the round "
@@ -188,6 +189,23 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                      seconds=time.perf_counter() - t_start, cd_draws=cd)
 
 
+
+
+#: share of the Cd shift an effect's fit corrected that is kept as model error of the corrected
+#: Cd: the effect's model (a constant wind, a few wind layers, one clock offset) is the real
+#: effect's simplest form, and what it leaves is taken as a quarter of what it removed (the
+#: diagnosis accepts an effect that removes >= 90 % of the gap and a size within 25 %)
+EFFECT_RESIDUAL_SHARE = 0.25
+
+
+def _effect_residual(rows, gap):
+    """Add :data:`EFFECT_RESIDUAL_SHARE` of each row's correction (``ml`` against
+    ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
+    res = [EFFECT_RESIDUAL_SHARE * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
+    for r, e in zip(rows, res):
+        r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, e))
+    gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
+    gap["effect_residual_share"] = EFFECT_RESIDUAL_SHARE
 
 #: effects whose fit with Cd free trades against the Cd level unless the round declares how well
 #: the quantity is known: the temperature's density part is a factor on the drag
