@@ -282,8 +282,12 @@ class ChainFile:
         lp = self._array(datasets["log_prob"], "log_prob", n)
         blobs = self._array(datasets["blobs"], "blobs", n) if C else None
         acc = self._array(datasets["accepted"], "accepted", None)
-        if np.any(acc < 0) or np.any(acc > n) or np.any(acc != np.round(acc)):
-            self._fail(f"'accepted' holds values that are not counts in 0..{n}")
+        stored = max(n, int(datasets["chain"].shape[0]))
+        if np.any(acc < 0) or np.any(acc > stored) or np.any(acc != np.round(acc)):
+            self._fail(f"'accepted' holds values that are not counts in 0..{stored}")
+        # a kill inside a flush, after 'accepted' and before 'iteration' were written, leaves
+        # counts of steps the file does not yet commit: held to the committed steps
+        acc = np.minimum(acc, n)
         b = ChainBackend(self, W, D, flushed=n)
         b.chain, b.log_prob, b.blobs, b.accepted = chain, lp, blobs, acc
         b.iteration, b.random_state = n, self._random_state(g, n)

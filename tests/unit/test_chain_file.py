@@ -358,3 +358,16 @@ def test_no_module_of_the_package_can_unpickle():
                 if any(k.arg == "allow_pickle" for k in n.keywords):
                     found.append((p.name, "allow_pickle"))
     assert not found, found
+
+
+def test_a_kill_inside_a_flush_resumes_with_the_committed_counts(post, chain_copy):
+    """A kill after a flush rewrote 'accepted' and before it wrote 'iteration' leaves counts one
+    flush ahead of the committed steps (the chain's rows already hold those steps): the counts
+    are held to the committed steps and the chain resumes (seen as a flaky kill -9 test)."""
+    with h5py.File(chain_copy, "a") as f:
+        g = f["mcmc"]
+        g.attrs["iteration"] = STOPPED - 1
+        g["random_state"].attrs["step"] = STOPPED - 1
+        g["accepted"][...] = float(STOPPED)        # every walker accepted every step, the uncommitted one too
+    run = _resume(post, chain_copy)
+    assert run.steps >= STOPPED and 0.0 <= run.acceptance <= 1.0
