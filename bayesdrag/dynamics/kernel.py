@@ -429,7 +429,10 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     AC1 = np.empty((n_blk, 4, nl))   # acceleration there (= next step's first stage)
     OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
     WD = np.zeros((n_blk, 5, nl))    # last wind table read: wx, wy, their slopes, the coordinate
-    for blk in prange(n_blk):
+    for b_u in prange(n_blk):
+        # prange's index is unsigned, range's signed: one type for both kernels lets the serial and
+        # the threaded kernel share every compiled helper (first-run compile time)
+        blk = np.int64(b_u)
         n_real = min(B, blk * nl + nl) - blk * nl
         _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
                     ATO, WTO, ST)
