@@ -2,8 +2,7 @@
 the package and the hash of its source, not by the folder it is installed in.
 
 numba's own locator names a cache folder after the source file's absolute path, so the kernel
-was compiled again (9 s of a first run, measured on 2 cores) for every new installation of the
-same code: a new virtual environment, a fresh clone, a reinstall into another prefix. With
+was compiled again (most of a first run's time) for every new installation of the same code: a new virtual environment, a fresh clone, a reinstall into another prefix. With
 :class:`PackageCacheLocator` the cache is keyed by what numba's index checks anyway (the
 source's content hash, numba's version, the CPU), so the same source compiles once per user and
 machine. bayesdrag registers it through numba's documented ``NUMBA_CACHE_LOCATOR_CLASSES``

@@ -3,8 +3,8 @@
 The point-mass kernel runs on numba's threads (OpenMP); the estimators alternate kernel calls
 with small dense linear algebra (84 x 4000 products, 84 x 84 solves). With OpenBLAS also
 threaded, each library's idle threads spin while the other works and the two oversubscribe the
-cores: measured on 2 cores, one Scheme 1 fit of a 30 mm track took 10.7 s with threaded BLAS and
-2.4 s with one BLAS thread (the matrices are far too small for BLAS threads to help).
+cores, and the matrices are far too small for BLAS threads to help (docs/measurements.md,
+"One BLAS thread").
 :func:`single_blas` limits BLAS to one thread for the duration of a call (threadpoolctl, at run
 time, so it works whatever imported numpy first) and restores it afterwards.
 """

@@ -46,6 +46,7 @@ import math
 
 import numpy as np
 
+from .validate import float_tuple as _float_tuple
 from .wind import PROFILE_WIND_MAX, WindProfile
 
 #: standard gravity [m/s^2]
@@ -596,15 +597,4 @@ class MetProfile:
     def has_wind(self):
         """True when the profile carries a wind."""
         return self.wind is not None
-
-
-def _float_tuple(name, values):
-    try:
-        a = np.asarray(values, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a sequence of numbers") from None
-    if not np.all(np.isfinite(a)):
-        i = int(np.argmax(~np.isfinite(a)))
-        raise ValueError(f"{name} value {a[i]} (level {i + 1}) is not a finite number")
-    return tuple(float(v) for v in a)
 

@@ -44,37 +44,15 @@ Integration: classic RK4 on a uniform step h (``pointmass.output_schedule``; ~0.
 the next step's first stage (4 evaluations per step), and a cubic Hermite interpolant through
 the states and accelerations at both ends of a step for every output time inside it.
 
-Layout and speed. Trajectories are processed in blocks of ``nl`` lanes (8, fewer
-for tiny batches, :func:`lanes_per_block`), one block per ``prange`` iteration; inside a block
-every RK stage is one loop over the lanes with the lane index innermost and contiguous, so
-LLVM vectorises it into AVX-512 code (8 doubles, gathers for the table reads). What it took,
-and what was measured (one thread, CPU time, B = 64, 1482 samples, on the shared 2-core AMD
-EPYC (Zen 4) dev box; the original kernel: 136-175 us/trajectory under the same load):
-
-* Lane loops with a *runtime* trip count (a constant 8 is fully unrolled before the loop
-  vectoriser runs, and numba leaves the SLP vectoriser off) and **all** scratch arrays
-  allocated outside the ``prange``: numba then marks the arguments of the parallel body
-  ``noalias`` (only if its alias analysis finds nothing -- a boolean flag reassigned inside the
-  body was enough to spoil it), without which the gathers from the tables could alias the
-  stores and nothing vectorises. ``_acc`` must be ``forceinline`` (LLVM would not inline 5
-  copies, and a call in the loop blocks vectorisation).
-* One loop per RK stage rather than the whole step per lane: the whole step in one loop did
-  vectorise but ran no faster than the scalar code (1.1x); stage loops ran 1.5x faster than
-  the scalar kernel at the same step (blocks of 32 lanes at the time; 8 lanes, one vector per
-  stage loop, then measured another 15 % faster).
-* Steps decoupled from the samples (~0.074 s instead of 0.027 s) with Hermite output: 2.7x
-  fewer evaluations; the kernel-vs-scipy error stays ~1e-4 m (it is dominated by the
-  atmosphere tabulation, not the step: 0.027 s and 0.009 s steps gave the same 7.7e-5 m).
-* Result (32-lane blocks): ~21 us/trajectory integrating, ~28 us writing the 1482 outputs
-  (Hermite ~4, Mach ~9, the lane-to-trajectory transposition into ``out`` ~15); ~50 us in all
-  on one thread vs 136-175 before, i.e. ~3x; 8-lane blocks: ~46 us. The output transposition is memory-bound: a staging buffer
-  flushed per trajectory in chunks of 16-128 rows measured the same (a plain numpy transpose
-  of the same data costs 8-10 us/trajectory here), so it was not kept.
-* Not worth it: skipping the Coriolis and lift terms when zero (< 2 %); avoiding the gathers
-  (LLVM's scalarised loads instead: ~15 % faster in isolation, but only by a global LLVM
-  feature flag, which would touch every numba function in the process).
-* Fewer than 8 trajectories run on the scalar remainder path (``nl = B``) in
-  :data:`integrate_batch_serial` (no thread pool): padding one trajectory to 8 lanes cost 2x.
+Layout. Trajectories are processed in blocks of ``nl`` lanes (8, fewer for tiny batches,
+:func:`lanes_per_block`), one block per ``prange`` iteration; inside a block every RK stage is
+one loop over the lanes, lane index innermost and contiguous, so that LLVM vectorises it (one
+AVX-512 register of doubles, gathers for the table reads). That needs lane loops with a
+run-time trip count (a constant one is unrolled before the vectoriser runs), every scratch
+array allocated outside the ``prange`` (numba then marks the parallel body's arguments
+``noalias``; without it the table gathers could alias the stores) and ``_acc`` inlined.
+Fewer than 8 trajectories run as one scalar block in :data:`integrate_batch_serial` (no
+thread pool). What each choice bought, measured: docs/bayes.md "The kernel's layout".
 """
 import numpy as np
 from numba import njit, prange
@@ -111,9 +89,8 @@ _N_L = 29
 
 #: lanes per block are a multiple of this (8 doubles = one AVX-512 register)
 LANE_WIDTH = 8
-#: largest lanes per block. One vector per block measured best (B = 64, one thread: 8 lanes
-#: 46 us/trajectory, 16 lanes 52, 32 lanes 54, 64 lanes 54): the block's scratch stays in L1
-#: and fewer output rows are open at once; it also splits B = 21 into 3 blocks for 2 threads
+#: largest lanes per block: one vector per block keeps the block's scratch in L1 and splits a
+#: 21-trajectory ML batch into 3 blocks for 2 threads (docs/bayes.md "The kernel's layout")
 MAX_LANES = 8
 
 _OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
@@ -466,9 +443,8 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
 #: scalar block): waking the thread pool costs more than such a batch, and on a loaded machine
 #: waiting for the second core to be scheduled can cost milliseconds
 #: (a copy of the Python function under its own name: numba's on-disk cache is keyed by the
-#: function's qualified name and line, not by ``parallel``, so compiling the same ``py_func``
-#: twice with ``cache=True`` let the serial machine code be loaded for the threaded kernel too --
-#: measured: 2 threads gave no speed-up until they had separate cache entries)
+#: function's qualified name and line, not by ``parallel``, so the same ``py_func`` compiled
+#: twice with ``cache=True`` would load the serial machine code for the threaded kernel too)
 def _renamed(fn, name):
     import types
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Trajectory", "initial_state", "step_schedule", "output_schedule", "check_times",
+__all__ = ["Trajectory", "initial_state", "output_schedule", "check_times",
            "DEFAULT_MAX_STEP", "STEP_DRAG_FRACTION"]
 
 @dataclass(frozen=True)
@@ -61,34 +61,6 @@ def initial_state(velocity, elevation_deg, heading_deg=0.0, position=(0.0, 0.0, 
     el, hd = math.radians(elevation_deg), math.radians(heading_deg)
     v = velocity * np.array([math.cos(el) * math.cos(hd), math.cos(el) * math.sin(hd), math.sin(el)])
     return np.concatenate([np.asarray(position, dtype=float), v])
-
-
-def step_schedule(t_out, t_start, max_step):
-    """RK4 steps that land exactly on every output time (the schedule of the first kernel,
-    kept for callers that want steps on the samples; the kernel now uses
-    :func:`output_schedule`).
-
-    Parameters
-    ----------
-    t_out : (N,) increasing times [s], all >= ``t_start``.
-    t_start : float, s
-    max_step : float, s
-
-    Returns
-    -------
-    step_h : (S,) step sizes; step_out : (S,) output row after each step or -1;
-    out_first : int, row of an output at ``t_start`` itself or -1.
-    """
-    t_out = check_times(t_out, t_start)
-    out_first = 0 if abs(t_out[0] - t_start) <= 1e-12 else -1
-    edges = np.concatenate([[t_start], t_out[1:] if out_first == 0 else t_out])
-    rows = np.arange(1, len(t_out)) if out_first == 0 else np.arange(len(t_out))
-    gaps = np.diff(edges)
-    nsub = np.maximum(1, np.ceil(gaps / max_step - 1e-9).astype(np.int64))
-    step_h = np.repeat(gaps / nsub, nsub)
-    step_out = np.full(step_h.size, -1, dtype=np.int64)
-    step_out[np.cumsum(nsub) - 1] = rows
-    return step_h, step_out, out_first
 
 
 #: largest default kernel RK4 step [s]

@@ -7,49 +7,20 @@ import signal
 import subprocess
 import sys
 from html.parser import HTMLParser
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bayesdrag.cli import main
-from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.synthetic import add_noise
-from bayesdrag.track import RadarTrack
-from bayesdrag.io.tracks import write_track
+from fixtures.shell155 import write_shell155_inputs
 
-SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
-ROUND = """
-[projectile]
-name = "155 mm test shell"
-mass = 42.6
-diameter = 0.155
-reference_drag = "{m101}"
-[launch]
-elevation = 15.0
-velocity = 818.0
-[radar]
-sigma = {{x = 1.0, y = 1.0, z = 1.0, v = 0.3}}
-"""
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory, m101):
     """A 12 s point-mass track (M101 truth, noise) and its round file."""
-    from importlib.resources import files
-
-    d = tmp_path_factory.mktemp("inputs")
-    tr = PointMassModel(42.6, 0.155, m101).simulate((), initial_state(818.0, 15.0), backend="scipy",
-                                                     stop_at_impact=True, dt=0.05)
-    keep = tr.t <= 12.0
-    track = add_noise(RadarTrack(tr.t[keep], {c: tr.channel(c)[keep] for c in "xyzv"}, {}), SIGMA,
-                      np.random.default_rng(1))
-    write_track(d / "track.csv", track)
-    m101_path = Path(str(files("bayesdrag") / "data" / "cd_m101.csv"))
-    (d / "round.toml").write_text(ROUND.format(m101=m101_path.as_posix()))
-    return d / "track.csv", d / "round.toml"
+    return write_shell155_inputs(tmp_path_factory.mktemp("inputs"), m101, elevation=15.0, seconds=12.0, seed=1)
 
 
 @pytest.fixture(scope="module")

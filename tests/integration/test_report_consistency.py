@@ -5,31 +5,13 @@ and the summary line names the next step."""
 import json
 import math
 from html.parser import HTMLParser
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bayesdrag.cli import main
-from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.dynamics.trajectory import initial_state
-from bayesdrag.io.tracks import write_track
-from bayesdrag.synthetic import add_noise
-from bayesdrag.track import RadarTrack
+from fixtures.shell155 import write_shell155_inputs
 
-SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
-ROUND = """
-[projectile]
-name = "155 mm test shell"
-mass = 42.6
-diameter = 0.155
-reference_drag = "{m101}"
-[launch]
-elevation = 20.0
-velocity = 818.0
-[radar]
-sigma = {{x = 1.0, y = 1.0, z = 1.0, v = 0.3}}
-"""
 #: the budget is written to 6 significant digits: relative agreement with the rows' band_sd
 BUDGET_REL = 1e-5
 #: the report's tables print 3 significant digits
@@ -40,17 +22,8 @@ TABLE_REL = 5e-3
 def fitted(tmp_path_factory, m101):
     """A sampled fit of a 14 s point-mass track with AR(1) noise (rho 0.9): the noise check runs
     and the rows carry a model-error term."""
-    from importlib.resources import files
-
     d = tmp_path_factory.mktemp("consistency")
-    tr = PointMassModel(42.6, 0.155, m101).simulate((), initial_state(818.0, 20.0), backend="scipy",
-                                                     stop_at_impact=True, dt=0.05)
-    keep = tr.t <= 14.0
-    track = add_noise(RadarTrack(tr.t[keep], {c: tr.channel(c)[keep] for c in "xyzv"}, {}), SIGMA,
-                      np.random.default_rng(3), rho=0.9)
-    write_track(d / "track.csv", track)
-    m101_path = Path(str(files("bayesdrag") / "data" / "cd_m101.csv"))
-    (d / "round.toml").write_text(ROUND.format(m101=m101_path.as_posix()))
+    write_shell155_inputs(d, m101, elevation=20.0, seconds=14.0, seed=3, rho=0.9)
     out = d / "out"
     code = main(["fit", str(d / "track.csv"), str(d / "round.toml"), "-o", str(out), "--drag", "reference-scale",
                  "--seed", "2", "--quiet"])

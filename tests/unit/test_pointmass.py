@@ -8,7 +8,7 @@ from bayesdrag.drag import make_drag_model
 from bayesdrag.dynamics import kernel as K
 from bayesdrag.dynamics.forces import LIFT_REF_FRACTION, LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.dynamics.trajectory import initial_state, output_schedule, step_schedule
+from bayesdrag.dynamics.trajectory import initial_state, output_schedule
 
 KERNEL_VS_SCIPY_M = 1e-3      # m, issue 3: kernel vs solve_ivp over a full 155 mm trajectory
 PBC_M = 1.0                   # m, issue 3: vs py-ballisticcalc over the whole flight
@@ -178,23 +178,14 @@ def test_vector_lanes_match_single_runs(m101, B, rng):
         assert np.allclose(batch.mach[i], single.mach[0], rtol=0, atol=1e-12)
 
 
-def test_step_schedule_lands_on_outputs():
-    t = np.array([0.0, 0.01, 0.1, 0.5])
-    h, out, first = step_schedule(t, 0.0, 0.03)
-    assert first == 0
-    assert np.isclose(h.sum(), 0.5)
-    assert h.max() <= 0.03 + 1e-12
-    assert np.allclose(np.cumsum(h)[out >= 0], t[1:])
-
-
 @pytest.mark.parametrize("t, t0, match", [
     ([0.0, 0.1, 0.1], 0.0, "increase strictly"),
     ([0.5, 1.0], 1.0, "before the initial state"),
     ([], 0.0, "non-empty"),
 ])
-def test_step_schedule_errors(t, t0, match):
+def test_output_schedule_errors(t, t0, match):
     with pytest.raises(ValueError, match=match):
-        step_schedule(np.array(t), t0, 0.03)
+        output_schedule(np.array(t), t0, 0.03)
 
 
 def test_bad_backend(ref_traj):

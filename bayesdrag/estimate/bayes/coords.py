@@ -7,11 +7,9 @@ posterior of the spline coefficients ``c`` and those sources is a thin curved ri
 ratio ``r`` is only known through ``r * c`` (a bilinear coupling) and a temperature offset
 ``dT`` moves every data point along the Mach axis (``M = M0 * sqrt(T / (T + dT))``), so the
 coefficients that fit the track change with ``dT`` through the slope of Cd(M), which itself
-depends on the coefficients. A Gaussian (Laplace) proposal then misses the ridge: measured on a
-py-ballisticcalc track with ``density_sd = 0.002`` and ``temperature_sd = 0.5``, the log
-importance weights of the independence proposal had a standard deviation of 83 (an effective
-sample fraction of 4 %, acceptance ~0.1), although every single direction of the Laplace
-approximation was within 30 % of the true curvature.
+depends on the coefficients. A Gaussian (Laplace) proposal then misses the ridge, although
+every single direction of it is close to the true curvature (docs/measurements.md, "Sampling
+coordinates").
 
 :class:`DriftCoordinates` samples instead the coefficients ``c~`` of the *identified* curve: with
 ``psi(M, dT) = rho(z, 0) / rho(z, dT)`` and ``k(M, dT) = a(z, dT) / a(z, 0)`` the density and
@@ -40,7 +38,7 @@ DENSITY, TEMPERATURE, MASS, DIAMETER = "density.ratio", "temperature.dT", "mass"
 #: Mach points per knot interval of the projection grid
 GRID_PER_INTERVAL = 12
 #: smallest singular value the temperature matrix may reach inside its ``dT_range`` (the Taylor
-#: terms grow with dT: measured on the demo shell, 0.001 at +3 K for a 0.5 K declared sd)
+#: terms grow with dT until the map from c~ back to c is no longer invertible)
 MIN_SINGULAR = 0.5
 #: offsets scanned per side of 0 for that range, up to RANGE_MAX_K [K]
 RANGE_STEPS = 40

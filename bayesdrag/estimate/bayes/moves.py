@@ -6,13 +6,10 @@ mixes in a few steps regardless of the dimension and the correlations. The defau
 (``"auto"``) is the independence move of :func:`independence_move` (a mixture of a Gaussian with
 the Laplace covariance, 90 %, and a multivariate t, 10 dof, 1.1 x, 10 %, centred at the
 posterior mode) 90 % plus 10 % of a local move (``DEMove`` with >= 2 D walkers, else random-walk
-Metropolis with the Laplace covariance). Measured on the shipped demo track (54 parameters,
-300 steps, 32 walkers) with the t alone: tau ~ 4-5 steps, acceptance ~ 0.4; 70 %/1.2x/5 dof gave
-tau 8.3; the stretch move and DE alone need >= 2 D = 108 walkers and gave tau of hundreds of
-steps on the ~20-parameter spline (``docs/bayes.md``). The Gaussian component was added for
-posteriors with declared air sources (57 parameters, a py-ballisticcalc track with
-``density_sd = 0.002``, ``temperature_sd = 0.5``): simulated independence acceptance 0.19 with
-the t alone, 0.36 with the mixture (``docs/bayes.md``). The mix reproduces a strongly correlated
+Metropolis with the Laplace covariance). The stretch move and DE alone need >= 2 D walkers and
+mix over hundreds of steps on a spline posterior; the Gaussian component keeps the acceptance up
+on posteriors with declared air sources (the figures behind each weight: docs/measurements.md,
+"Sampler moves", and docs/bayes.md). The mix reproduces a strongly correlated
 Gaussian target's covariance (``tests/integration/test_bayes.py``) even with a deliberately
 mis-centred and mis-scaled proposal, because the independence move is an exact
 Metropolis-Hastings move (its proposal ratio enters the acceptance).
@@ -28,7 +25,7 @@ from ...errors import InputError
 #: independence proposal, t component: scale of the Laplace covariance and Student-t dof
 PROPOSAL_SCALE = 1.1
 PROPOSAL_DOF = 10.0
-#: independence proposal, Gaussian component: weight and scale (measured, see the module docstring)
+#: independence proposal, Gaussian component: weight and scale (docs/measurements.md)
 GAUSS_WEIGHT = 0.9
 GAUSS_SCALE = 1.0
 #: default weight of the independence move in the move mix (rest: DEMove or random-walk)

@@ -28,11 +28,9 @@ Likelihood
     ``rho_c`` and ``q_c`` are held at their ML values by default (an empirical-Bayes plug-in).
     With ``sample_ar=True`` ``log_1m_rho_c = log(1 - rho_c)`` and ``log_q_c`` are sampled with
     uniform priors on :data:`colored.LOG_1M_RHO_RANGE` and :data:`colored.LOG_Q_RANGE`. Why not
-    by default (measured on the shipped 6-DOF demo, 16 walkers): the drift's correlation time
-    and variance scale the information of every drag coefficient, a funnel that the
-    independence proposal cannot follow: acceptance fell from ~0.45 to 0.05-0.08 and tau grew
-    past 100 steps without settling in 1500 steps, also with the Laplace covariance's
-    mixed derivatives included. The plug-in converges as before (tau ~4); what the correlation
+    by default: the drift's correlation time and variance scale the information of every drag
+    coefficient, a funnel that the independence proposal cannot follow (acceptance and tau:
+    docs/measurements.md, "AR(1) parameters sampled"). The plug-in converges; what the correlation
     time's uncertainty would add is covered by the model-error floor of ``auto``
     (:func:`bayesdrag.estimate.cd.table.model_error_floor`).
 
