@@ -23,7 +23,7 @@ from .estimate.cd.quality import assess, check_against_flexible, intervals
 from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
-from .model_check import air, model_error, note_model_error, why_not_clean
+from .model_check import LEVEL_EFFECTS, air, model_error, note_model_error, why_not_clean
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
 from .round import Round
@@ -207,11 +207,6 @@ def _effect_residual(rows, gap):
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
     gap["effect_residual_share"] = EFFECT_RESIDUAL_SHARE
 
-#: effects whose fit with Cd free trades against Cd itself unless the round declares how well the
-#: quantity is known: the temperature's density part is a factor on the drag, and the induced drag
-#: of a decaying yaw is a change of the drag's shape over the Mach numbers flown first (measured:
-#: adopted, 32 claimed rows 3.5 sd off on the honesty suite's yaw flight)
-LEVEL_EFFECTS = ("temperature", "yaw_drag")
 
 
 def _trades_with_cd(f1, rnd):
