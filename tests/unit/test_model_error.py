@@ -88,3 +88,32 @@ def test_headline_takes_the_rows_numbers():
     assert all(p["determined"] for p in h["cd"])
     assert h["cd"][0]["q95"] - h["cd"][0]["cd"] == pytest.approx(HEADLINE_LEVEL_Z * 0.001)
     assert headline(rows, None, True)["determined_range"] is None
+
+
+def _residuals(**chans):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(residuals={c: np.asarray(v, float) for c, v in chans.items()})
+
+
+def test_residual_share_follows_the_structured_misfit_that_remains():
+    from bayesdrag.pipeline import EFFECT_RESIDUAL_SHARE, residual_share
+
+    rng = np.random.default_rng(7)
+    n = 2000
+    t = np.linspace(0.0, 1.0, n)
+    noise = rng.normal(0.0, 1.0, n)
+    # the plain fit leaves a smooth misfit of 5 noise sd, the effect's fit white noise only: the
+    # share is white noise's detection limit, far below the cap
+    plain = _residuals(x=noise + 5.0 * np.sin(3 * t))
+    exact = _residuals(x=rng.normal(0.0, 1.0, n))
+    share = residual_share(plain, exact, ("x",), {"x": 1.0})
+    limit = np.sqrt(2.0 / np.sqrt(n) / np.mean((5.0 * np.sin(3 * t))**2))
+    assert share < 0.5 * EFFECT_RESIDUAL_SHARE
+    np.testing.assert_allclose(share, limit, rtol=0.25)
+    # a fit that leaves a fifth of the smooth misfit keeps about a fifth of its correction
+    part = _residuals(x=rng.normal(0.0, 1.0, n) + 1.0 * np.sin(3 * t))
+    np.testing.assert_allclose(residual_share(plain, part, ("x",), {"x": 1.0}), 0.2, atol=0.05)
+    # one that removes little is capped; a plain fit with no structure keeps the cap
+    assert residual_share(plain, plain, ("x",), {"x": 1.0}) == EFFECT_RESIDUAL_SHARE
+    assert residual_share(exact, exact, ("x",), None) == EFFECT_RESIDUAL_SHARE
