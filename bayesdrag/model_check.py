@@ -93,7 +93,8 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         # correlated residuals the auto noise model took as AR(1): the white-noise fit it started
         # from is the check (no new fit: both are consistent when the model is right)
         white_sd = np.array([r.get("model_error_floor", r["crb_sd"]) for r in rows], float)
-        parts["noise"] = check_sd(ml, own, f1.drag_model.cd(f1.white_ml.drag_params, grid), white_sd)
+        gls_sd = np.array([r["crb_sd"] for r in rows], float)
+        parts["noise"] = check_sd(ml, gls_sd, f1.drag_model.cd(f1.white_ml.drag_params, grid), white_sd)
         rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     elif f1.white_ml is not None:
         # a fit carrying effects started from a white fit without them: the check is the same
