@@ -75,9 +75,6 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
                 rec["unsized"] = [n for n, r in zip(keep, rel) if r is None]   # no size: no row is claimed
         rec["effects"] = list(keep)
     noisy = f1.white_ml is not None or opts.noise_model == "ar1"
-    # the sd of the reported estimator: its band (for a generalised least squares fit floored at
-    # the white fit's sd: its own bound trusts the AR(1) form, which a rho near 1 hides)
-    own = band
     flagged = 0
     if opts.likelihood == "gaussian":
         _, _, out = noise_and_outliers(track, f1.problem.channels, rnd.radar.sigma)
@@ -86,7 +83,9 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         # gross outliers: a Student-t fit (white, outliers reweighted) is the check
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, likelihood="student-t", **_same_effects(f1))
         if alt is not None:
-            parts["noise"] = check_sd(ml, own, alt[0], alt[1])
+            # the reported fit's sd is its band (an AR(1) fit's floored at the white fit's sd: its
+            # own bound trusts the AR(1) form, which a rho near 1 hides)
+            parts["noise"] = check_sd(ml, band, alt[0], alt[1])
             rec["noise_check"] = {"why": "gross outliers" + (" and correlated (AR(1)) residuals" if noisy else ""),
                                   "against": "student-t", "outlier_samples": flagged}
     elif f1.white_ml is not None and diagnose_effects:

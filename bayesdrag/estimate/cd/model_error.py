@@ -67,8 +67,8 @@ def check_sd(ml, sd, ml_alt, sd_alt):
     Parameters
     ----------
     ml, sd : (M,) array_like
-        The reported fit's Cd and the sd of its estimator at the grid (for a generalised least
-        squares fit its own Cramér-Rao sd, not a floor set by another estimator).
+        The reported fit's Cd and the sd of its estimator at the grid (a larger ``sd`` than the
+        estimator has grants the difference less noise: conservative).
     ml_alt, sd_alt : (M,) array_like
         The check's Cd and the sd of its estimator (its honest band) at the same grid.
 
