@@ -60,6 +60,8 @@ SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 DT = 0.05
 #: an added effect's fitted size is right within this many of its sd (issue 30's acceptance)
 EFFECT_TOL_SD = 3.0
+#: a fitted size whose sd exceeds this many times the true size bounds nothing: "unsized", not right
+UNSIZED_RATIO = 10.0
 #: undeclared effects a track cannot reveal apart from Cd: the air's temperature and density move
 #: the drag force exactly as a Cd change does, so Cd is reported conditional on the stated air
 CONDITIONAL_EFFECTS = ("temperature", "density")
@@ -352,7 +354,9 @@ def _effect_truth(case, track, with_effects):
 def judge_effects(result_dict, case, track):
     """Each added effect parameter with a truth: value, sd, truth and ``z`` (in its sd); ``ok``
     is whether every one lies within :data:`EFFECT_TOL_SD` sd of the truth (None with none to
-    judge). A wind layer's sd is its Cramér-Rao sd; one that the data leave unbounded passes."""
+    judge). A wind layer's sd is its Cramér-Rao sd. A parameter whose sd exceeds
+    :data:`UNSIZED_RATIO` times its true size is listed in ``unsized`` and fails: the fit did not
+    size it (a radar clock traded with a free initial state)."""
     ml = result_dict["ml"]
     we = ml.get("with_effects") or {}
     if not we:
@@ -374,7 +378,9 @@ def judge_effects(result_dict, case, track):
             continue
         z = (v - t) / sd if sd > 0 else (0.0 if v == t else math.inf)
         params.append({"name": name, "value": float(v), "sd": float(sd), "truth": float(t), "z": float(z)})
-    return {"ok": (all(abs(q["z"]) <= EFFECT_TOL_SD for q in params) if params else None), "params": params}
+    unsized = [q["name"] for q in params if q["truth"] != 0 and q["sd"] > UNSIZED_RATIO * abs(q["truth"])]
+    ok = all(abs(q["z"]) <= EFFECT_TOL_SD for q in params) and not unsized if params else None
+    return {"ok": ok, "params": params, "unsized": unsized}
 
 
 # -- judging ---------------------------------------------------------------------------------------
@@ -433,5 +439,5 @@ def run_case(case, **fit_options):
         out["effect_params"] = {n: (v, d["ml"]["crb"].get(n)) for n, v in d["ml"]["params"].items()
                                 if n.split(".")[0] in (out["effects_added"] or ())}
         size = judge_effects(d, case, track)
-        out["effect_size_ok"], out["effect_size"] = size["ok"], size["params"]
+        out["effect_size_ok"], out["effect_size"], out["effect_unsized"] = size["ok"], size["params"], size["unsized"]
     return out

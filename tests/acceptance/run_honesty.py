@@ -5,7 +5,8 @@
 Columns: rows in the judged span, right (accuracy), determined, determined but wrong (the defect),
 worst |z| of a wrong determined row, determined fraction of the span, quality gate, seconds, the
 effects the fit added, and their size against the truth: the largest |z| (fitted - true, in the
-parameter's sd) and whether every judged parameter lies within 3 sd ("-": none to judge).
+parameter's sd) and whether every judged parameter lies within 3 sd ("-": none to judge;
+"unsized": an sd over ten times the true size, which fails).
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ def _size(r):
     if r.get("effect_size_ok") is None:
         return "  -" if r.get("effects_added") else ""
     worst = max(abs(q["z"]) for q in r["effect_size"])
-    return f"  {worst:.1f} {'y' if r['effect_size_ok'] else 'n'}"
+    return f"  {worst:.1f} {'y' if r['effect_size_ok'] else 'n'}" + (" unsized" if r.get("effect_unsized") else "")
 
 
 def main(argv=None):
@@ -59,7 +60,8 @@ def main(argv=None):
         print(f"added effects' size within {hs.EFFECT_TOL_SD:g} sd of the truth: {len(sized) - len(off)}/{len(sized)} "
               f"cases" + (" (not: " + ", ".join(
                   f"{r['id']} {q['name']} {q['value']:.4g} +- {q['sd']:.2g} for {q['truth']:.4g}"
-                  for r in off for q in r["effect_size"] if abs(q["z"]) > hs.EFFECT_TOL_SD) + ")" if off else ""))
+                  for r in off for q in r["effect_size"]
+                  if abs(q["z"]) > hs.EFFECT_TOL_SD or q["name"] in r.get("effect_unsized", ())) + ")" if off else ""))
     cond = [r for r in out if r.get("conditional") and "error" not in r]
     if cond:
         print(f"conditional on the stated air (left out of the totals): "
