@@ -9,12 +9,13 @@ import math
 import numpy as np
 
 from .errors import FitError, InputError
-from .estimate.cd.model_error import combine, describe, shift_sd
+from .estimate.cd.model_error import check_sd, combine, describe, shift_sd
 from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "note_model_error", "air", "why_not_clean", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD"]
+__all__ = ["model_error", "note_model_error", "air", "why_not_clean", "level_shift", "AIR_CONTRADICTION_SD",
+           "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
 def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True):
@@ -34,7 +35,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     parts = {}
     from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 
-    verdict, shifts, effects_fit = [], {}, None
+    verdict, shifts, profiles, effects_fit = [], {}, {}, None
     if not diagnose_effects:
         pass                          # the fit carries the effects: the caller records them
     elif track.n < MIN_DIAGNOSIS_SAMPLES:
@@ -44,6 +45,8 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             dsum = diagnose(track, rnd, channels=chans).summary
             verdict = list(dsum["verdict"])
             shifts = {e["name"]: e.get("cd_shift_max") for e in dsum.get("effects", [])}
+            profiles = {e["name"]: e["cd_shift"] for e in dsum.get("effects", [])
+                        if isinstance(e.get("cd_shift"), dict) and e["cd_shift"].get("mach")}
         except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
             # the check never costs the fit its answer: the record says it could not be made
             rec["diagnosis_failed"] = f"{type(exc).__name__}: {exc}"
@@ -55,6 +58,12 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         if alt is not None:
             parts["effects"] = shift_sd(ml, band, alt[0], alt[1])
             effects_fit = alt[2]
+            confounded = level_shift(grid, ml, profiles, [n for n in keep if n in LEVEL_EFFECTS])
+            if confounded is not None:
+                # an effect that trades with Cd: its fit with Cd free cannot size it, the
+                # diagnosis (against the firing table) can; the larger of the two stands
+                parts["effects"] = np.maximum(parts["effects"], confounded)
+                rec["effects_sized_by_diagnosis"] = [n for n in keep if n in LEVEL_EFFECTS and n in profiles]
         else:
             # the effect could not be fitted with Cd: the diagnosis's own largest Cd shift of each,
             # taken at every row (a bound where the fit cannot say where along the flight)
@@ -72,21 +81,28 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         flagged = int(out.any(axis=1).sum())
     if opts.likelihood == "gaussian" and flagged:
         # gross outliers: a Student-t fit (white, outliers reweighted) is the check
-        alt = _alt_rows(track, rnd, opts, chans, f1, grid, likelihood="student-t")
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, likelihood="student-t", **_same_effects(f1))
         if alt is not None:
-            parts["noise"] = shift_sd(ml, band, alt[0])
+            # the reported fit's sd is its band (an AR(1) fit's floored at the white fit's sd: its
+            # own bound trusts the AR(1) form, which a rho near 1 hides)
+            parts["noise"] = check_sd(ml, band, alt[0], alt[1])
             rec["noise_check"] = {"why": "gross outliers" + (" and correlated (AR(1)) residuals" if noisy else ""),
                                   "against": "student-t", "outlier_samples": flagged}
     elif f1.white_ml is not None and diagnose_effects:
         # correlated residuals the auto noise model took as AR(1): the white-noise fit it started
         # from is the check (no new fit: both are consistent when the model is right)
-        parts["noise"] = shift_sd(ml, band, f1.drag_model.cd(f1.white_ml.drag_params, grid))
+        white_sd = np.array([r.get("model_error_floor", r["crb_sd"]) for r in rows], float)
+        gls_sd = np.array([r["crb_sd"] for r in rows], float)
+        parts["noise"] = check_sd(ml, gls_sd, f1.drag_model.cd(f1.white_ml.drag_params, grid), white_sd)
         rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     elif f1.white_ml is not None:
         # a fit carrying effects started from a white fit without them: the check is the same
         # effects fitted with white noise (one more fit)
-        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=tuple(f1.effects), noise_model="white")
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, noise_model="white", **_same_effects(f1))
         if alt is not None:
+            # its band's excess over the AR(1) fit's is kept too, not taken as the difference's
+            # noise: near rho = 1 the AR(1) bound is too narrow (measured: a wind flight on
+            # rho 0.95 noise claimed rows 3.1 sd off without it)
             parts["noise"] = shift_sd(ml, band, alt[0], alt[1])
             rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     me = combine(*parts.values())
@@ -95,6 +111,39 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         for r, v in zip(rows, me):
             r["model_error_sd"] = float(v)
     return rec, effects_fit
+
+
+#: effects whose fit with Cd free trades against Cd itself: the temperature's density part is a
+#: factor on the drag, and the induced drag of a decaying yaw is a change of the drag's shape over
+#: the Mach numbers flown first (measured on the honesty suite's yaw flight: the fit with it
+#: moved Cd by 3 % where the yaw had moved it by 12 %)
+LEVEL_EFFECTS = ("temperature", "yaw_drag")
+
+
+def level_shift(grid, ml, profiles, names):
+    """Cd shift [Cd] at each grid row of effects that trade with Cd, as the diagnosis sized them
+    against the firing table (its ``cd_shift`` profile: the Cd change a fit that ignores the
+    effect absorbs, at a few Mach numbers; linear between them, held beyond): the effects added
+    in squares. None when none of ``names`` has a profile."""
+    have = [profiles[n] for n in names if n in profiles]
+    if not have:
+        return None
+    grid, ml = np.asarray(grid, float), np.asarray(ml, float)
+    rel = [np.interp(grid, np.asarray(p["mach"], float), np.abs(np.asarray(p["cd_relative"], float)))
+           for p in have]
+    return np.sqrt(sum(r**2 for r in rel)) * np.abs(ml)
+
+
+def _same_effects(f1):
+    """Keywords that give a check of ``f1`` the same effects (and wind layers) as ``f1``: a check
+    of the noise model compares like with like."""
+    if not f1.effects:
+        return {}
+    kw = {"with_effects": tuple(f1.effects)}
+    layers = getattr(f1.problem.model, "layers", None)
+    if "wind_profile" in f1.effects and layers is not None:
+        kw["wind_layers"] = layers
+    return kw
 
 
 def _alt_rows(track, rnd, opts, chans, f1, grid, **change):

@@ -23,7 +23,7 @@ from .estimate.cd.quality import assess, check_against_flexible, intervals
 from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
-from .model_check import air, model_error, note_model_error, why_not_clean
+from .model_check import LEVEL_EFFECTS, air, model_error, note_model_error, why_not_clean
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
 from .round import Round
@@ -132,7 +132,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         gap, _ = model_error(track, rnd, opts, chans, f1, grid, rows, diagnose_effects=False)
         gap.update(verdict=found["verdict"], skipped=found["skipped"], conditional_air=found["conditional_air"],
                    effects_fitted=list(f1.effects))
-        _effect_residual(rows, gap)
+        _effect_residual(rows, gap, residual_share(plain.ml, f1.ml, f1.problem.channels, rnd.radar.sigma))
         with_note = {"added_by": "default", "requested": "default", "effects": list(f1.effects),
                      "candidates": list(found["verdict"]), "skipped": found["skipped"],
                      "reason": (f"the model check's diagnosis names {', '.join(found['verdict'])}, which the round "
@@ -191,27 +191,53 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
 
 
 
-#: share of the Cd shift an effect's fit corrected that is kept as model error of the corrected
-#: Cd: the effect's model (a constant wind, a few wind layers, one clock offset) is the real
-#: effect's simplest form, and what it leaves is taken as a quarter of what it removed (the
-#: diagnosis accepts an effect that removes >= 90 % of the gap and a size within 25 %)
+#: largest share of the Cd shift an effect's fit corrected that is kept as model error of the
+#: corrected Cd: the effect's model (a constant wind, a few wind layers, one clock offset) is the
+#: real effect's simplest form, and what it leaves is taken as at most a quarter of what it removed
+#: (the diagnosis accepts an effect that removes >= 90 % of the gap and a size within 25 %)
 EFFECT_RESIDUAL_SHARE = 0.25
 
 
-def _effect_residual(rows, gap):
-    """Add :data:`EFFECT_RESIDUAL_SHARE` of each row's correction (``ml`` against
-    ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
-    res = [EFFECT_RESIDUAL_SHARE * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
+def structured_power(res, channels, var):
+    """The structured (correlated) part of a fit's residuals: their lag-1 autocovariance in units
+    of each channel's noise variance ``var[c]``, summed over the channels (white noise and outliers
+    add nothing to it on average), and the sd with which white noise alone would give it
+    (``sqrt(C / n)``)."""
+    p, n = 0.0, 1
+    for c in channels:
+        r = np.asarray(res.residuals[c], float)
+        r = r[np.isfinite(r)]
+        s2 = var.get(c, 0.0)
+        if r.size < 3 or s2 <= 0:
+            continue
+        p += float(r[1:] @ r[:-1]) / (r.size - 1) / s2
+        n = max(n, r.size)
+    return p, float(np.sqrt(len(channels) / n))
+
+
+def residual_share(plain, fitted, channels, sigma):
+    """Share of an effect's correction kept as model error: the square root of the structured
+    residual power the effect's fit leaves over the power it removed (the effect's model misses
+    the real effect by as much as the misfit that remains says), never below what white noise
+    would show (two sd of the lag-1 estimate) nor above :data:`EFFECT_RESIDUAL_SHARE`."""
+    # the round's noise sd, else the plain fit's residual rms (one scale for both fits)
+    var = {c: float(sigma[c]) ** 2 if sigma and sigma.get(c) else float(np.mean(np.square(plain.residuals[c])))
+           for c in channels}
+    before, noise = structured_power(plain, channels, var)
+    after, _ = structured_power(fitted, channels, var)
+    if before <= 0:
+        return EFFECT_RESIDUAL_SHARE
+    return float(min(EFFECT_RESIDUAL_SHARE, np.sqrt(max(after, 2.0 * noise) / before)))
+
+
+def _effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
+    """Add ``share`` (at most :data:`EFFECT_RESIDUAL_SHARE`) of each row's correction (``ml``
+    against ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
+    res = [share * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
     for r, e in zip(rows, res):
         r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, e))
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
-    gap["effect_residual_share"] = EFFECT_RESIDUAL_SHARE
-
-#: effects whose fit with Cd free trades against Cd itself unless the round declares how well the
-#: quantity is known: the temperature's density part is a factor on the drag, and the induced drag
-#: of a decaying yaw is a change of the drag's shape over the Mach numbers flown first (measured:
-#: adopted, 32 claimed rows 3.5 sd off on the honesty suite's yaw flight)
-LEVEL_EFFECTS = ("temperature", "yaw_drag")
+    gap["effect_residual_share"] = float(f"{share:.4g}")
 
 
 def _trades_with_cd(f1, rnd):

@@ -58,6 +58,10 @@ SPAN_TRIM = 0.05
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 #: sample interval of the new cases [s]
 DT = 0.05
+#: an added effect's fitted size is right within this many of its sd (issue 30's acceptance)
+EFFECT_TOL_SD = 3.0
+#: a fitted size whose sd exceeds this many times the true size bounds nothing: "unsized", not right
+UNSIZED_RATIO = 10.0
 #: undeclared effects a track cannot reveal apart from Cd: the air's temperature and density move
 #: the drag force exactly as a Cd change does, so Cd is reported conditional on the stated air
 CONDITIONAL_EFFECTS = ("temperature", "density")
@@ -286,6 +290,99 @@ def make(case):
     return track, rnd, {"cd": cd, "mach_span": (float(mach[2:-2].min()), float(mach[2:-2].max()))}
 
 
+# -- the truth of an added effect ----------------------------------------------------------------
+def true_wind(case):
+    """The case's true wind [m/s] as ``f(x, z) -> (wx, wy)`` of downrange ``x`` and height ``z``
+    (arrays) [m], or None when the case flew no wind."""
+    p = case.withheld.params if case.withheld is not None else case.params
+    if case.kind == "withheld":
+        if case.withheld.effect != "wind":
+            return None
+        if "shear" in p:
+            w0, sh = (p["wx0"], p["wy0"]), p["shear"]
+            return lambda x, z: (w0[0] + sh[0] * z, w0[1] + sh[1] * z)
+        return lambda x, z: (np.full_like(x, p["wx"]), np.full_like(x, p["wy"]))
+    if case.kind == "pm-wind":
+        return lambda x, z: (np.full_like(x, p["wind"][0]), np.full_like(x, p["wind"][1]))
+    if case.kind == "layered":
+        lev = np.asarray(p["levels"], float)
+        return lambda x, z: (np.interp(z, lev, p["wx"]), np.interp(z, lev, p["wy"]))
+    if case.kind == "pbc-zones":
+        edges = [0.0] + [zn[2] if zn[2] is not None else np.inf for zn in p["zones"]]
+
+        def zones(x, z):
+            k = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(p["zones"]) - 1)
+            return (np.array([p["zones"][i][0] for i in k]), np.array([p["zones"][i][1] for i in k]))
+        return zones
+    return None
+
+
+def _effect_truth(case, track, with_effects):
+    """``{parameter: true value}`` of the effects a fit added, where the case defines one: a
+    constant wind (its value, or the mean over the flight of a wind that changes), a wind layer
+    (the mean true wind over the samples flown inside it), the radar clock, yaw drag, the point
+    mass's lift factor. Coriolis has no parameter; a 6-DOF flight's lift has no point-mass truth."""
+    out = {}
+    eff = with_effects.get("fitted") or with_effects.get("effects") or []
+    w = case.withheld
+    p = w.params if w is not None else case.params
+    x = np.asarray(track.channels["x"], float)
+    z = np.asarray(track.channels["z"], float)
+    wind = true_wind(case)
+    if "wind" in eff and wind is not None:
+        wx, wy = wind(x, z)
+        out["wind.wx"], out["wind.wy"] = float(np.mean(wx)), float(np.mean(wy))
+    lay = with_effects.get("wind_layers")
+    if "wind_profile" in eff and wind is not None and lay:
+        pos = x if lay["axis"] == "downrange" else z
+        wx, wy = wind(x, z)
+        for row in lay["layers"]:
+            sel = (pos >= row["from"]) & (pos < row["to"])
+            if sel.sum() >= 2:
+                out[f"wind_profile.wx_{row['layer']}"] = float(np.mean(wx[sel]))
+                out[f"wind_profile.wy_{row['layer']}"] = float(np.mean(wy[sel]))
+    if w is not None and w.effect == "radar_time" and "radar_time" in eff:
+        out["radar_time.dt"] = float(p["dt"])
+    if w is not None and w.effect == "yaw_drag" and "yaw_drag" in eff:
+        out["yaw_drag.yaw_amp"] = 10.0 * p["delta0"] ** 2
+        out["yaw_drag.decay"] = float(p["decay"])
+    if w is not None and w.effect == "lift" and w.sim == "pm" and "lift" in eff:
+        out["lift.factor"] = float(p["factor"])
+    return out
+
+
+def judge_effects(result_dict, case, track):
+    """Each added effect parameter with a truth: value, sd, truth and ``z`` (in its sd); ``ok``
+    is whether every one lies within :data:`EFFECT_TOL_SD` sd of the truth (None with none to
+    judge). A wind layer's sd is its Cramér-Rao sd. A parameter whose sd exceeds
+    :data:`UNSIZED_RATIO` times its true size is listed in ``unsized`` and fails: the fit did not
+    size it (a radar clock traded with a free initial state)."""
+    ml = result_dict["ml"]
+    we = ml.get("with_effects") or {}
+    if not we:
+        return {"ok": None, "params": []}
+    truth = _effect_truth(case, track, we)
+    lay = {}
+    for row in (we.get("wind_layers") or {}).get("layers", []):
+        for c in ("wx", "wy"):
+            lay[f"wind_profile.{c}_{row['layer']}"] = (row[c], row.get(f"{c}_sd"))
+    params = []
+    for name, t in truth.items():
+        if name in lay:
+            v, sd = lay[name]
+        elif name in ml["params"]:
+            v, sd = ml["params"][name], ml["crb"].get(name)
+        else:
+            continue
+        if sd is None:            # a layer held fixed (not flown in that channel)
+            continue
+        z = (v - t) / sd if sd > 0 else (0.0 if v == t else math.inf)
+        params.append({"name": name, "value": float(v), "sd": float(sd), "truth": float(t), "z": float(z)})
+    unsized = [q["name"] for q in params if q["truth"] != 0 and q["sd"] > UNSIZED_RATIO * abs(q["truth"])]
+    ok = all(abs(q["z"]) <= EFFECT_TOL_SD for q in params) and not unsized if params else None
+    return {"ok": ok, "params": params, "unsized": unsized}
+
+
 # -- judging ---------------------------------------------------------------------------------------
 def row_right(mach, cd, band_sd, truth_cd):
     """The project's rule for one row: within TOL_REL of the truth anywhere within MACH_SLACK, or
@@ -341,4 +438,6 @@ def run_case(case, **fit_options):
         out["effects_added"] = we.get("fitted") or we.get("effects")
         out["effect_params"] = {n: (v, d["ml"]["crb"].get(n)) for n, v in d["ml"]["params"].items()
                                 if n.split(".")[0] in (out["effects_added"] or ())}
+        size = judge_effects(d, case, track)
+        out["effect_size_ok"], out["effect_size"], out["effect_unsized"] = size["ok"], size["params"], size["unsized"]
     return out

@@ -5,7 +5,8 @@ import pytest
 
 from bayesdrag.estimate.bayes.draws import cd_posterior_rows, needs_widening, widen_to_floor
 from bayesdrag.estimate.cd.headline import HEADLINE_LEVEL_Z, headline
-from bayesdrag.estimate.cd.model_error import combine, fold_into_budget, shift_sd
+from bayesdrag.estimate.cd.model_error import check_sd, combine, fold_into_budget, shift_sd
+from bayesdrag.model_check import level_shift
 
 #: relative agreement of quantities written to 6 significant digits
 SIX_DIGITS = 1e-5
@@ -18,6 +19,31 @@ def test_shift_sd_carries_the_better_fits_band():
     # the plain Cd's error sd is sqrt(shift^2 + band_alt^2): its band plus me in squares gives it
     np.testing.assert_allclose(np.hypot(band, me), [np.hypot(0.003, 0.0015), 0.002], rtol=1e-12)
     np.testing.assert_allclose(shift_sd(ml, band, alt), [0.003, 0.0], atol=1e-15)
+
+
+def test_check_sd_keeps_only_what_the_difference_noise_cannot_explain():
+    ml, sd = np.array([0.30, 0.30, 0.30]), np.array([0.004, 0.004, 0.002])
+    # a robust check twice as precise differs by 0.003: noise of variance 0.004^2 - 0.002^2 holds it
+    alt, sd_alt = np.array([0.303, 0.310, 0.303]), np.array([0.002, 0.002, 0.002])
+    me = check_sd(ml, sd, alt, sd_alt)
+    assert me[0] == 0.0
+    # a 0.010 shift against a difference noise of sd sqrt(1.2e-5): the excess is the bias
+    np.testing.assert_allclose(me[1], np.sqrt(0.010**2 - (0.004**2 - 0.002**2)), rtol=1e-12)
+    # equal precision: no noise in the difference is granted, the shift stands whole
+    np.testing.assert_allclose(me[2], 0.003, rtol=1e-12)
+    assert np.all(check_sd(ml, sd, np.array([np.nan] * 3), sd_alt) == np.inf)
+
+
+def test_level_shift_follows_the_diagnosis_profile_in_squares():
+    grid, ml = np.array([1.0, 1.5, 2.0, 2.5]), np.full(4, 0.3)
+    profiles = {"yaw_drag": {"mach": [1.0, 2.0], "cd_relative": [0.0, -0.1]},
+                "temperature": {"mach": [1.0, 2.0], "cd_relative": [0.02, 0.02]}}
+    yaw = level_shift(grid, ml, profiles, ["yaw_drag"])
+    # linear between the diagnosis's Mach numbers, |relative| times Cd, held beyond its range
+    np.testing.assert_allclose(yaw, [0.0, 0.015, 0.03, 0.03], rtol=1e-12)
+    both = level_shift(grid, ml, profiles, ["yaw_drag", "temperature"])
+    np.testing.assert_allclose(both, np.hypot(yaw, 0.006), rtol=1e-12)
+    assert level_shift(grid, ml, profiles, ["wind"]) is None
 
 
 def test_combine_adds_in_squares_and_none_is_nothing():
@@ -62,3 +88,32 @@ def test_headline_takes_the_rows_numbers():
     assert all(p["determined"] for p in h["cd"])
     assert h["cd"][0]["q95"] - h["cd"][0]["cd"] == pytest.approx(HEADLINE_LEVEL_Z * 0.001)
     assert headline(rows, None, True)["determined_range"] is None
+
+
+def _residuals(**chans):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(residuals={c: np.asarray(v, float) for c, v in chans.items()})
+
+
+def test_residual_share_follows_the_structured_misfit_that_remains():
+    from bayesdrag.pipeline import EFFECT_RESIDUAL_SHARE, residual_share
+
+    rng = np.random.default_rng(7)
+    n = 2000
+    t = np.linspace(0.0, 1.0, n)
+    noise = rng.normal(0.0, 1.0, n)
+    # the plain fit leaves a smooth misfit of 5 noise sd, the effect's fit white noise only: the
+    # share is white noise's detection limit, far below the cap
+    plain = _residuals(x=noise + 5.0 * np.sin(3 * t))
+    exact = _residuals(x=rng.normal(0.0, 1.0, n))
+    share = residual_share(plain, exact, ("x",), {"x": 1.0})
+    limit = np.sqrt(2.0 / np.sqrt(n) / np.mean((5.0 * np.sin(3 * t))**2))
+    assert share < 0.5 * EFFECT_RESIDUAL_SHARE
+    np.testing.assert_allclose(share, limit, rtol=0.25)
+    # a fit that leaves a fifth of the smooth misfit keeps about a fifth of its correction
+    part = _residuals(x=rng.normal(0.0, 1.0, n) + 1.0 * np.sin(3 * t))
+    np.testing.assert_allclose(residual_share(plain, part, ("x",), {"x": 1.0}), 0.2, atol=0.05)
+    # one that removes little is capped; a plain fit with no structure keeps the cap
+    assert residual_share(plain, plain, ("x",), {"x": 1.0}) == EFFECT_RESIDUAL_SHARE
+    assert residual_share(exact, exact, ("x",), None) == EFFECT_RESIDUAL_SHARE

@@ -16,9 +16,10 @@ Noise
     ``auto`` noise model approximates as AR(1), rests on a noise model the data cannot fully
     check. Another consistent estimator of the same track is the check: a robust fit (Student-t,
     white) where the track has gross outliers, else the white-noise fit the AR(1) fit started
-    from. Both estimators are consistent when the model is right, so where their curves differ,
-    Cd is uncertain by that difference (taken as one sd). On a white track without outliers
-    neither check runs.
+    from. Both estimators are consistent when the model is right, so their curves differ by
+    noise alone, of variance the difference of their variances (Hausman: the efficient one is
+    uncorrelated with the difference); what the difference holds beyond that is a bias, taken as
+    one sd (:func:`check_sd`). On a white track without outliers neither check runs.
 
 The model error enters the row's band in squares, and ``uncertainty_budget.by_source.model_error``
 (:func:`fold_into_budget`), so the budget's squares still add up to the band the row reports.
@@ -27,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["shift_sd", "combine", "fold_into_budget", "describe"]
+__all__ = ["shift_sd", "check_sd", "combine", "fold_into_budget", "describe"]
 
 
 def shift_sd(ml, band, ml_alt, band_alt=None):
@@ -51,6 +52,32 @@ def shift_sd(ml, band, ml_alt, band_alt=None):
     ml, band, alt = (np.asarray(a, float) for a in (ml, band, ml_alt))
     extra = 0.0 if band_alt is None else np.clip(np.asarray(band_alt, float)**2 - band**2, 0, None)
     out = np.sqrt((ml - alt)**2 + extra)
+    return np.where(np.isfinite(out), out, np.inf)
+
+
+def check_sd(ml, sd, ml_alt, sd_alt):
+    """Model-error sd [Cd] of each row from a check: another consistent estimator of the same
+    track under another noise model.
+
+    When the model is right both estimate the same Cd and differ by noise only, with variance
+    ``|sd_alt^2 - sd^2|`` (Hausman: the more efficient estimator is uncorrelated with the
+    difference). The part of the squared difference beyond that is the bias the noise models
+    disagree on: ``sqrt(max(shift^2 - |sd_alt^2 - sd^2|, 0))``.
+
+    Parameters
+    ----------
+    ml, sd : (M,) array_like
+        The reported fit's Cd and the sd of its estimator at the grid (a larger ``sd`` than the
+        estimator has grants the difference less noise: conservative).
+    ml_alt, sd_alt : (M,) array_like
+        The check's Cd and the sd of its estimator (its honest band) at the same grid.
+
+    Returns
+    -------
+    (M,) ndarray
+    """
+    ml, sd, alt, sda = (np.asarray(a, float) for a in (ml, sd, ml_alt, sd_alt))
+    out = np.sqrt(np.clip((ml - alt)**2 - np.abs(sda**2 - sd**2), 0, None))
     return np.where(np.isfinite(out), out, np.inf)
 
 
