@@ -41,6 +41,23 @@ def test_an_undeclared_wind_is_found_fitted_and_the_rows_claimed_are_right(case_
     assert r["determined_fraction"] >= MIN_DETERMINED, r
 
 
+#: a fitted clock offset's sd must be below this to count as measured [s] (a flight of tens of
+#: seconds at 0.05 s samples sizes it to milliseconds once the launch priors hold)
+CLOCK_SD_MAX = 0.005
+
+
+def test_a_late_radar_clock_is_fitted_and_sized_with_the_launch_priors_kept():
+    case = hs.case_by_id("w-pm-radar_time-15")
+    r = hs.run_case(case)
+    assert "error" not in r, r.get("error")
+    assert r["effects_added"] == ["radar_time"], r
+    value, sd = r["effect_params"]["radar_time.dt"]
+    truth = case.withheld.params["dt"]
+    assert sd < CLOCK_SD_MAX, f"radar_time.dt {value:.4g} +- {sd:.3g} s: the clock offset is not sized"
+    assert abs(value - truth) <= EFFECT_K * sd, f"radar_time.dt {value:.4g} +- {sd:.3g} s for {truth}"
+    assert r["determined_wrong"] == 0, r
+
+
 def test_a_track_the_model_fits_gets_nothing_added_and_the_same_cd():
     case = hs.case_by_id("w-pm-null-100")
     track, rnd, _ = hs.make(case)

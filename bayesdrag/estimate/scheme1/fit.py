@@ -339,7 +339,9 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
             prob.theta0 = res_b.theta.copy()
     model = prob.model
     say("checking the round's launch values against the track")
-    used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen, start=start, sigma=sig)
+    clock = "radar_time" in with_effects or rnd.systematics.time_offset is not None
+    used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen, start=start, sigma=sig,
+                                        clock_fitted=clock)
     used = fixed_pri + tuple(used)
     if unseen:
         check["applied"] = list(unseen) + check["applied"]

@@ -83,14 +83,18 @@ def _prior_value_sd(prior, theta, cov, steps):
     return v, float(np.sqrt(max(g @ cov @ g, 0.0)))
 
 
-def checked_launch_priors(track, rnd, model, res, P, skip=(), start=None, sigma=None):
+def checked_launch_priors(track, rnd, model, res, P, skip=(), start=None, sigma=None, clock_fitted=False):
     """The round's launch priors (except those named in ``skip``) that agree with a fit made
     without them.
 
     The muzzle position is checked by :func:`origin_offset`: a first sample away from the muzzle
     is either a late (or early) clock or a track whose frame is not at the gun, and the check
     says which; it never fires on an offset the noise or the fit's own uncertainty could make,
-    and keeps the priors when it is unsure.
+    and keeps the priors when it is unsure. A clock offset with ``clock_fitted`` (the fit carries
+    the ``radar_time`` effect; also an offset the flight cannot tell from one of the frame) keeps
+    every launch prior: the fitted offset explains it, and
+    without the priors a clock offset is the same as another initial state, so the fit could
+    not size it.
 
     Parameters
     ----------
@@ -131,6 +135,14 @@ def checked_launch_priors(track, rnd, model, res, P, skip=(), start=None, sigma=
         v, sd_fit = _prior_value_sd(p, res.theta, cov, np.r_[np.zeros(P), [0.01] * 3, [0.001] * 3])
         vals[p.name] = (v, sd_fit)
     origin = origin_offset(track, rnd, model, res, P, vals, start, sigma)
+    if origin is not None and origin["kind"] in ("clock", "clock or position") and clock_fitted:
+        # (where the flight cannot tell a late clock from a frame along the path, the fitted
+        # offset stands for either: the two move the track alike)
+        check["applied"] = [p.name for p in cands]
+        check["origin"] = origin
+        check["time_origin_offset"] = origin["clock_offset"]
+        check["note"] = "the radar clock's offset is fitted (radar_time): the launch priors hold at the launch"
+        return tuple(cands), check
     muzzle = [n for n in ("X0_muzzle", "Y0_muzzle", "Z0_muzzle") if n in vals]
     used = []
     for p in cands:
