@@ -28,11 +28,12 @@ import numpy as np
 
 from ..effects import EFFECTS
 from ..errors import FitError
-from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, path_layers
+from ..wind_layers import EDGE_ROUND, PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, path_layers
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
            "wind_prior_precision", "occam", "data_cost", "fit_wind_profile", "rechoose_wind", "cannot_separate", "separable",
-           "SEPARATE_SD", "TRADE_PARTNERS", "SHAPE_RIVAL_SHARE", "shape_rival_share"]
+           "SEPARATE_SD", "TRADE_PARTNERS", "SHAPE_RIVAL_SHARE", "shape_rival_share", "finer_layers",
+           "refined_start"]
 
 #: the wind models, simplest first: the evidence chooses one of them to stand for the wind
 WIND_FAMILY = ("wind", "wind_profile")
@@ -72,6 +73,43 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     x, z = _path(setup, y_base)
     return path_layers(axis, x, z, setup.rnd.atmosphere.gun_altitude,
                        getattr(setup.rnd.atmosphere, "wind", None), n)
+
+
+def finer_layers(layers, n=WIND_LAYERS_MAX):
+    """The layers of a wind profile at the fit's resolution: ``n`` equal layers over the same
+    span, axis, base and cross-wind rule (``fit --with wind_profile`` lays
+    :data:`~bayesdrag.wind_layers.WIND_LAYERS_MAX`); None when ``layers`` is None or already has
+    that many."""
+    if layers is None or layers.n >= n:
+        return None
+    lo, hi = layers.edges[0], layers.edges[-1]
+    e = np.round(np.linspace(lo, hi, n + 1) / EDGE_ROUND) * EDGE_ROUND
+    e[0], e[-1] = lo, hi
+    if np.any(np.diff(e) <= 0):
+        return None
+    return replace(layers, edges=tuple(float(v) for v in e))
+
+
+def refined_start(setup, names, res, coarse, fine):
+    """Starting parameters of effects ``names`` with ``wind_profile`` on ``fine`` layers, from a
+    fit ``res`` with it on ``coarse`` ones: each fine layer starts at the wind of the coarse layer
+    holding its middle, every other parameter at its value in ``res``."""
+    vals = dict(zip(res.names, res.theta))
+    mid = 0.5 * (np.asarray(fine.edges[:-1]) + np.asarray(fine.edges[1:]))
+    home = np.clip(np.searchsorted(np.asarray(coarse.edges), mid, side="right"), 1, coarse.n)
+    out = [res.theta[:setup.P + 6]]
+    for n in names:
+        e = EFFECTS[n]
+        row = []
+        for p in e.params:
+            key = f"{n}.{p.name}"
+            if n == "wind_profile":
+                c, k = p.name.rsplit("_", 1)
+                k = int(k)
+                key = f"{n}.{c}_{int(home[k - 1])}" if k <= fine.n else None
+            row.append(vals.get(key, p.start) if key is not None else p.start)
+        out.append(np.asarray(row, float))
+    return np.concatenate(out)
 
 
 def _path(setup, y_base):
