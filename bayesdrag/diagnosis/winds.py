@@ -28,7 +28,8 @@ import numpy as np
 
 from ..effects import EFFECTS
 from ..errors import FitError
-from ..wind_layers import EDGE_ROUND, PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, path_layers
+from ..estimate.scheme1.winds import at_fit_resolution, layers_over, wind_layer_priors
+from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
            "wind_prior_precision", "occam", "data_cost", "fit_wind_profile", "rechoose_wind", "cannot_separate", "separable",
@@ -56,7 +57,7 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     """The wind_profile layers of this track: ``n`` equal layers over the flown range of the
     coordinate (height from the gun to the apex, or downrange distance from the gun to the last
     sample), read off the baseline's fitted outputs, with the round's own wind as the base
-    (:func:`bayesdrag.wind_layers.path_layers`).
+    (:func:`bayesdrag.estimate.scheme1.winds.layers_over`, the fit's construction).
 
     Parameters
     ----------
@@ -71,23 +72,14 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     WindLayers or None when the coordinate has no span (no x or z channel and no model path).
     """
     x, z = _path(setup, y_base)
-    return path_layers(axis, x, z, setup.rnd.atmosphere.gun_altitude,
-                       getattr(setup.rnd.atmosphere, "wind", None), n)
+    return layers_over(axis, x, z, setup.rnd.atmosphere, n)
 
 
-def finer_layers(layers, n=WIND_LAYERS_MAX):
-    """The layers of a wind profile at the fit's resolution: ``n`` equal layers over the same
-    span, axis, base and cross-wind rule (``fit --with wind_profile`` lays
-    :data:`~bayesdrag.wind_layers.WIND_LAYERS_MAX`); None when ``layers`` is None or already has
-    that many."""
-    if layers is None or layers.n >= n:
-        return None
-    lo, hi = layers.edges[0], layers.edges[-1]
-    e = np.round(np.linspace(lo, hi, n + 1) / EDGE_ROUND) * EDGE_ROUND
-    e[0], e[-1] = lo, hi
-    if np.any(np.diff(e) <= 0):
-        return None
-    return replace(layers, edges=tuple(float(v) for v in e))
+def finer_layers(layers):
+    """The layers of a wind profile at the fit's resolution (``fit --with wind_profile``:
+    :func:`bayesdrag.estimate.scheme1.winds.at_fit_resolution`); None when ``layers`` is None or
+    already that fine."""
+    return at_fit_resolution(layers)
 
 
 def refined_start(setup, names, res, coarse, fine):
@@ -121,17 +113,6 @@ def _path(setup, y_base):
     return x, z
 
 
-def _pidx(names, effect="wind_profile"):
-    """Indices in the fit's parameter names of an effect's used parameters, by layer:
-    {(component, layer): index}."""
-    out = {}
-    for j, n in enumerate(names):
-        if n.startswith(effect + "."):
-            c, k = n.split(".", 1)[1].rsplit("_", 1)
-            out[(c, int(k))] = j
-    return out
-
-
 def rw_priors(names_all, free):
     """The random-walk priors of ``wind_profile``'s used layers: each neighbouring pair's
     difference ~ N(0, WIND_STEP_SD^2), per component (linear rows of the full parameter vector;
@@ -148,8 +129,6 @@ def rw_priors(names_all, free):
     -------
     tuple of Prior
     """
-    from ..estimate.scheme1.winds import wind_layer_priors
-
     return wind_layer_priors(names_all, free)
 
 
