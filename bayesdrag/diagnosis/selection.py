@@ -5,8 +5,10 @@ the candidate :func:`admits` admits with the largest conditional chi2 drop; it i
 from up to two runners-up that explain most of the gap alone, and between the resulting
 explanations parsimony wins unless the larger is significantly better (:func:`is_better`).
 Backward elimination (:func:`backward_elimination`) then drops a member the others make
-superfluous. When ``drag_shape`` (a table of another shell) is detected beside a weather effect,
-the drag effects keep their joint fit (:func:`wrong_table_fit`) and the rest is judged against
+superfluous. Beside a wind profile an effect must also be admitted against the profile at the
+fit's resolution (:func:`beyond_resolution`): else it is taking up the coarse layers' misfit.
+When ``drag_shape`` (a table of another shell) is detected beside a weather effect, the drag
+effects keep their joint fit (:func:`wrong_table_fit`) and the rest is judged against
 a fitted Cd (:func:`bayesdrag.diagnosis.core.diagnose` on the round without its table).
 """
 from __future__ import annotations
@@ -132,7 +134,8 @@ def is_better(setup, new, old, sig_vec, alpha, gap, K):
 def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
     """Forward selection starting from ``first``: add the candidate that :func:`admits`
     (Bonferroni over the remaining) with the largest conditional chi2 drop, up to
-    ``MAX_VERDICT`` effects."""
+    ``MAX_VERDICT`` effects; beside a wind profile the first such candidate that is also
+    admitted against the profile at the fit's resolution (:func:`beyond_resolution`)."""
     verdict = [first["name"]]
     selected_fit = first_fit
     remaining = []
@@ -275,7 +278,8 @@ def conditional_shrinks(setup, joint_res, subs):
 
 def backward_elimination(setup, verdict, fit, fits, gap, sig_vec, alpha, K):
     """Backward elimination after forward selection: drop a member that would not be admitted
-    to the verdict without it (:func:`admits`, as in :func:`forward_selection`), the least useful first,
+    to the verdict without it (:func:`admits` and :func:`beyond_resolution`, as in
+    :func:`forward_selection`), the least useful first,
     and refit. A flexible effect chosen first because it mimics two real ones at once (a head
     wind for a density change, its cross wind for the spin drift) is thus removed once both have
     entered. Returns (verdict, fit, drop-one fits of that verdict)."""
