@@ -21,13 +21,15 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
-__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
-           "FIT_LAYERS"]
+__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "layers_over", "at_fit_resolution", "layer_free",
+           "WIND_AXES", "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
 FIT_LAYERS = WIND_LAYERS_MAX
@@ -97,7 +99,7 @@ def wind_layer_priors(names_all, free, level_sd=None):
     return tuple(out)
 
 
-def fit_layers(prob, res, rnd, axis, effects=("wind_profile",)):
+def fit_layers(prob, res, rnd, axis, fit=None):
     """The ``wind_profile`` layers on ``axis`` over the flight a fit describes.
 
     Parameters
@@ -109,10 +111,11 @@ def fit_layers(prob, res, rnd, axis, effects=("wind_profile",)):
     rnd : Round
         Its atmosphere's wind is the layers' base; its gun altitude the height datum.
     axis : {"altitude", "downrange"}
-    effects : sequence of str
-        The effects fitted with the layers (``wind_profile`` among them): the edges are placed
-        with all of them (:func:`placed_layers`; placed with the wind alone, a warm day's
-        signature chose them).
+    fit : callable ``fit(WindLayers) -> (problem, MLResult, sources, effects fitted)``, optional
+        The fit with those layers and every effect fitted beside them
+        (:func:`bayesdrag.estimate.scheme1.systematics.fit_with_sources`): the edges are placed by
+        its cost (:func:`placed_layers`; with the wind alone a warm day's signature would choose
+        them). None: the equal layers.
 
     Returns
     -------
@@ -127,11 +130,11 @@ def fit_layers(prob, res, rnd, axis, effects=("wind_profile",)):
     equal = layers_over(axis, st[ok, 0], st[ok, 2], rnd.atmosphere, FIT_LAYERS)
     if equal is None:
         return None
-    effects = tuple(effects) if "wind_profile" in effects else tuple(effects) + ("wind_profile",)
-    from .systematics import fit_with_sources
+    if fit is None:
+        return equal
 
     def cost(lay):
-        out = fit_with_sources(prob, res, rnd, effects, wind_layers=lay)
+        out = fit(lay)
         return (float(out[1].cost), out[1]) if out[3] else (np.inf, None)
 
     return placed_layers(equal, cost)
@@ -140,8 +143,6 @@ def fit_layers(prob, res, rnd, axis, effects=("wind_profile",)):
 def _shifted(layers, frac):
     """``layers`` with every inner edge moved up by ``frac`` of a layer's width (the first layer
     widens, the last narrows)."""
-    from dataclasses import replace
-
     e = np.asarray(layers.edges, float)
     w = (e[-1] - e[0]) / layers.n
     inner = np.round((e[1:-1] + frac * w) / EDGE_ROUND) * EDGE_ROUND
@@ -152,8 +153,6 @@ def _shifted(layers, frac):
 def _moved(layers, i, pos):
     """``layers`` with inner edge ``i`` (1..n-1) at ``pos`` [m]; None when it would pass a
     neighbour."""
-    from dataclasses import replace
-
     e = list(layers.edges)
     pos = float(np.round(pos / EDGE_ROUND) * EDGE_ROUND)
     if not e[i - 1] < pos < e[i + 1]:
@@ -173,10 +172,9 @@ def placed_layers(layers, cost):
     """The layers' edges placed where the track puts the wind's changes.
 
     A wind that steps inside a layer leaves a misfit the Cd spline bends to follow, and on a flat
-    flight an along-range wind and Cd(Mach) nearly trade (a 13 m/s step 210 m inside a layer of
-    930 m: rows 4 % off, 4 band sd). The step's position is sharply determined by the track, so
-    the edges are chosen by the fit's cost (same layers, parameters and priors: cost is evidence
-    here): the equal grid and its copies shifted by :data:`GRID_SHIFTS` of a layer, then, in the
+    flight an along-range wind and Cd(Mach) nearly trade (docs/real_data.md). The step's position
+    is sharply determined by the track, so the edges are chosen by the fit's cost (same layers,
+    parameters and priors: cost is evidence here): the equal grid and its copies shifted by :data:`GRID_SHIFTS` of a layer, then, in the
     best, each edge the wind changes across by more than :data:`EDGE_PLACE_STEP` (largest first, at
     most :data:`EDGE_PLACE_MAX`) moved by halving steps from a quarter layer
     (:data:`EDGE_PLACE_ROUNDS`). The equal grid stays unless the best lowers the cost by more than
@@ -215,9 +213,7 @@ def placed_layers(layers, cost):
                     if c < best[0]:
                         best = (c, r, lay)
             step /= 2.0
-    # the edges are parameters chosen among the grids tried: kept where they lower the cost by
-    # more than chance would over that many tries (a warm day beside the wind: 5.7 lower with
-    # the grid shifted by half a layer, and the transonic rows 28 % off)
+    # the edges are parameters chosen among the grids tried: kept only beyond chance over the tries
     return best[2] if equal[0] - best[0] > EDGE_PLACE_CHI2 else layers
 
 
@@ -245,8 +241,6 @@ def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
 def at_fit_resolution(layers, n=FIT_LAYERS):
     """The same layers (span, axis, base, cross-wind rule) cut into the fit's ``n`` equal layers;
     None when ``layers`` is None or already has that many."""
-    from dataclasses import replace
-
     if layers is None or layers.n >= n:
         return None
     e = equal_edges(layers.edges[0], layers.edges[-1], n)
