@@ -10,9 +10,10 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   the wind); the random walk keeps the extra layers from wandering.
 * **Edges.** A wind that steps inside a layer leaves a misfit the spline bends Cd to follow, and
   on a flat flight an along-range wind and Cd(Mach) nearly trade; the step's position is sharply
-  determined by the track, so the edges are placed by the fit's cost (:func:`placed_layers`):
-  the equal grid, its copies shifted by a quarter, half and three quarters of a layer, then each
-  edge the wind steps across by more than a random-walk sd moved by halving steps.
+  determined by the track, so the edges by downrange distance are placed by the fit's cost
+  (:func:`placed_layers`): the equal grid, its copies shifted by a quarter, half and three
+  quarters of a layer, then each edge the wind steps across by more than a random-walk sd moved
+  by halving steps. Layers by height stay equal (:data:`PLACED_AXES`).
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -35,6 +36,10 @@ __all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "layers_over", "a
 FIT_LAYERS = WIND_LAYERS_MAX
 #: the axes a wind profile may be laid on, met practice first
 WIND_AXES = ("altitude", "downrange")
+#: the axes whose edges are placed by the cost: zones by downrange distance step where they end;
+#: a height is crossed twice (going up and coming down), and on the height axis the search found
+#: lower costs with wrong transonic Cd (docs/real_data.md), so layers by height stay equal
+PLACED_AXES = ("downrange",)
 #: the equal grid is also tried shifted by these fractions of a layer (its edges then fall within
 #: an eighth of a layer of any point)
 GRID_SHIFTS = (0.25, 0.5, 0.75)
@@ -115,7 +120,7 @@ def fit_layers(prob, res, rnd, axis, fit=None):
         The fit with those layers and every effect fitted beside them
         (:func:`bayesdrag.estimate.scheme1.systematics.fit_with_sources`): the edges are placed by
         its cost (:func:`placed_layers`; with the wind alone a warm day's signature would choose
-        them). None: the equal layers.
+        them) on the axes of :data:`PLACED_AXES`. None: the equal layers.
 
     Returns
     -------
@@ -130,7 +135,7 @@ def fit_layers(prob, res, rnd, axis, fit=None):
     equal = layers_over(axis, st[ok, 0], st[ok, 2], rnd.atmosphere, FIT_LAYERS)
     if equal is None:
         return None
-    if fit is None:
+    if fit is None or axis not in PLACED_AXES:
         return equal
 
     def cost(lay):
