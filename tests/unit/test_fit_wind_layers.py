@@ -59,46 +59,7 @@ def test_a_cross_wind_without_a_y_channel_is_held():
     assert not layer_free(lay, f"wind_profile.wx_{PROFILE_LAYERS + 1}", ("x", "y", "z"))
 
 
-# --- the layers at the fit's resolution and the edges placed by the fit's cost ---------------
-#: the synthetic wind of the placement tests steps from +6 to -7 m/s along the range here [m]
-STEP_AT_M = 3500.0
-#: the placement must put an edge this close to the step [m] (the halving steps end at 1/32 of
-#: a layer: 29 m on the 9.27 km path below, rounded to EDGE_TOL_M)
-PLACED_TOL_M = 30.0 + EDGE_TOL_M
-
-
-def _fake_fit(lay):
-    """A cost that grows with the distance of the nearest edge from the step, and a result whose
-    layer winds step there (as a fit of a zone wind does once an edge is near it)."""
-    from types import SimpleNamespace
-
-    e = np.asarray(lay.edges)
-    mid = 0.5 * (e[:-1] + e[1:])
-    wx = np.where(mid < STEP_AT_M, 6.0, -7.0)
-    names = [f"wind_profile.{c}_{k + 1}" for k in range(lay.n) for c in ("wx", "wy")]
-    theta = np.ravel(np.column_stack([wx, np.zeros(lay.n)]))
-    return 1800.0 + float(np.min(np.abs(e[1:-1] - STEP_AT_M))), SimpleNamespace(names=names, theta=theta)
-
-
-def test_an_edge_is_placed_at_the_step_the_cost_points_to():
-    from bayesdrag.estimate.scheme1.winds import FIT_LAYERS, placed_layers
-
-    equal = path_layers("downrange", np.linspace(0.0, 9271.0, 50), None, 0.0, n=FIT_LAYERS)
-    assert np.min(np.abs(np.asarray(equal.edges) - STEP_AT_M)) > 150.0   # the equal grid misses it
-    placed = placed_layers(equal, _fake_fit)
-    assert placed.n == equal.n and placed.axis == "downrange"
-    assert placed.edges[0] == equal.edges[0] and placed.edges[-1] == equal.edges[-1]
-    assert np.min(np.abs(np.asarray(placed.edges) - STEP_AT_M)) <= PLACED_TOL_M
-    assert np.all(np.diff(placed.edges) > 0)
-
-
-def test_a_failed_fit_keeps_the_equal_layers():
-    from bayesdrag.estimate.scheme1.winds import FIT_LAYERS, placed_layers
-
-    equal = path_layers("downrange", np.linspace(0.0, 9271.0, 50), None, 0.0, n=FIT_LAYERS)
-    assert placed_layers(equal, lambda lay: (np.inf, None)) == equal
-
-
+# --- the layers at the fit's resolution (the diagnosis's check beside a wind profile) ----------
 def test_the_fit_resolution_keeps_span_axis_base_and_cross_wind_rule():
     from dataclasses import replace
 

@@ -245,10 +245,7 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
         return _fit_with(prob, res, rnd, effects, ctx)
     if wind_layers is None or isinstance(wind_layers, str):
         axes = WIND_AXES if wind_layers is None else (wind_layers,)
-        def place(lay):  # the fit with these layers and every effect: fit_layers places edges by its cost
-            return fit_with_sources(prob, res, rnd, effects, wind_layers=lay)
-
-        layers = [fit_layers(prob, res, rnd, ax, place) for ax in axes]
+        layers = [fit_layers(prob, res, rnd, ax) for ax in axes]
     else:
         layers = [wind_layers]
     layers = [lay for lay in layers if lay is not None]

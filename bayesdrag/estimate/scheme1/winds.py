@@ -8,12 +8,6 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   is kept (the two have the same number of parameters and the same priors, so the cost is their
   evidence up to the determinants). More layers than the diagnosis lays (which only has to name
   the wind); the random walk keeps the extra layers from wandering.
-* **Edges.** A wind that steps inside a layer leaves a misfit the spline bends Cd to follow, and
-  on a flat flight an along-range wind and Cd(Mach) nearly trade; the step's position is sharply
-  determined by the track, so the edges by downrange distance are placed by the fit's cost
-  (:func:`placed_layers`): the equal grid, its copies shifted by a quarter, half and three
-  quarters of a layer, then each edge the wind steps across by more than a random-walk sd moved
-  by halving steps. Layers by height stay equal (:data:`PLACED_AXES`).
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -26,33 +20,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
+from ...wind_layers import WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
-__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "layers_over", "at_fit_resolution", "layer_free",
-           "WIND_AXES", "FIT_LAYERS"]
+__all__ = ["wind_layer_priors", "fit_layers", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
+           "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
 FIT_LAYERS = WIND_LAYERS_MAX
 #: the axes a wind profile may be laid on, met practice first
 WIND_AXES = ("altitude", "downrange")
-#: the axes whose edges are placed by the cost: zones by downrange distance step where they end;
-#: a height is crossed twice (going up and coming down), and on the height axis the search found
-#: lower costs with wrong transonic Cd (docs/real_data.md), so layers by height stay equal
-PLACED_AXES = ("downrange",)
-#: the equal grid is also tried shifted by these fractions of a layer (its edges then fall within
-#: an eighth of a layer of any point)
-GRID_SHIFTS = (0.25, 0.5, 0.75)
-#: an edge the fitted wind changes across by more than this [m/s] is placed by the cost (a step
-#: larger than the random walk's sd per layer: a front or a zone boundary, not a gradient)
-EDGE_PLACE_STEP = WIND_STEP_SD
-#: at most this many edges are placed, largest change first
-EDGE_PLACE_MAX = 2
-#: halving steps of an edge's placement (a quarter layer down to 1/32: ~30 m on a 10 km range)
-EDGE_PLACE_ROUNDS = 3
-#: the placed edges must lower the cost below the equal grid's by more than this: the chi2(1)
-#: quantile at 0.01 over the at most 16 grids tried (3 shifts, 2 edges x 3 rounds x 2 sides)
-EDGE_PLACE_CHI2 = 11.7
 
 
 def _layer_index(names, effect="wind_profile"):
@@ -104,7 +81,7 @@ def wind_layer_priors(names_all, free, level_sd=None):
     return tuple(out)
 
 
-def fit_layers(prob, res, rnd, axis, fit=None):
+def fit_layers(prob, res, rnd, axis):
     """The ``wind_profile`` layers on ``axis`` over the flight a fit describes.
 
     Parameters
@@ -116,11 +93,6 @@ def fit_layers(prob, res, rnd, axis, fit=None):
     rnd : Round
         Its atmosphere's wind is the layers' base; its gun altitude the height datum.
     axis : {"altitude", "downrange"}
-    fit : callable ``fit(WindLayers) -> (problem, MLResult, sources, effects fitted)``, optional
-        The fit with those layers and every effect fitted beside them
-        (:func:`bayesdrag.estimate.scheme1.systematics.fit_with_sources`): the edges are placed by
-        its cost (:func:`placed_layers`; with the wind alone a warm day's signature would choose
-        them) on the axes of :data:`PLACED_AXES`. None: the equal layers.
 
     Returns
     -------
@@ -132,94 +104,7 @@ def fit_layers(prob, res, rnd, axis, fit=None):
     ok = np.all(np.isfinite(st[:, :3]), axis=1)
     if not ok.any():
         return None
-    equal = layers_over(axis, st[ok, 0], st[ok, 2], rnd.atmosphere, FIT_LAYERS)
-    if equal is None:
-        return None
-    if fit is None or axis not in PLACED_AXES:
-        return equal
-
-    def cost(lay):
-        out = fit(lay)
-        return (float(out[1].cost), out[1]) if out[3] else (np.inf, None)
-
-    return placed_layers(equal, cost)
-
-
-def _shifted(layers, frac):
-    """``layers`` with every inner edge moved up by ``frac`` of a layer's width (the first layer
-    widens, the last narrows)."""
-    e = np.asarray(layers.edges, float)
-    w = (e[-1] - e[0]) / layers.n
-    inner = np.round((e[1:-1] + frac * w) / EDGE_ROUND) * EDGE_ROUND
-    out = np.concatenate([[e[0]], inner, [e[-1]]])
-    return replace(layers, edges=tuple(float(v) for v in out)) if np.all(np.diff(out) > 0) else None
-
-
-def _moved(layers, i, pos):
-    """``layers`` with inner edge ``i`` (1..n-1) at ``pos`` [m]; None when it would pass a
-    neighbour."""
-    e = list(layers.edges)
-    pos = float(np.round(pos / EDGE_ROUND) * EDGE_ROUND)
-    if not e[i - 1] < pos < e[i + 1]:
-        return None
-    e[i] = pos
-    return replace(layers, edges=tuple(e))
-
-
-def _jumps(layers, res):
-    """Size [m/s] of the change of fitted wind across each inner edge, {edge index: size}."""
-    vals = dict(zip(res.names, res.theta))
-    w = np.array([[vals.get(f"wind_profile.{c}_{k}", 0.0) for c in ("wx", "wy")] for k in range(1, layers.n + 1)])
-    return {i: float(np.hypot(*(w[i] - w[i - 1]))) for i in range(1, layers.n)}
-
-
-def placed_layers(layers, cost):
-    """The layers' edges placed where the track puts the wind's changes.
-
-    A wind that steps inside a layer leaves a misfit the Cd spline bends to follow, and on a flat
-    flight an along-range wind and Cd(Mach) nearly trade (docs/real_data.md). The step's position
-    is sharply determined by the track, so the edges are chosen by the fit's cost (same layers,
-    parameters and priors: cost is evidence here): the equal grid and its copies shifted by :data:`GRID_SHIFTS` of a layer, then, in the
-    best, each edge the wind changes across by more than :data:`EDGE_PLACE_STEP` (largest first, at
-    most :data:`EDGE_PLACE_MAX`) moved by halving steps from a quarter layer
-    (:data:`EDGE_PLACE_ROUNDS`). The equal grid stays unless the best lowers the cost by more than
-    :data:`EDGE_PLACE_CHI2`.
-
-    Parameters
-    ----------
-    layers : WindLayers
-        The equal layers.
-    cost : callable ``cost(WindLayers) -> (float, MLResult or None)``
-        The fit with those layers: its cost (inf when it fails) and result.
-
-    Returns
-    -------
-    WindLayers
-    """
-    equal = best = (*cost(layers), layers)
-    for f in GRID_SHIFTS:
-        lay = _shifted(layers, f)
-        if lay is not None:
-            c, r = cost(lay)
-            if c < best[0]:
-                best = (c, r, lay)
-    if best[1] is None:
-        return layers
-    w = (layers.edges[-1] - layers.edges[0]) / layers.n
-    jumps = sorted(((j, i) for i, j in _jumps(best[2], best[1]).items() if j > EDGE_PLACE_STEP), reverse=True)
-    for _, i in jumps[:EDGE_PLACE_MAX]:
-        step = w / 4.0
-        for _ in range(EDGE_PLACE_ROUNDS):
-            centre = best[2].edges[i]
-            for pos in (centre - step, centre + step):
-                lay = _moved(best[2], i, pos)
-                if lay is not None:
-                    c, r = cost(lay)
-                    if c < best[0]:
-                        best = (c, r, lay)
-            step /= 2.0
-    # the edges are parameters chosen among the grids tried: kept only beyond chance over the tries
-    return best[2] if equal[0] - best[0] > EDGE_PLACE_CHI2 else layers
+    return layers_over(axis, st[ok, 0], st[ok, 2], rnd.atmosphere, FIT_LAYERS)
 
 
 def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
