@@ -10,7 +10,8 @@ import numpy as np
 
 from .wind import WindProfile
 
-__all__ = ["WindLayers", "WindProfileModel", "wind_profile_free", "path_layers", "WIND_LAYERS_MAX", "WIND_STEP_SD",
+__all__ = ["WindLayers", "WindProfileModel", "wind_profile_free", "path_layers", "equal_edges", "WIND_LAYERS_MAX",
+           "WIND_STEP_SD",
            "WIND_LEVEL_SD", "WIND_PROFILE_KEY", "PROFILE_LAYERS", "EDGE_ROUND"]
 
 #: most layers a wind_profile has (the fit lays this many, the diagnosis PROFILE_LAYERS; unused
@@ -160,13 +161,23 @@ def path_layers(axis, x, z, gun_altitude, base_wind=None, n=PROFILE_LAYERS, edge
             lo, hi = 0.0, float(np.nanmax(x)) if x is not None else None
         if hi is None or not hi > lo + n * EDGE_ROUND:
             return None
-        e = np.round(np.linspace(lo, hi, n + 1) / EDGE_ROUND) * EDGE_ROUND
-        e[0], e[-1] = lo, hi
-        edges = tuple(float(v) for v in e)
+        edges = equal_edges(lo, hi, n)
+        if edges is None:
+            return None
     base = None
     if base_wind is not None:
         base = base_wind if base_wind.axis == axis else _mapped(base_wind, axis, x, z, h_gun)
     return WindLayers(axis, tuple(float(v) for v in edges), base)
+
+
+def equal_edges(lo, hi, n):
+    """``n + 1`` edges [m] of ``n`` equal layers from ``lo`` to ``hi``, the inner ones rounded to
+    :data:`EDGE_ROUND`; None when rounding leaves two edges equal."""
+    e = np.round(np.linspace(lo, hi, n + 1) / EDGE_ROUND) * EDGE_ROUND
+    e[0], e[-1] = lo, hi
+    if np.any(np.diff(e) <= 0):
+        return None
+    return tuple(float(v) for v in e)
 
 
 def _mapped(wind, axis, x, z, h_gun):

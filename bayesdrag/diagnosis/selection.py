@@ -5,11 +5,15 @@ the candidate :func:`admits` admits with the largest conditional chi2 drop; it i
 from up to two runners-up that explain most of the gap alone, and between the resulting
 explanations parsimony wins unless the larger is significantly better (:func:`is_better`).
 Backward elimination (:func:`backward_elimination`) then drops a member the others make
-superfluous. When ``drag_shape`` (a table of another shell) is detected beside a weather effect,
-the drag effects keep their joint fit (:func:`wrong_table_fit`) and the rest is judged against
+superfluous. Beside a wind profile an effect must also be admitted against the profile at the
+fit's resolution (:func:`beyond_resolution`): else it is taking up the coarse layers' misfit.
+When ``drag_shape`` (a table of another shell) is detected beside a weather effect, the drag
+effects keep their joint fit (:func:`wrong_table_fit`) and the rest is judged against
 a fitted Cd (:func:`bayesdrag.diagnosis.core.diagnose` on the round without its table).
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 from scipy.stats import chi2 as _chi2
@@ -18,11 +22,12 @@ from ..effects import EFFECTS
 from ..errors import FitError
 from .setup import fit_effects, fit_starts, k_free, noise_floor
 from .signatures import CONFOUND_CORR
+from .winds import finer_layers, refined_start
 from .statistics import (autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation,
                          threshold)
 
 __all__ = ["select_effects", "forward_selection", "backward_elimination", "is_better", "admits", "drop_one_fits",
-           "conditional_shrinks", "structural_twins", "wrong_table_fit", "DRAG_EFFECTS"]
+           "conditional_shrinks", "structural_twins", "wrong_table_fit", "beyond_resolution", "DRAG_EFFECTS"]
 
 #: a second (third) effect must remove at least this fraction of the baseline gap ...
 MIN_SECOND_SHARE = 0.02
@@ -129,7 +134,8 @@ def is_better(setup, new, old, sig_vec, alpha, gap, K):
 def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
     """Forward selection starting from ``first``: add the candidate that :func:`admits`
     (Bonferroni over the remaining) with the largest conditional chi2 drop, up to
-    ``MAX_VERDICT`` effects."""
+    ``MAX_VERDICT`` effects; beside a wind profile the first such candidate that is also
+    admitted against the profile at the fit's resolution (:func:`beyond_resolution`)."""
     verdict = [first["name"]]
     selected_fit = first_fit
     remaining = []
@@ -150,7 +156,7 @@ def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
         if left <= 0:
             break
         sel_effs = [EFFECTS[n] for n in verdict]
-        best_add = None
+        passed = []
         Kr = len(remaining)
         for r in remaining:
             e = EFFECTS[r["name"]]
@@ -162,14 +168,55 @@ def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
             if not np.all(np.isfinite(y)) or (e.name == "yaw_drag" and res.theta[-2] < 0):
                 continue  # a failed or unphysical (negative yaw amplitude) joint fit
             ok, d = admits(setup, e, selected_fit, (res, prob, y), gap, sig_vec, alpha / Kr)
-            if ok and (best_add is None or d > best_add[1]):
-                best_add = (r["name"], d, (res, prob, y))
+            if ok:
+                passed.append((r["name"], d, (res, prob, y)))
+        passed.sort(key=lambda p: -p[1])  # stable: ties keep the rows' order
+        finer = {}
+        best_add = next((p for p in passed
+                         if beyond_resolution(setup, verdict, selected_fit, p[0], p[2], gap, sig_vec, alpha / Kr,
+                                              finer)), None)
         if best_add is None:
             break
         verdict.append(best_add[0])
         selected_fit = best_add[2]
         remaining = [r for r in remaining if r["name"] != best_add[0] and not _blocked(r, verdict)]
     return verdict, selected_fit
+
+
+def beyond_resolution(setup, verdict, small, name, big, gap, sig_vec, a, cache):
+    """Does effect ``name`` explain what the verdict's members leave *beyond their resolution*?
+
+    A member fitted in a coarse form (``wind_profile`` in the diagnosis's few layers) leaves the
+    misfit of that form -- a wind that steps inside a layer -- and a flexible addition (the
+    table's shape, a warm day) can take it up: it then explains the member's representation
+    error, not an effect of its own. So the addition is admitted (:func:`admits`, the same rule,
+    noise model and baseline) against the members at the fit's resolution too
+    (:func:`bayesdrag.diagnosis.winds.finer_layers`): the verdict refitted with them, and that
+    fit with ``name`` added. True when no member has a finer form or a refit fails (the coarse
+    test stands). ``cache`` (a dict) keeps the refitted verdict for the other candidates of one
+    forward step."""
+    lay = setup.ctx.wind_layers
+    fine = finer_layers(lay) if "wind_profile" in verdict else None
+    if fine is None:
+        return True
+    e = EFFECTS[name]
+    saved = setup.ctx
+    setup.ctx = replace(saved, wind_layers=fine)
+    try:
+        if "ref" not in cache:
+            cache["ref"] = fit_effects(setup, [EFFECTS[n] for n in verdict],
+                                       refined_start(setup, verdict, small[0], lay, fine))
+        ref = cache["ref"]
+        vals = dict(zip(big[0].names, big[0].theta))
+        plus = fit_effects(setup, [EFFECTS[n] for n in verdict] + [e],
+                           np.concatenate([ref[0].theta, [vals.get(f"{name}.{p.name}", p.start) for p in e.params]]))
+        if not (np.all(np.isfinite(ref[2])) and np.all(np.isfinite(plus[2]))):
+            return True
+        return admits(setup, e, ref, plus, gap, sig_vec, a)[0]
+    except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return True
+    finally:
+        setup.ctx = saved
 
 
 def _blocked(r, names):
@@ -231,7 +278,8 @@ def conditional_shrinks(setup, joint_res, subs):
 
 def backward_elimination(setup, verdict, fit, fits, gap, sig_vec, alpha, K):
     """Backward elimination after forward selection: drop a member that would not be admitted
-    to the verdict without it (:func:`admits`, as in :func:`forward_selection`), the least useful first,
+    to the verdict without it (:func:`admits` and :func:`beyond_resolution`, as in
+    :func:`forward_selection`), the least useful first,
     and refit. A flexible effect chosen first because it mimics two real ones at once (a head
     wind for a density change, its cross wind for the spin drift) is thus removed once both have
     entered. Returns (verdict, fit, drop-one fits of that verdict)."""
@@ -241,6 +289,8 @@ def backward_elimination(setup, verdict, fit, fits, gap, sig_vec, alpha, K):
         worst = None
         for n, sub in subs.items():
             keep, d = admits(setup, EFFECTS[n], sub, fit, gap, sig_vec, alpha / K)
+            others = [m for m in verdict if m != n]
+            keep = keep and beyond_resolution(setup, others, sub, n, fit, gap, sig_vec, alpha / K, {})
             if not keep and (worst is None or d < worst[1]):
                 worst = (n, d, sub)
         if worst is None:

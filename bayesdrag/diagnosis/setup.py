@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..effects import EffectContext, drag_shape_free, drag_shape_model, effect_fn, extra_params, static_model
+from ..estimate.scheme1.winds import layer_free
 from ..wind_layers import wind_profile_free
 from .winds import rw_information, rw_priors
 from ..errors import FitError
@@ -342,7 +343,7 @@ def extra_free(setup, name):
     if name.startswith("drag_shape.s"):
         return drag_shape_free(setup.ctx, int(name.rsplit("s", 1)[1]) - 1)
     if name.startswith("wind_profile."):
-        return wind_profile_free(setup.ctx, name) and not (".wy_" in name and "y" not in setup.channels)
+        return layer_free(setup.ctx.wind_layers, name, setup.channels)
     return not (name == "wind.wy" and "y" not in setup.channels)
 
 

@@ -28,11 +28,13 @@ import numpy as np
 
 from ..effects import EFFECTS
 from ..errors import FitError
-from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD, path_layers
+from ..estimate.scheme1.winds import at_fit_resolution, layers_over, wind_layer_priors
+from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
            "wind_prior_precision", "occam", "data_cost", "fit_wind_profile", "rechoose_wind", "cannot_separate", "separable",
-           "SEPARATE_SD", "TRADE_PARTNERS", "SHAPE_RIVAL_SHARE", "shape_rival_share"]
+           "SEPARATE_SD", "TRADE_PARTNERS", "SHAPE_RIVAL_SHARE", "shape_rival_share", "finer_layers",
+           "refined_start"]
 
 #: the wind models, simplest first: the evidence chooses one of them to stand for the wind
 WIND_FAMILY = ("wind", "wind_profile")
@@ -55,7 +57,7 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     """The wind_profile layers of this track: ``n`` equal layers over the flown range of the
     coordinate (height from the gun to the apex, or downrange distance from the gun to the last
     sample), read off the baseline's fitted outputs, with the round's own wind as the base
-    (:func:`bayesdrag.wind_layers.path_layers`).
+    (:func:`bayesdrag.estimate.scheme1.winds.layers_over`, the fit's construction).
 
     Parameters
     ----------
@@ -70,8 +72,36 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     WindLayers or None when the coordinate has no span (no x or z channel and no model path).
     """
     x, z = _path(setup, y_base)
-    return path_layers(axis, x, z, setup.rnd.atmosphere.gun_altitude,
-                       getattr(setup.rnd.atmosphere, "wind", None), n)
+    return layers_over(axis, x, z, setup.rnd.atmosphere, n)
+
+
+def finer_layers(layers):
+    """The layers of a wind profile at the fit's resolution (``fit --with wind_profile``:
+    :func:`bayesdrag.estimate.scheme1.winds.at_fit_resolution`); None when ``layers`` is None or
+    already that fine."""
+    return at_fit_resolution(layers)
+
+
+def refined_start(setup, names, res, coarse, fine):
+    """Starting parameters of effects ``names`` with ``wind_profile`` on ``fine`` layers, from a
+    fit ``res`` with it on ``coarse`` ones: each fine layer starts at the wind of the coarse layer
+    holding its middle, every other parameter at its value in ``res``."""
+    vals = dict(zip(res.names, res.theta))
+    mid = 0.5 * (np.asarray(fine.edges[:-1]) + np.asarray(fine.edges[1:]))
+    home = np.clip(np.searchsorted(np.asarray(coarse.edges), mid, side="right"), 1, coarse.n)
+    out = [res.theta[:setup.P + 6]]
+    for n in names:
+        e = EFFECTS[n]
+        row = []
+        for p in e.params:
+            key = f"{n}.{p.name}"
+            if n == "wind_profile":
+                c, k = p.name.rsplit("_", 1)
+                k = int(k)
+                key = f"{n}.{c}_{int(home[k - 1])}" if k <= fine.n else None
+            row.append(vals.get(key, p.start) if key is not None else p.start)
+        out.append(np.asarray(row, float))
+    return np.concatenate(out)
 
 
 def _path(setup, y_base):
@@ -81,17 +111,6 @@ def _path(setup, y_base):
     x = y_base[:, ch.index("x")] if "x" in ch else None
     z = y_base[:, ch.index("z")] if "z" in ch else None
     return x, z
-
-
-def _pidx(names, effect="wind_profile"):
-    """Indices in the fit's parameter names of an effect's used parameters, by layer:
-    {(component, layer): index}."""
-    out = {}
-    for j, n in enumerate(names):
-        if n.startswith(effect + "."):
-            c, k = n.split(".", 1)[1].rsplit("_", 1)
-            out[(c, int(k))] = j
-    return out
 
 
 def rw_priors(names_all, free):
@@ -110,8 +129,6 @@ def rw_priors(names_all, free):
     -------
     tuple of Prior
     """
-    from ..estimate.scheme1.winds import wind_layer_priors
-
     return wind_layer_priors(names_all, free)
 
 

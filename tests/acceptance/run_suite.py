@@ -4,6 +4,7 @@ magnitude errors and shrink values (issue 6 acceptance), then one JSON line.
     python tests/acceptance/run_suite.py            # full suite (38 effect + 20 null + 2 6-DOF nulls,
                                                     # then 13 winds that change along the flight)
     python tests/acceptance/run_suite.py --small    # the default-test subset
+    python tests/acceptance/run_suite.py --case pbc-wind_profile-42,pm-null-1   # chosen cases (id prefixes)
 
 The winds that change along the flight (issue 29: ``PROFILE_CASES``, used while building the
 wind models, and ``PROFILE_HOLDOUT``, written before and not tuned on) are reported apart, with
@@ -77,8 +78,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--small", action="store_true")
     ap.add_argument("--out", default=None, help="write all case results to this JSON file")
+    ap.add_argument("--case", default=None, help="comma-separated case ids (or id prefixes) to run alone")
     a = ap.parse_args(argv)
     cases = SMALL + SMALL_PROFILE if a.small else EFFECT_CASES + NULL_CASES + SIXDOF_NULL + PROFILE_CASES + PROFILE_HOLDOUT
+    if a.case:
+        want = a.case.split(",")
+        cases = [c for c in cases if any(c.id == w or c.id.startswith(w) for w in want)]
+        if not cases:
+            ap.error(f"--case {a.case}: no case id starts with any of these")
     results = []
     t0 = time.time()
     for c in cases:

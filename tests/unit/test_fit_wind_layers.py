@@ -57,3 +57,18 @@ def test_a_cross_wind_without_a_y_channel_is_held():
     assert layer_free(lay, "wind_profile.wy_2", ("x", "y", "z"))
     assert not layer_free(lay, "wind_profile.wy_2", ("x", "z", "v"))
     assert not layer_free(lay, f"wind_profile.wx_{PROFILE_LAYERS + 1}", ("x", "y", "z"))
+
+
+# --- the layers at the fit's resolution (the diagnosis's check beside a wind profile) ----------
+def test_the_fit_resolution_keeps_span_axis_base_and_cross_wind_rule():
+    from dataclasses import replace
+
+    from bayesdrag.estimate.scheme1.winds import FIT_LAYERS, at_fit_resolution
+
+    x, z = _path()
+    coarse = replace(path_layers("altitude", x, z, 300.0, WindProfile("altitude", (300.0, 4300.0), (1.0, 2.0),
+                                                                      (0.0, 0.0))), constant_cross=True)
+    fine = at_fit_resolution(coarse)
+    assert fine.n == FIT_LAYERS and fine.edges[0] == coarse.edges[0] and fine.edges[-1] == coarse.edges[-1]
+    assert fine.axis == coarse.axis and fine.base == coarse.base and fine.constant_cross
+    assert at_fit_resolution(fine) is None and at_fit_resolution(None) is None

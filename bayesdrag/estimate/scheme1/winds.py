@@ -7,9 +7,7 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   the diagnosis's axis is used; otherwise both axes are fitted and the one with the smaller cost
   is kept (the two have the same number of parameters and the same priors, so the cost is their
   evidence up to the determinants). More layers than the diagnosis lays (which only has to name
-  the wind): a wind that steps inside a layer leaves a misfit the spline bends Cd to follow (a
-  21 km flight with zone steps at 3 and 9 km: 5 determined rows 3-4 % off with 6 layers, 1 with
-  8, none with 10); the random walk keeps the extra layers from wandering.
+  the wind); the random walk keeps the extra layers from wandering.
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -18,12 +16,15 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from ...wind_layers import WIND_LAYERS_MAX, WIND_STEP_SD, path_layers, wind_profile_free
+from ...wind_layers import WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
-__all__ = ["wind_layer_priors", "fit_layers", "WIND_AXES", "FIT_LAYERS"]
+__all__ = ["wind_layer_priors", "fit_layers", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
+           "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
 FIT_LAYERS = WIND_LAYERS_MAX
@@ -103,8 +104,37 @@ def fit_layers(prob, res, rnd, axis):
     ok = np.all(np.isfinite(st[:, :3]), axis=1)
     if not ok.any():
         return None
-    atm = rnd.atmosphere
-    return path_layers(axis, st[ok, 0], st[ok, 2], atm.gun_altitude, getattr(atm, "wind", None), FIT_LAYERS)
+    return layers_over(axis, st[ok, 0], st[ok, 2], rnd.atmosphere, FIT_LAYERS)
+
+
+def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
+    """``n`` equal ``wind_profile`` layers on ``axis`` over a path (the one construction the fit
+    and the diagnosis share): height from the gun to the apex or downrange distance from the gun
+    to the last point, the atmosphere's own wind as their base.
+
+    Parameters
+    ----------
+    axis : {"altitude", "downrange"}
+    x, z : (N,) arrays or None, m
+        Downrange distance and height above the gun along the path (None: not known).
+    atmosphere : Atmosphere
+        Its gun altitude is the height datum; its wind (if any) the layers' base.
+    n : int
+
+    Returns
+    -------
+    WindLayers or None when the path has no span on that axis.
+    """
+    return path_layers(axis, x, z, atmosphere.gun_altitude, getattr(atmosphere, "wind", None), n)
+
+
+def at_fit_resolution(layers, n=FIT_LAYERS):
+    """The same layers (span, axis, base, cross-wind rule) cut into the fit's ``n`` equal layers;
+    None when ``layers`` is None or already has that many."""
+    if layers is None or layers.n >= n:
+        return None
+    e = equal_edges(layers.edges[0], layers.edges[-1], n)
+    return None if e is None else replace(layers, edges=e)
 
 
 def layer_free(layers, name, channels):
