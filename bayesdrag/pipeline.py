@@ -315,6 +315,7 @@ def _budget(f1, grid, rows):
     gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
     budget is all ``statistical`` and ``conditional_on`` lists what the Cd assumes known."""
     from .estimate.cd.budget import budget_rows, uncertainty_budget
+    from .estimate.scheme1.systematics import radar_conditional
     from .round import SYSTEMATIC_SOURCES
 
     res = f1.ml
@@ -333,7 +334,8 @@ def _budget(f1, grid, rows):
         r["crb_sd_statistical"] = float(v)
     out = budget_rows(b, grid)
     declared = {s[0] for s in f1.sources}
-    out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared]
+    out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared] + \
+        radar_conditional(f1.problem.channels, declared)    # a radar's own sources: its native channels only
     if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
     return out

@@ -39,7 +39,7 @@ import numpy as np
 from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ...errors import InputError
 from ...measure import RadarSite, channel_values, near_branch
-from ...track import ALL_CHANNELS
+from ...track import ALL_CHANNELS, NATIVE_CHANNELS
 from . import colored
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
@@ -72,7 +72,7 @@ class Prior:
     row: object = None
 
 
-def outputs(traj_state, channels, site=None, measured=None):
+def outputs(traj_state, channels, site=None, measured=None, offset=None, site_shift=None):
     """Model outputs (B, N, C) for channels from states (B, N, 6).
 
     Parameters
@@ -84,8 +84,22 @@ def outputs(traj_state, channels, site=None, measured=None):
     measured : (N, C) array, optional
         The measurements: a predicted azimuth is put on the branch (whole turns) nearest its
         measurement, so that measurement minus prediction is the wrapped difference.
+    offset : dict channel -> (B,) array, optional
+        Constants added per trajectory (a radar's range [m] and angle [rad] biases).
+    site_shift : (B, 3) array, optional, m
+        The radar's site moved per trajectory: its native channels are seen from there.
     """
-    out = channel_values(traj_state, channels, RadarSite() if site is None else site)
+    site = RadarSite() if site is None else site
+    out = channel_values(traj_state, channels, site)
+    native = [j for j, c in enumerate(channels) if c in NATIVE_CHANNELS]
+    if site_shift is not None and native:
+        # the line of sight depends on the shell's position less the site's: shift the shell
+        moved = np.array(traj_state, float, copy=True)
+        moved[..., :3] -= np.asarray(site_shift, float)[:, None, :]
+        out[..., native] = channel_values(moved, [channels[j] for j in native], site)
+    for j, c in enumerate(channels):
+        if offset and c in offset:
+            out[..., j] += np.asarray(offset[c], float)[:, None]
     if measured is not None and "azimuth" in channels:
         j = list(channels).index("azimuth")
         out[..., j] = near_branch(out[..., j], measured[:, j])
@@ -272,9 +286,14 @@ class OutputErrorProblem:
                     y[:, :, j] *= np.asarray(inp.output_scale[c], float)[:, None]
         return y, mach
 
-    def outputs(self, state):
-        """The problem's channels (B, N, C) from states (B, N, 6), seen from its radar site."""
-        return outputs(state, self.channels, self.site, self.z)
+    def outputs(self, state, inp=None, g=None):
+        """The problem's channels (B, N, C) from states (B, N, 6), seen from its radar site
+        (moved and biased per trajectory by :class:`SimInputs` ``inp``, rows ``g`` of its batch)."""
+        if inp is None or (not inp.output_offset and inp.site_shift is None):
+            return outputs(state, self.channels, self.site, self.z)
+        off = {c: np.asarray(v, float)[g] for c, v in inp.output_offset.items()}
+        shift = None if inp.site_shift is None else np.asarray(inp.site_shift, float)[g]
+        return outputs(state, self.channels, self.site, self.z, off, shift)
 
     def _predict_effects(self, thetas, inp):
         """Outputs and Mach of a batch whose extras give ``inp`` (:class:`SimInputs`)."""
@@ -293,7 +312,7 @@ class OutputErrorProblem:
             if inp.atmosphere_tables is not None:
                 atm = np.asarray(inp.atmosphere_tables)[g]
             state, m = self._simulate_shifted(thetas[g], t_out, ov, atm)
-            y[g] = self.outputs(state)
+            y[g] = self.outputs(state, inp, g)
             mach[g] = m
         return y, mach
 
