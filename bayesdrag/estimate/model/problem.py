@@ -38,7 +38,7 @@ import numpy as np
 
 from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ...errors import InputError
-from ...measure import RadarSite, channel_values, near_branch
+from ...measure import RadarSite, channel_values, near_branch, sample_noise
 from ...track import ALL_CHANNELS, NATIVE_CHANNELS
 from . import colored
 
@@ -137,10 +137,16 @@ class OutputErrorProblem:
     site : RadarSite, optional
         Where the radar stands (its native channels are seen from there); default the muzzle
         with azimuth 0, which only gun-frame channels may rely on.
+    noise_scale : (N, C) array, optional
+        Each sample's noise sd over its channel's sd (``sigma_c``); default read off the
+        track's ``sigma_<channel>`` and ``snr`` columns (:func:`bayesdrag.measure.sample_noise`),
+        else 1. A ``sigma_<channel>`` column's median also fixes the channel's sd unless
+        ``sigma`` gives it.
     """
 
     def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
-                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None, site=None):
+                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None, site=None,
+                 noise_scale=None):
         self.model = model
         self.track = track
         self.site = RadarSite() if site is None else site
@@ -164,6 +170,14 @@ class OutputErrorProblem:
         self.sigma_fixed = {c: float(s) for c, s in (sigma or {}).items() if c in self.channels}
         self.priors = tuple(priors)
         self.z = np.stack([track.channels[c] for c in self.channels], axis=-1)  # (N, C)
+        if noise_scale is None:
+            noise_scale, level = sample_noise(track, self.channels)
+            for c, s in level.items():
+                self.sigma_fixed.setdefault(c, s)
+        #: each sample's noise sd over its channel's (N, C); ones when every sample is alike
+        self.noise_scale = np.ones_like(self.z) if noise_scale is None else np.asarray(noise_scale, float)
+        if self.noise_scale.shape != self.z.shape or not np.all(self.noise_scale > 0):
+            raise ValueError(f"noise_scale must be (N, C) = {self.z.shape} and positive")
         if weights is None:
             self.weights = np.ones_like(self.z)
         else:
@@ -249,7 +263,14 @@ class OutputErrorProblem:
         sw = np.sqrt(self.weights) / np.array([sigma[c] for c in self.channels])[None, :]
         if a.ndim == 3:
             sw = sw[:, :, None]
-        return self.whiten(a, ar) * sw
+        return self.whiten(self.standardized(a), ar) * sw
+
+    def standardized(self, a):
+        """Residual-like arrays (N, C) or (N, C, k) over each sample's noise scale: samples of
+        one channel then share its sd (``a`` itself when every sample is alike)."""
+        if np.all(self.noise_scale == 1.0):
+            return a
+        return a / (self.noise_scale if a.ndim == 2 else self.noise_scale[:, :, None])
 
     def update_noise(self, resid, sigma, ar):
         """Noise relaxation: new ``(sigma, ar)`` at fixed parameters.
@@ -264,7 +285,7 @@ class OutputErrorProblem:
             if self.noise_model[c] != "ar1":
                 continue
             start = (ar or {}).get(c)
-            s, rho, q, _ = colored.fit_noise(resid[:, j], self.dt_ratio, start=start)
+            s, rho, q, _ = colored.fit_noise(resid[:, j] / self.noise_scale[:, j], self.dt_ratio, start=start)
             new[c] = (rho, q)
             sig[c] = s
         return sig, new
@@ -423,7 +444,8 @@ class OutputErrorProblem:
                 sig[c] = self.sigma_fixed[c]
             else:
                 w = self.weights[:, j]
-                sig[c] = max(float(np.sqrt(np.sum(w * resid[:, j] ** 2) / max(np.sum(w), 1.0))), 1e-9)
+                e = resid[:, j] / self.noise_scale[:, j]
+                sig[c] = max(float(np.sqrt(np.sum(w * e ** 2) / max(np.sum(w), 1.0))), 1e-9)
         return sig
 
     def cost(self, resid, sigma, theta, ar=None):

@@ -316,8 +316,18 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
     (OutputErrorProblem, MLResult, tuple, tuple)
         The problem with the nuisance parameters, its fit, the sources (:func:`source_extras`)
         and the effects fitted; the inputs and empty tuples when there is nothing to add or the
-        fit fails.
+        fit fails. A declared radar source nothing in the fit depends on is said so in the
+        fit's warnings.
     """
+    unused = tuple(radar_unused(rnd, prob.channels).values())
+    out = _fit_sources_effects(prob, res, rnd, effects, wind_layers)
+    if not unused:
+        return out
+    return (out[0], replace(out[1], warnings=tuple(out[1].warnings) + unused)) + tuple(out[2:])
+
+
+def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
+    """:func:`fit_with_sources` but for the note on declared radar sources nothing depends on."""
     from ...effects import EffectContext
     from .winds import WIND_AXES, fit_layers
 
@@ -375,7 +385,7 @@ def _fit_with(prob, res, rnd, effects, ctx):
                             channels=prob.channels,
                             extras=tuple(eff_extras) + tuple(e[1] for e in extras),
                             effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model,
-                            site=prob.site)
+                            site=prob.site, noise_scale=prob.noise_scale)
     res2 = p2.fit(fallback=True)
     if not res2.success:
         return prob, res, (), ()
