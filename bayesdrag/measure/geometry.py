@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import InputError
 from ..track import ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 
-__all__ = ["RadarSite", "site_of", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
+__all__ = ["RadarSite", "site_of", "chronograph_factor", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
            "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS"]
 
 #: mean Earth radius [m], for the curvature figure x^2 / (2 Re) of the docs
@@ -51,6 +51,11 @@ class RadarSite:
         Constant offset added to the measured range.
     azimuth_bias, elevation_bias : float, rad
         Constant offsets added to the measured angles.
+    device_offset : float or None, m
+        A chronograph radar's offset from the line of fire as typed into the device: the device
+        reports its range rate divided by the cosine of the angle that offset makes at the
+        measured range, ``range_rate * R / sqrt(R^2 - d^2)`` (:func:`chronograph_factor`);
+        None: the range rate as measured.
     """
 
     position: tuple = (0.0, 0.0, 0.0)
@@ -58,6 +63,7 @@ class RadarSite:
     range_bias: float = 0.0
     azimuth_bias: float = 0.0
     elevation_bias: float = 0.0
+    device_offset: float | None = None
 
     def __post_init__(self):
         pos = tuple(float(v) for v in np.asarray(self.position, float).reshape(-1))
@@ -69,6 +75,40 @@ class RadarSite:
             if not math.isfinite(v):
                 raise ValueError(f"radar {k} must be finite, got {v}")
             object.__setattr__(self, k, v)
+        if self.device_offset is not None:
+            d = float(self.device_offset)
+            if not (math.isfinite(d) and d >= 0.0):
+                raise ValueError(f"radar device_offset must be a finite distance >= 0 [m], got {d}")
+            object.__setattr__(self, "device_offset", d or None)
+
+
+#: the device's cosine correction is held at this factor where the range nears its offset (a
+#: chronograph radar tracks from a few metres on; the first metre is not a measurement)
+CHRONOGRAPH_FACTOR_MAX = 10.0
+
+
+def chronograph_factor(R, d):
+    """The factor a chronograph radar multiplies its range rate by for an offset ``d`` typed
+    into it: ``R / sqrt(R^2 - d^2)`` at slant range ``R`` (the cosine of the angle between its
+    line of sight and a line of fire at distance ``d``), with its derivative in R.
+
+    Parameters
+    ----------
+    R : array_like, m
+    d : float, m
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        The factor [-] (at most :data:`CHRONOGRAPH_FACTOR_MAX`) and d factor / d R [1/m].
+    """
+    R = np.asarray(R, float)
+    lo = d * CHRONOGRAPH_FACTOR_MAX / math.sqrt(CHRONOGRAPH_FACTOR_MAX ** 2 - 1.0)
+    Rc = np.maximum(R, lo)
+    q = np.sqrt(Rc * Rc - d * d)
+    f = Rc / q
+    df = np.where(R > lo, -d * d / q ** 3, 0.0)
+    return f, df
 
 
 def site_of(rnd, channels=()):
@@ -90,7 +130,7 @@ def site_of(rnd, channels=()):
         raise InputError(f"{rnd.path or 'round'}: [launch] azimuth is missing: the track has the radar's "
                          f"{' and '.join(angles)}, measured from true north; give the firing azimuth "
                          f"(deg clockwise from true north)")
-    return RadarSite(rnd.radar.position, rnd.launch.azimuth)
+    return RadarSite(rnd.radar.position, rnd.launch.azimuth, device_offset=rnd.radar.device_offset)
 
 
 def wrap_angle(a):
@@ -167,7 +207,10 @@ def channel_values(state, channels, site=RadarSite()):
             rho = np.hypot(d[..., 0], d[..., 1]) if rho is None else rho
             out[..., j] = np.arctan2(d[..., 2], rho) + site.elevation_bias
         elif c == "range_rate":
-            out[..., j] = np.sum(d * u, axis=-1) / np.sqrt(np.sum(d * d, axis=-1))
+            R = np.sqrt(np.sum(d * d, axis=-1))
+            out[..., j] = np.sum(d * u, axis=-1) / R
+            if site.device_offset:
+                out[..., j] *= chronograph_factor(R, site.device_offset)[0]
         else:
             raise ValueError(f"unknown channel {c!r}; allowed: {', '.join(CHANNELS)}")
     return out
@@ -215,6 +258,10 @@ def channel_jacobian(state, channels, site=RadarSite()):
             du = np.sum(d * u, axis=-1)
             J[..., j, :3] = u / R[..., None] - (du / (R2 * R))[..., None] * d
             J[..., j, 3:] = d / R[..., None]
+            if site.device_offset:
+                f, df = chronograph_factor(R, site.device_offset)
+                J[..., j, :] *= f[..., None]
+                J[..., j, :3] += ((du / R) * df / R)[..., None] * d
         else:
             raise ValueError(f"unknown channel {c!r}; allowed: {', '.join(CHANNELS)}")
     return J
