@@ -9,7 +9,7 @@ from ...errors import InputError
 from ...measure import channel_values, gun_frame_track
 from ...track import GUN_CHANNELS, RadarTrack
 
-__all__ = ["start_view", "MIN_RADIAL_FRACTION", "NOMINAL_CD"]
+__all__ = ["start_view", "start_position", "MIN_RADIAL_FRACTION", "NOMINAL_CD"]
 
 #: a Doppler sample is used for the start only where the line of sight is within ~73 deg of the
 #: flight (range rate at least this fraction of the speed on the nominal flight): nearer
@@ -78,3 +78,31 @@ def _doppler_view(track, rnd, site):
     v = np.abs(rr) / np.clip(frac, MIN_RADIAL_FRACTION, None)
     return RadarTrack(track.t[keep], {"v": v[keep]}, {}, track.source,
                       track.notes + (note + "through the nominal flight's line of sight",))
+
+
+def start_position(state0, t0, channels):
+    """The starting state with its position flown out from the muzzle when the channels are a
+    range rate without positions and the track starts after launch.
+
+    The start from a speed knows no position; a radar far from the gun barely cares, but a
+    chronograph radar a few decimetres beside the muzzle sees the sign of its range rate flip
+    if the shell is started behind it. The shell is started where the start's velocity carries
+    it from the muzzle in ``t0`` (drag and gravity move it by ``~ a t0^2 / 2``, centimetres over
+    a chronograph's first milliseconds).
+
+    Parameters
+    ----------
+    state0 : (6,) ndarray
+        Position [m] and velocity [m/s] at ``t0``.
+    t0 : float, s
+    channels : sequence of str
+
+    Returns
+    -------
+    (6,) ndarray
+    """
+    if "range_rate" not in channels or any(c in channels for c in ("x", "y", "z", "range", "azimuth", "elevation")):
+        return state0
+    out = np.array(state0, float, copy=True)
+    out[:3] = out[3:] * max(float(t0), 0.0)
+    return out
