@@ -37,9 +37,10 @@ SHOTS = [("12.7 mm G8, radar right and behind", "b42-g8-xv/ref.csv", 0.042, 0.01
          ("7.62 mm G1, radar left and ahead", "s130-g1-part/ref.csv", 0.0113, 0.00782, 820.0, (0.15, -0.45, -0.1), 0.25)]
 
 
-def _track(ref, mass, diam, v0, site, offset, seed):
+def _track(ref, mass, diam, v0, site, offset, seed, outliers=0):
     """What the device records: the range rate from the true site, corrected with the offset
-    typed, SNR falling with range (sd ~ 1/sqrt(SNR)), 2 ms apart."""
+    typed, SNR falling with range (sd ~ 1/sqrt(SNR)), 2 ms apart; ``outliers`` bad samples in
+    the track's second half, one-sided: 10-100 sd high, their SNR 6 dB lower."""
     truth = Round(Projectile("b", mass, diam, ref, None), Launch(1.0, v0),
                   radar=Radar({"range_rate": SIGMA_RR}, position=site, device_offset=offset), path="truth.toml")
     clean = simulate_round(truth, channels=("range_rate",), dt=0.002)
@@ -48,6 +49,10 @@ def _track(ref, mass, diam, v0, site, offset, seed):
     scale = 10.0 ** ((np.median(snr) - snr) / 20.0)
     rng = np.random.default_rng(seed)
     rr = clean.channels["range_rate"] + SIGMA_RR * scale * rng.standard_normal(clean.n)
+    if outliers:
+        late = rng.choice(np.flatnonzero(clean.t > 0.5 * clean.t[-1]), outliers, replace=False)
+        rr[late] += np.abs(rng.normal(0.0, 2.0, outliers)) + 0.5
+        snr[late] -= 6.0
     return RadarTrack(clean.t, {"range_rate": rr}, {"snr": snr}, "chronograph.csv")
 
 
@@ -58,12 +63,17 @@ def _round(ref, mass, diam, v0, typed, side, position_sd):
                  path="chronograph.toml")
 
 
+#: one-sided bad samples (late, high) in the outlier variant
+OUTLIERS = 8
+
+
+@pytest.mark.parametrize("outliers", [0, OUTLIERS], ids=["clean", "late high outliers"])
 @pytest.mark.parametrize("shot", SHOTS, ids=[s[0] for s in SHOTS])
-def test_a_wrong_offset_with_a_declared_site_sd_gives_cd_within_one_percent(shot):
+def test_a_wrong_offset_with_a_declared_site_sd_gives_cd_within_one_percent(shot, outliers):
     name, table, mass, diam, v0, site, typed = shot
     ref = read_drag_table(CASES / table)
     side = float(np.sign(site[1]))
-    track = _track(ref, mass, diam, v0, site, typed, seed=28)
+    track = _track(ref, mass, diam, v0, site, typed, seed=28, outliers=outliers)
     assert abs(abs(site[1]) - typed) == pytest.approx(OFFSET_ERROR)
     res = bayesdrag.fit(track, _round(ref, mass, diam, v0, typed, side, POSITION_SD), mcmc=False)
     d = res.to_dict()

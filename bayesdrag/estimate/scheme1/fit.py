@@ -531,7 +531,7 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
     """
     chans = prob.channels
     for _ in range(iterations):
-        r = np.stack([res.residuals[c] for c in chans], axis=-1)
+        r = np.stack([res.residuals[c] for c in chans], axis=-1) / prob.noise_scale   # per-sample sd out
         scale = np.empty(len(chans))
         for j, c in enumerate(chans):
             if sigma and c in sigma:
@@ -549,7 +549,7 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
         res = new
         if np.all(step <= 1e-3 * np.where(res.crb[res.free] > 0, res.crb[res.free], np.inf)):
             break
-    r = np.stack([res.residuals[c] for c in chans], axis=-1)
+    r = np.stack([res.residuals[c] for c in chans], axis=-1) / prob.noise_scale
     rejected = {c: [int(i) for i in np.flatnonzero(np.abs(r[:, j]) > REJECT_K * scale[j])]
                 for j, c in enumerate(chans)}
     return res, rejected
