@@ -105,3 +105,23 @@ def test_chronograph_correction_and_its_jacobian():
         sm[:, k] -= h
         fd = (channel_values(sp, ("range_rate",), site) - channel_values(sm, ("range_rate",), site))[:, 0] / (2 * h)
         assert np.allclose(fd, J[:, k], rtol=1e-5, atol=1e-6), k
+
+
+def test_round_file_device_offset_gives_the_site_and_bad_offsets_are_refused(tmp_path):
+    from bayesdrag.errors import InputError
+    from bayesdrag.io.rounds import read_round, write_round
+
+    head = "[projectile]\nmass = 0.042\ndiameter = 0.0127\n[launch]\nelevation = 1.0\nvelocity = 880.0\n"
+    p = tmp_path / "c.toml"
+    p.write_text(head + "[radar]\ndevice_offset = 0.3\nposition_sd = 0.2\n")
+    rnd = read_round(p)
+    assert rnd.radar.position == (0.0, 0.3, 0.0) and rnd.radar.device_offset == 0.3
+    from bayesdrag.measure import site_of
+    assert site_of(rnd).device_offset == 0.3
+    # a site given explicitly (here the muzzle) survives a round trip, not replaced by the offset's
+    muzzle = Round(rnd.projectile, rnd.launch, radar=Radar({}, position=(0.0, 0.0, 0.0), device_offset=0.3))
+    write_round(tmp_path / "m.toml", muzzle)
+    assert read_round(tmp_path / "m.toml").radar.position == (0.0, 0.0, 0.0)
+    p.write_text(head + "[radar]\ndevice_offset = -0.3\n")
+    with pytest.raises(InputError, match=r"c\.toml.*device_offset = -0\.3 m is not a chronograph radar's offset"):
+        read_round(p)
