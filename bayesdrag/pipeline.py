@@ -409,6 +409,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     runs on both cores (numba threads); a process pool would only add start-up and contention on
     a 2-core machine. Scheme 2 chains are kept in memory (one window takes a few seconds)."""
     from .estimate.bayes.posterior import LogPosterior
+    from .estimate.scheme1.systematics import radar_conditional
     from .estimate.bayes.sampler import sample_posterior
 
     r2 = fit_scheme2(track, rnd, window=opts.window, overlap=opts.overlap, channels=chans, free_ic=not opts.fix_ic)
@@ -438,6 +439,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
             if log:
                 log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
     budget = _window_budget(rows, ok, draws, rnd, opts.seed)
+    budget["conditional_on"] += radar_conditional(chans or track.names, ())   # windows fit no radar source
     mach = np.array([w["mach"] for w in rows])
     lo, hi = float(min(w["mach_min"] for w in rows)), float(max(w["mach_max"] for w in rows))
     grid = np.round(np.linspace(lo, hi, 81), 4)

@@ -62,3 +62,13 @@ def test_a_declared_elevation_bias_is_fitted_and_the_band_covers(shot, m101):
         if lo + margin <= m <= hi - margin:
             truth = ref.cd((), np.linspace(m - TRUTH_MACH, m + TRUTH_MACH, 21))
             assert np.min(np.abs(cd - truth)) <= BAND_SDS * row["band_sd"], (name, m)
+
+
+def test_scheme2_windows_say_they_hold_the_radar_sources(m101):
+    """Scheme 2's windows fit no radar source: a declared one is not fitted there, and the
+    result names every one the native channels depend on in ``conditional_on``."""
+    rnd = Round(Projectile("155 mm", 42.6, 0.155, m101, None), Launch(45.0, 818.0, azimuth_deg=90.0),
+                radar=Radar(dict(SIGMA), position=(-40.0, 25.0, 2.0), elevation_bias_sd=BIAS_SD), path="s2.toml")
+    track = add_noise(simulate_round(rnd, channels=tuple(SIGMA), dt=DT), SIGMA, np.random.default_rng(2))
+    b = bayesdrag.fit(track, rnd, mcmc=False, scheme=2).to_dict()["uncertainty_budget"]
+    assert {"range_bias", "azimuth_bias", "elevation_bias", "radar_position"} <= set(b["conditional_on"])
