@@ -153,18 +153,21 @@ AT_SITE = 1e-6
 
 
 def _parts(state, site):
-    """Line of sight ``d`` (..., 3) [m] and velocity (..., 3) [m/s]; at the site itself ``d`` is
-    a tiny step along the velocity, so range rate is the speed and the angles the flight's."""
+    """Line of sight ``d`` (..., 3) [m], velocity (..., 3) [m/s] and ``|d|^2`` (...) [m^2]; at the
+    site itself ``d`` is a tiny step along the velocity, so range rate is the speed and the
+    angles the flight's."""
     state = np.asarray(state, float)
     if state.shape[-1] != 6:
         raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
     d = state[..., :3] - np.asarray(site.position)
     u = state[..., 3:]
     with np.errstate(over="ignore", invalid="ignore"):     # a diverged trial state: inf, rejected by the fit
-        at = _norm2(d) < AT_SITE ** 2
+        R2 = _norm2(d)
+        at = R2 < AT_SITE ** 2
     if np.any(at):
         d = np.where(at[..., None], d + AT_SITE * u / np.maximum(np.linalg.norm(u, axis=-1), 1e-300)[..., None], d)
-    return d, u
+        R2 = _norm2(d)
+    return d, u, R2
 
 
 def _norm2(a):
@@ -198,11 +201,11 @@ def channel_values(state, channels, site=RadarSite()):
     """
     state = np.asarray(state, float)
     if any(c in NATIVE_CHANNELS for c in channels):
-        d, u = _parts(state, site)
+        d, u, R2 = _parts(state, site)
     else:                                # the gun-frame channels need no line of sight
         if state.shape[-1] != 6:
             raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
-        d, u = None, state[..., 3:]
+        d, u, R2 = None, state[..., 3:], None
     out = np.empty(state.shape[:-1] + (len(channels),))
     R = None
     for j, c in enumerate(channels):
@@ -211,7 +214,7 @@ def channel_values(state, channels, site=RadarSite()):
         elif c == "v":
             out[..., j] = np.sqrt(_norm2(u))
         elif c == "range":
-            R = np.sqrt(_norm2(d)) if R is None else R
+            R = np.sqrt(R2) if R is None else R
             out[..., j] = R + site.range_bias
         elif c == "azimuth":
             out[..., j] = (site.azimuth + np.arctan2(d[..., 1], d[..., 0]) + site.azimuth_bias) % (2.0 * np.pi)
@@ -219,7 +222,7 @@ def channel_values(state, channels, site=RadarSite()):
             out[..., j] = np.arctan2(d[..., 2], np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1])) \
                 + site.elevation_bias
         elif c == "range_rate":
-            R = np.sqrt(_norm2(d)) if R is None else R
+            R = np.sqrt(R2) if R is None else R
             out[..., j] = _dot(d, u) / R
             if site.device_offset:
                 out[..., j] *= chronograph_factor(R, site.device_offset)[0]
@@ -245,9 +248,8 @@ def channel_jacobian(state, channels, site=RadarSite()):
         ``d channel / d (x, y, z, ux, uy, uz)`` in the channel's unit per m or per m/s (biases
         are constants and drop out).
     """
-    d, u = _parts(state, site)
+    d, u, R2 = _parts(state, site)
     J = np.zeros(d.shape[:-1] + (len(channels), 6))
-    R2 = np.sum(d * d, axis=-1)
     R = np.sqrt(R2)
     rho2 = d[..., 0] ** 2 + d[..., 1] ** 2
     rho = np.sqrt(rho2)
