@@ -52,6 +52,11 @@ class SimInputs:
         Per-trajectory tabulated density [kg/m^3] and 1 / speed of sound [s/m] on the nominal
         atmosphere's height grid (:meth:`PointMassModel.simulate_batch` ``atmospheres`` given
         as tables: a continuous temperature offset without building an atmosphere per walker).
+    output_offset : dict channel -> (B,) array, optional
+        Constants added to the model outputs (a radar's range bias [m], angle biases [rad]).
+    site_shift : (B, 3) array or None, m
+        Where the radar stands against its nominal site (x, y, z in the gun's frame): the
+        radar-native channels are seen from the shifted site.
     """
 
     overrides: dict = field(default_factory=dict)
@@ -59,3 +64,5 @@ class SimInputs:
     time_shift: np.ndarray | None = None
     output_scale: dict = field(default_factory=dict)
     atmosphere_tables: np.ndarray | None = None
+    output_offset: dict = field(default_factory=dict)
+    site_shift: np.ndarray | None = None

@@ -341,6 +341,7 @@ def _budget(f1, grid, rows):
     gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
     budget is all ``statistical`` and ``conditional_on`` lists what the Cd assumes known."""
     from .estimate.cd.budget import budget_rows, uncertainty_budget
+    from .estimate.scheme1.systematics import radar_conditional
     from .round import SYSTEMATIC_SOURCES
 
     res = f1.ml
@@ -359,7 +360,8 @@ def _budget(f1, grid, rows):
         r["crb_sd_statistical"] = float(v)
     out = budget_rows(b, grid)
     declared = {s[0] for s in f1.sources}
-    out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared]
+    out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared] + \
+        radar_conditional(f1.problem.channels, declared)    # a radar's own sources: its native channels only
     if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
     return out
@@ -433,6 +435,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     runs on both cores (numba threads); a process pool would only add start-up and contention on
     a 2-core machine. Scheme 2 chains are kept in memory (one window takes a few seconds)."""
     from .estimate.bayes.posterior import LogPosterior
+    from .estimate.scheme1.systematics import radar_conditional
     from .estimate.bayes.sampler import sample_posterior
 
     r2 = fit_scheme2(track, rnd, window=opts.window, overlap=opts.overlap, channels=chans, free_ic=not opts.fix_ic)
@@ -462,6 +465,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
             if log:
                 log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
     budget = _window_budget(rows, ok, draws, rnd, opts.seed)
+    budget["conditional_on"] += radar_conditional(chans or track.names, ())   # windows fit no radar source
     mach = np.array([w["mach"] for w in rows])
     lo, hi = float(min(w["mach_min"] for w in rows)), float(max(w["mach_max"] for w in rows))
     grid = np.round(np.linspace(lo, hi, 81), 4)

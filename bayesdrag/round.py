@@ -208,6 +208,8 @@ RADAR_SITE_MAX = 20_000.0
 #: largest plausible a-priori sd of a radar bias: range [m], angles [rad] (1 deg: an encoder
 #: off by more is a setup mistake, not an uncertainty)
 RANGE_BIAS_SD_MAX = 100.0
+#: largest plausible offset typed into a chronograph radar [m]: it stands beside the muzzle
+DEVICE_OFFSET_MAX = 10.0
 ANGLE_BIAS_SD_MAX = math.radians(1.0)
 
 
@@ -231,8 +233,10 @@ class Radar:
     position_sd : float or None, m
         How well the site is known, per axis.
     device_offset : float or None, m
-        A chronograph radar's offset from the line of fire as typed into the device (its own
-        correction of the radial speed, to be undone).
+        A chronograph radar's offset from the line of fire as typed into the device: its own
+        correction of the radial speed, which the measurement equations model
+        (:class:`bayesdrag.measure.RadarSite`). The round file's ``position`` defaults to
+        ``{y = device_offset}`` when it gives this.
     """
 
     sigma: dict = field(default_factory=dict)
@@ -273,6 +277,9 @@ class Radar:
                 val = positive(key, val, unit)
                 if val > hi:
                     raise ValueError(f"{key} = {val:g} {unit} is larger than the plausible {hi:g} {unit}")
+            elif val is not None and not 0.0 <= val <= DEVICE_OFFSET_MAX:
+                raise ValueError(f"{key} = {val:g} m is not a chronograph radar's offset from the line of fire "
+                                 f"(allowed 0 .. {DEVICE_OFFSET_MAX:g} m)")
             object.__setattr__(self, key, val)
 
 

@@ -18,17 +18,21 @@ an example in ``examples/radar_export/``)::
 Semicolon separated, optionally padded with NUL characters; a decimal comma is accepted. Units
 are taken from the column headers ``Vel (fps|m/s|km/h|mph)``, ``Dist (ft|yd|m)``.
 
-Mapping to bayesdrag (decisions written down):
+Mapping to bayesdrag (decisions written down; docs/radar.md, "Chronograph radars"):
 
-* ``Time (s)`` -> ``t``; ``Vel`` -> ``v`` in m/s. A radar behind the gun measures the radial
-  speed; in flat fire it equals the total speed to (1 - cos(angle)) ~ 1e-5 at 0.25 deg, so it is
-  read as ``v``. In high-angle fire it is not: use the radar's position track then.
-* ``Dist`` (slant distance from the radar) is kept as an **extra** column ``range_m``, not as
-  ``x``: the radar stands beside/behind the muzzle and its distance is neither horizontal nor
-  from the muzzle. ``SNR`` becomes the extra column ``snr_db``. Extra columns are kept and
-  ignored by the fit.
+* ``Time (s)`` -> ``t``; ``Vel`` -> ``range_rate`` in m/s: the radial speed seen from the
+  device's site beside the muzzle, after the device's own cosine correction for the offset typed
+  into it. The round says where the device stood (``[radar] position``, default
+  ``{y = device_offset}``) and what offset was typed (``[radar] device_offset``): the fit models
+  both, so a wrongly typed offset is not baked into the speeds, and ``[radar] position_sd`` lets
+  the fit estimate the true site.
+* ``Dist`` is kept as an **extra** column ``range_m``, unused: the device integrates it from its
+  own velocity, it is not a measurement.
+* ``SNR`` becomes the column ``snr`` [dB]: each sample's noise sd is taken proportional to
+  ``1 / sqrt(SNR)`` (:mod:`bayesdrag.measure.sample_noise`).
 * The first row (``SNR`` "-", t = 0) is the device's extrapolation to the muzzle; it is
-  **dropped** by default (``keep_extrapolated=True`` keeps it): it is not an independent
+  **dropped** by default (``keep_extrapolated=True`` keeps it, flagged in the extra column
+  ``extrapolated`` with an SNR of 0 dB, i.e. almost no weight): it is not an independent
   measurement and would pin the launch speed twice. A note says so.
 
 Errors are :class:`~bayesdrag.errors.InputError` naming the file, the line and what was found.
@@ -117,7 +121,8 @@ def read_labradar_track(path, keep_extrapolated=False):
     Returns
     -------
     RadarTrack
-        Channel ``v`` [m/s]; extra columns ``range_m`` [m] and ``snr_db`` [dB] when present;
+        Channel ``range_rate`` [m/s]; extra columns ``range_m`` [m] (unused) and ``snr`` [dB]
+        when present;
         ``notes`` say what was converted and dropped; ``source`` is the file.
     """
     from ..track import RadarTrack
@@ -178,21 +183,22 @@ def read_labradar_track(path, keep_extrapolated=False):
         raise InputError(f"{path}: time must increase strictly; row {k + 1} of the table has t = {t[k]:g} s "
                          f"after {t[k - 1]:g} s")
     if np.any(np.asarray(v) < 0):
-        raise InputError(f"{path}: negative velocity in the table; LabRadar velocities are speeds >= 0")
+        raise InputError(f"{path}: negative velocity in the table; LabRadar velocities are receding speeds >= 0")
     extra = {}
     if dist:
         extra["range_m"] = np.asarray(dist)
     if snr:
         snr = np.asarray(snr)
-        extra["snr_db"] = np.nan_to_num(snr, nan=0.0)
+        extra["snr"] = np.nan_to_num(snr, nan=0.0)
         if np.any(np.isnan(snr)):  # kept extrapolated rows are flagged, their SNR written as 0
             extra["extrapolated"] = np.isnan(snr).astype(float)
     notes = [f"{path}: LabRadar track (device {meta.get('device id', '?')}, series {meta.get('series no', '?')}, "
-             f"shot {meta.get('shot no', '?')}): velocity from {v_unit} to m/s"
+             f"shot {meta.get('shot no', '?')}): velocity from {v_unit} to m/s as the range rate from the device's "
+             f"site (give [radar] device_offset and position in the round)"
              + (f", distance from {d_unit} to m as extra column range_m" if d_fac is not None else "")]
     if dropped:
         notes.append(f"{path}: dropped {dropped} row(s) without SNR (the device's extrapolation to the muzzle)")
-    return RadarTrack(t, {"v": np.asarray(v)}, extra, str(path), tuple(notes))
+    return RadarTrack(t, {"range_rate": np.asarray(v)}, extra, str(path), tuple(notes))
 
 
 def convert(path, output, fmt="auto", **kw):

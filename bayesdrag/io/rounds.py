@@ -85,7 +85,11 @@ def _radar(tab):
                 raise ValueError(f"{k} = {v:g} deg is larger than the plausible {math.degrees(ANGLE_BIAS_SD_MAX):g} deg")
             v = math.radians(v)
         ang[k] = v
-    return Radar(sigma, tab.get("position", (0.0, 0.0, 0.0)), tab.get("range_bias_sd"), ang["azimuth_bias_sd"],
+    pos = tab.get("position", (0.0, 0.0, 0.0))
+    off = tab.get("device_offset")
+    if "position" not in tab and isinstance(off, (int, float)) and not isinstance(off, bool):
+        pos = (0.0, float(off), 0.0)     # a chronograph radar beside the muzzle, to the right, at its offset
+    return Radar(sigma, pos, tab.get("range_bias_sd"), ang["azimuth_bias_sd"],
                  ang["elevation_bias_sd"], tab.get("position_sd"), tab.get("device_offset"))
 
 
@@ -199,7 +203,8 @@ def read_round(path: str | os.PathLike[str]) -> Round:
       range_rate [m/s]} (the angles' sd held in radians inside), position = {x, y, z} [m] (the
       radar's site in the gun's frame at launch, default the muzzle), range_bias_sd [m],
       azimuth_bias_sd [deg], elevation_bias_sd [deg], position_sd [m] (how well the site is
-      known), device_offset [m] (a chronograph radar's offset as typed into the device);
+      known), device_offset [m] (a chronograph radar's offset as typed into the device; its
+      cosine correction is modelled, and without ``position`` the site is ``{y = device_offset}``);
       docs/radar.md
     - systematic sources (optional; each declared sd makes that quantity a nuisance parameter
       of the fit, see :class:`bayesdrag.round.Systematics`): ``[projectile]`` mass_sd [kg],
@@ -377,7 +382,7 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
     radar = {}
     if ra.sigma:
         radar["sigma"] = {c: (math.degrees(v) if c in ANGLE_CHANNELS else v) for c, v in ra.sigma.items()}
-    if any(ra.position):
+    if any(ra.position) or ra.device_offset is not None:     # (else the offset would give the site)
         radar["position"] = dict(zip("xyz", ra.position))
     for key in ("range_bias_sd", "azimuth_bias_sd", "elevation_bias_sd", "position_sd", "device_offset"):
         val = getattr(ra, key)

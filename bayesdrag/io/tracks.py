@@ -3,8 +3,10 @@ least one of ``x, y, z, v`` or of the radar-native ``range, azimuth, elevation, 
 alias: ``time``, ``t_s``, ``speed``, ``slant_range``, ...; :data:`ALIASES`; or any names mapped with
 ``columns``), then one row of numbers per radar sample; SI units (t [s], x, y, z, range [m], v,
 range_rate [m/s]) except the angles, in degrees in the file (radians in the ``RadarTrack``).
-Extra columns (SNR, per-sample ``sigma_<channel>``, ...) are kept in ``RadarTrack.extra``, ignored
-by the fit, and reported by one line in ``RadarTrack.notes``.
+Optional per-sample noise columns, kept in ``RadarTrack.extra``: ``sigma_<channel>`` (each sample's
+noise sd in the channel's file unit) and ``snr`` (the echo's signal-to-noise ratio [dB]); the fit
+weights each sample by them (:mod:`bayesdrag.measure.sample_noise`). Other extra columns are kept,
+ignored by the fit, and reported by one line in ``RadarTrack.notes``.
 
 Reading also checks that the channels agree with each other: the speed from the positions must
 match ``v`` (a track in yards beside m/s, in km, in ft/s is refused with the likely unit).
@@ -285,8 +287,12 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True,
             channels[c] = np.radians(channels[c])
     extra = {n: cols[n] for n in names if n != "t" and n not in CHANNELS}
     notes = alias_notes
-    if extra:
-        notes += (f"{path}: extra column(s) {', '.join(extra)} kept but ignored by the fit",)
+    weighting = _sample_noise_columns(path, extra, channels, line_no)
+    ignored = [n for n in extra if n not in weighting]
+    if weighting:
+        notes += (f"{path}: column(s) {', '.join(weighting)} give each sample's noise (docs/radar.md)",)
+    if ignored:
+        notes += (f"{path}: extra column(s) {', '.join(ignored)} kept but ignored by the fit",)
     if "x" in channels and channels["x"][-1] - channels["x"][0] < -MIN_DOWNRANGE:
         x = channels["x"]
         notes += (f"{path}: x goes from {x[0]:.6g} m to {x[-1]:.6g} m: the track flies toward -x, while x is "
@@ -294,6 +300,44 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True,
                   f"reversed), but Coriolis and winds use the round's azimuth: negate x if the radar's "
                   f"x axis points back at the gun",)
     return RadarTrack(t, channels, extra, str(path), notes)
+
+
+def _sample_noise_columns(path, extra, channels, line_no):
+    """Check the per-sample noise columns (``sigma_<channel>`` > 0 in the channel's file unit,
+    turned into radians for the angles; ``snr`` in dB, finite) and return their names.
+
+    Raises
+    ------
+    InputError
+        A value that cannot be a noise sd or an SNR, naming its line.
+    """
+    used = []
+    for n in list(extra):
+        if n.startswith("sigma_") and n[6:] in CHANNELS:
+            c = n[6:]
+            if c not in channels:
+                continue                   # a sd of a channel the track lacks: kept, ignored
+            a = extra[n]
+            bad = np.flatnonzero(~(np.isfinite(a) & (a > 0)))
+            if bad.size:
+                i = bad[0]
+                raise InputError(f"{path}: line {line_no[i]}: {n} = {a[i]:g} {FILE_UNITS[c]}; a sample's noise sd must "
+                                 f"be a positive number (leave the column out where it is not known)")
+            extra[n] = np.radians(a) if c in ANGLE_CHANNELS else a
+            used.append(n)
+        elif n == "snr":
+            a = extra[n]
+            bad = np.flatnonzero(~np.isfinite(a) | (np.abs(a) > SNR_MAX_DB))
+            if bad.size:
+                i = bad[0]
+                raise InputError(f"{path}: line {line_no[i]}: snr = {a[i]:g} dB; the echo's signal-to-noise ratio is "
+                                 f"a finite number of dB within +-{SNR_MAX_DB:g}")
+            used.append(n)
+    return used
+
+
+#: largest |SNR| a track may give [dB]: beyond it the column is not a radar's SNR in dB
+SNR_MAX_DB = 200.0
 
 
 def write_track(path: str | os.PathLike[str], track: RadarTrack, comment: str | None = None,
@@ -320,7 +364,7 @@ def write_track(path: str | os.PathLike[str], track: RadarTrack, comment: str | 
     if extra:
         for k, a in track.extra.items():
             names.append(k)
-            cols.append(a)
+            cols.append(np.degrees(a) if k in [f"sigma_{c}" for c in ANGLE_CHANNELS] else a)   # degrees in files
             fmts.append("%.10g")
     buf = io.StringIO()
     if comment:

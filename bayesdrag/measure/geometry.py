@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import InputError
 from ..track import ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 
-__all__ = ["RadarSite", "site_of", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
+__all__ = ["RadarSite", "site_of", "chronograph_factor", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
            "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS"]
 
 #: mean Earth radius [m], for the curvature figure x^2 / (2 Re) of the docs
@@ -51,6 +51,11 @@ class RadarSite:
         Constant offset added to the measured range.
     azimuth_bias, elevation_bias : float, rad
         Constant offsets added to the measured angles.
+    device_offset : float or None, m
+        A chronograph radar's offset from the line of fire as typed into the device: the device
+        reports its range rate divided by the cosine of the angle that offset makes at the
+        measured range, ``range_rate * R / sqrt(R^2 - d^2)`` (:func:`chronograph_factor`);
+        None: the range rate as measured.
     """
 
     position: tuple = (0.0, 0.0, 0.0)
@@ -58,6 +63,7 @@ class RadarSite:
     range_bias: float = 0.0
     azimuth_bias: float = 0.0
     elevation_bias: float = 0.0
+    device_offset: float | None = None
 
     def __post_init__(self):
         pos = tuple(float(v) for v in np.asarray(self.position, float).reshape(-1))
@@ -69,6 +75,40 @@ class RadarSite:
             if not math.isfinite(v):
                 raise ValueError(f"radar {k} must be finite, got {v}")
             object.__setattr__(self, k, v)
+        if self.device_offset is not None:
+            d = float(self.device_offset)
+            if not (math.isfinite(d) and d >= 0.0):
+                raise ValueError(f"radar device_offset must be a finite distance >= 0 [m], got {d}")
+            object.__setattr__(self, "device_offset", d or None)
+
+
+#: the device's cosine correction is held at this factor where the range nears its offset (a
+#: chronograph radar tracks from a few metres on; the first metre is not a measurement)
+CHRONOGRAPH_FACTOR_MAX = 10.0
+
+
+def chronograph_factor(R, d):
+    """The factor a chronograph radar multiplies its range rate by for an offset ``d`` typed
+    into it: ``R / sqrt(R^2 - d^2)`` at slant range ``R`` (the cosine of the angle between its
+    line of sight and a line of fire at distance ``d``), with its derivative in R.
+
+    Parameters
+    ----------
+    R : array_like, m
+    d : float, m
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        The factor [-] (at most :data:`CHRONOGRAPH_FACTOR_MAX`) and d factor / d R [1/m].
+    """
+    R = np.asarray(R, float)
+    lo = d * CHRONOGRAPH_FACTOR_MAX / math.sqrt(CHRONOGRAPH_FACTOR_MAX ** 2 - 1.0)
+    Rc = np.maximum(R, lo)
+    q = np.sqrt(Rc * Rc - d * d)
+    f = Rc / q
+    df = np.where(R > lo, -d * d / q ** 3, 0.0)
+    return f, df
 
 
 def site_of(rnd, channels=()):
@@ -90,7 +130,7 @@ def site_of(rnd, channels=()):
         raise InputError(f"{rnd.path or 'round'}: [launch] azimuth is missing: the track has the radar's "
                          f"{' and '.join(angles)}, measured from true north; give the firing azimuth "
                          f"(deg clockwise from true north)")
-    return RadarSite(rnd.radar.position, rnd.launch.azimuth)
+    return RadarSite(rnd.radar.position, rnd.launch.azimuth, device_offset=rnd.radar.device_offset)
 
 
 def wrap_angle(a):
@@ -113,18 +153,32 @@ AT_SITE = 1e-6
 
 
 def _parts(state, site):
-    """Line of sight ``d`` (..., 3) [m] and velocity (..., 3) [m/s]; at the site itself ``d`` is
-    a tiny step along the velocity, so range rate is the speed and the angles the flight's."""
+    """Line of sight ``d`` (..., 3) [m], velocity (..., 3) [m/s] and ``|d|^2`` (...) [m^2]; at the
+    site itself ``d`` is a tiny step along the velocity, so range rate is the speed and the
+    angles the flight's."""
     state = np.asarray(state, float)
     if state.shape[-1] != 6:
         raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
     d = state[..., :3] - np.asarray(site.position)
     u = state[..., 3:]
     with np.errstate(over="ignore", invalid="ignore"):     # a diverged trial state: inf, rejected by the fit
-        at = np.sum(d * d, axis=-1) < AT_SITE ** 2
+        R2 = _norm2(d)
+        at = R2 < AT_SITE ** 2
     if np.any(at):
         d = np.where(at[..., None], d + AT_SITE * u / np.maximum(np.linalg.norm(u, axis=-1), 1e-300)[..., None], d)
-    return d, u
+        R2 = _norm2(d)
+    return d, u, R2
+
+
+def _norm2(a):
+    """Squared norm over the last axis of length 3 (component sums: numpy's reduction over a
+    last axis of 3 is several times slower, and this runs on every trial trajectory)."""
+    return a[..., 0] * a[..., 0] + a[..., 1] * a[..., 1] + a[..., 2] * a[..., 2]
+
+
+def _dot(a, b):
+    """Dot product over the last axis of length 3."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
 def channel_values(state, channels, site=RadarSite()):
@@ -147,27 +201,31 @@ def channel_values(state, channels, site=RadarSite()):
     """
     state = np.asarray(state, float)
     if any(c in NATIVE_CHANNELS for c in channels):
-        d, u = _parts(state, site)
+        d, u, R2 = _parts(state, site)
     else:                                # the gun-frame channels need no line of sight
         if state.shape[-1] != 6:
             raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
-        d, u = None, state[..., 3:]
+        d, u, R2 = None, state[..., 3:], None
     out = np.empty(state.shape[:-1] + (len(channels),))
-    rho = None
+    R = None
     for j, c in enumerate(channels):
         if c in ("x", "y", "z"):
             out[..., j] = state[..., "xyz".index(c)]
         elif c == "v":
-            out[..., j] = np.sqrt(np.sum(u * u, axis=-1))
+            out[..., j] = np.sqrt(_norm2(u))
         elif c == "range":
-            out[..., j] = np.sqrt(np.sum(d * d, axis=-1)) + site.range_bias
+            R = np.sqrt(R2) if R is None else R
+            out[..., j] = R + site.range_bias
         elif c == "azimuth":
             out[..., j] = (site.azimuth + np.arctan2(d[..., 1], d[..., 0]) + site.azimuth_bias) % (2.0 * np.pi)
         elif c == "elevation":
-            rho = np.hypot(d[..., 0], d[..., 1]) if rho is None else rho
-            out[..., j] = np.arctan2(d[..., 2], rho) + site.elevation_bias
+            out[..., j] = np.arctan2(d[..., 2], np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1])) \
+                + site.elevation_bias
         elif c == "range_rate":
-            out[..., j] = np.sum(d * u, axis=-1) / np.sqrt(np.sum(d * d, axis=-1))
+            R = np.sqrt(R2) if R is None else R
+            out[..., j] = _dot(d, u) / R
+            if site.device_offset:
+                out[..., j] *= chronograph_factor(R, site.device_offset)[0]
         else:
             raise ValueError(f"unknown channel {c!r}; allowed: {', '.join(CHANNELS)}")
     return out
@@ -190,9 +248,8 @@ def channel_jacobian(state, channels, site=RadarSite()):
         ``d channel / d (x, y, z, ux, uy, uz)`` in the channel's unit per m or per m/s (biases
         are constants and drop out).
     """
-    d, u = _parts(state, site)
+    d, u, R2 = _parts(state, site)
     J = np.zeros(d.shape[:-1] + (len(channels), 6))
-    R2 = np.sum(d * d, axis=-1)
     R = np.sqrt(R2)
     rho2 = d[..., 0] ** 2 + d[..., 1] ** 2
     rho = np.sqrt(rho2)
@@ -215,6 +272,10 @@ def channel_jacobian(state, channels, site=RadarSite()):
             du = np.sum(d * u, axis=-1)
             J[..., j, :3] = u / R[..., None] - (du / (R2 * R))[..., None] * d
             J[..., j, 3:] = d / R[..., None]
+            if site.device_offset:
+                f, df = chronograph_factor(R, site.device_offset)
+                J[..., j, :] *= f[..., None]
+                J[..., j, :3] += ((du / R) * df / R)[..., None] * d
         else:
             raise ValueError(f"unknown channel {c!r}; allowed: {', '.join(CHANNELS)}")
     return J

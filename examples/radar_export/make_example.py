@@ -2,7 +2,7 @@
 
 The bullet and its drag are the Warner 6.5 mm Flatline round (``examples/warner/65_flatline``);
 the point-mass track is sampled every ~2.5 ms with jitter for 0.35 s (~300 m, where a LabRadar
-typically loses a rifle bullet), velocity noise 0.15 m/s, written in LabRadar's layout and units
+typically loses a rifle bullet), velocity noise 0.15 m/s at the median SNR (sd ~ 1/sqrt(SNR)), written in LabRadar's layout and units
 (fps, yd). Run from anywhere: ``python3 examples/radar_export/make_example.py``.
 """
 from pathlib import Path
@@ -11,6 +11,7 @@ import numpy as np
 
 from bayesdrag.synthetic import simulate_round
 from bayesdrag.io.rounds import read_round
+from bayesdrag.measure.sample_noise import SCALE_MAX, SCALE_MIN
 
 HERE = Path(__file__).resolve().parent
 
@@ -24,9 +25,12 @@ def main(seed=1):
     r_all = np.hypot(tr.x[keep], tr.z[keep])
     t_s = np.cumsum(0.0025 * (0.8 + 0.4 * rng.random(200))) + 0.0045
     t_s = t_s[t_s <= 0.35]
-    v = np.interp(t_s, t_all, v_all) + 0.15 * rng.standard_normal(t_s.size)
+    e = rng.standard_normal(t_s.size)
     r = np.interp(t_s, t_all, r_all)
     snr = 48.0 - 20 * np.log10(np.maximum(r, 5.0) / 5.0) + rng.normal(0, 1.0, t_s.size)
+    # the noise follows the echo: sd ~ 1/sqrt(SNR), 0.15 m/s at the median SNR (docs/radar.md)
+    scale = np.clip(10 ** ((np.median(snr) - snr) / 20), SCALE_MIN, SCALE_MAX)
+    v = np.interp(t_s, t_all, v_all) + 0.15 * scale * e
     lines = ["sep=;", "Device ID;LBR-0000042;;", "", "Series No;0001;;", "Shot No;0001;;", "",
              "Units velocity;fps;;", "Units distances;yd;;", "", "Time (s);Vel (fps);Dist (yd);SNR",
              f"0.000000;{tr.v[0] / 0.3048:.2f};0.00;-"]

@@ -14,11 +14,12 @@ HEAD = "sep=;\nDevice ID;LBR-1;;\nSeries No;0001\nShot No;0007\n\n"
 
 def test_example_file_is_read_in_si_with_extras_and_notes():
     tr = read_radar_export(EXAMPLE)
-    assert tr.names == ("v",)
+    # a chronograph radar's velocity is its range rate from its own site (docs/radar.md)
+    assert tr.names == ("range_rate",)
     assert tr.n == 137 and tr.t[0] > 0  # the extrapolated muzzle row dropped
-    assert tr.v[0] == pytest.approx(3109.94 * 0.3048, abs=1e-9)
+    assert tr.channels["range_rate"][0] == pytest.approx(3109.51 * 0.3048, abs=1e-9)
     assert tr.extra["range_m"][0] == pytest.approx(7.28 * 0.9144, abs=1e-9)
-    assert set(tr.extra) == {"range_m", "snr_db"}
+    assert set(tr.extra) == {"range_m", "snr"}
     assert any("dropped 1 row" in n for n in tr.notes) and any("fps to m/s" in n for n in tr.notes)
     kept = read_labradar_track(EXAMPLE, keep_extrapolated=True)
     assert kept.n == 138 and kept.t[0] == 0.0 and kept.extra["extrapolated"][0] == 1.0
@@ -31,18 +32,19 @@ def test_metric_units_decimal_comma_and_nul_padding(tmp_path):
     p.write_bytes(body.encode().replace(b"\n", b"\x00\x00\n"))
     assert sniff_format(p) == "labradar"
     tr = read_labradar_track(p)
-    np.testing.assert_allclose(tr.v, [795.0, 793.0])
+    np.testing.assert_allclose(tr.channels["range_rate"], [795.0, 793.0])
     np.testing.assert_allclose(tr.extra["range_m"], [5.37, 6.14])
-    np.testing.assert_allclose(tr.extra["snr_db"], [33.07, 40.15])
+    np.testing.assert_allclose(tr.extra["snr"], [33.07, 40.15])
 
 
 def test_round_trip_through_the_bayesdrag_csv(tmp_path):
     out = tmp_path / "t.csv"
     tr = convert(EXAMPLE, out)
     back = read_track(out)
-    np.testing.assert_allclose(back.v, tr.v, atol=1e-4)   # 4 decimals in the CSV
+    np.testing.assert_allclose(back.channels["range_rate"], tr.channels["range_rate"], atol=1e-4)   # 4 decimals
     np.testing.assert_allclose(back.t, tr.t, atol=1e-6)
-    assert set(back.extra) == {"range_m", "snr_db"}
+    assert set(back.extra) == {"range_m", "snr"}
+    assert any("snr give each sample's noise" in n for n in back.notes)
     assert sniff_format(out) == "bayesdrag"
 
 

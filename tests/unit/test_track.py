@@ -86,11 +86,15 @@ def test_comments_blank_lines_crlf_bom_and_spaces(tmp_path):
 
 
 def test_extra_columns_kept_with_note(tmp_path):
-    tr = read_track(write_csv(tmp_path, "t,x,snr,rdot\n0,0,20,800\n0.1,80,19.5,799\n"))
+    tr = read_track(write_csv(tmp_path, "t,x,gain,rdot\n0,0,20,800\n0.1,80,19.5,799\n"))
     assert tr.names == ("x",)
-    assert set(tr.extra) == {"snr", "rdot"}
-    np.testing.assert_array_equal(tr.extra["snr"], [20.0, 19.5])
-    assert len(tr.notes) == 1 and "snr, rdot" in tr.notes[0] and "ignored" in tr.notes[0]
+    assert set(tr.extra) == {"gain", "rdot"}
+    np.testing.assert_array_equal(tr.extra["gain"], [20.0, 19.5])
+    assert len(tr.notes) == 1 and "gain, rdot" in tr.notes[0] and "ignored" in tr.notes[0]
+    # an snr column is not ignored: it weights each sample (docs/radar.md)
+    tr = read_track(write_csv(tmp_path, "t,x,snr,rdot\n0,0,20,800\n0.1,80,19.5,799\n"))
+    assert [n for n in tr.notes if "ignored" in n] == [f"{tr.source}: extra column(s) rdot kept but ignored by the fit"]
+    assert any("snr give each sample's noise" in n for n in tr.notes)
 
 
 def test_write_read_round_trip(tmp_path):

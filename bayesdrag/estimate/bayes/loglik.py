@@ -120,7 +120,7 @@ def draws_log_likelihood(result, post, pick):
     d = result.draws[:, pick].reshape(W * pick.size, -1)
     th = result.thetas[:, pick].reshape(W * pick.size, -1)
     y, _ = post.problem.predict(th)
-    r = post.problem.z[None] - y                                     # (S, N, C)
+    r = (post.problem.z[None] - y) / post.problem.noise_scale[None]  # (S, N, C), each sample's sd out
     if post.likelihood == "student-t":
         ls = d[:, [names.index(f"log_sigma_{c}") for c in post.channels]]
         nu = np.exp(d[:, names.index("log_nu")]) if post.sample_nu else np.full(d.shape[0], float(post.nu))
@@ -135,4 +135,5 @@ def draws_log_likelihood(result, post, pick):
             else:
                 ar[post.channels.index(c)] = post.ar_ml[c]
         ll = pointwise_log_likelihood(r, ls, ar=ar, dt_ratio=post.problem.dt_ratio)
+    ll = ll - np.log(post.problem.noise_scale)[None]     # the density of z, not of z / scale
     return np.swapaxes(ll, 1, 2).reshape(W, pick.size, -1)

@@ -209,7 +209,7 @@ def fisher_information(problem, theta, sigma, ar=None):
     """
     _, _, S = problem.sensitivities(theta)
     W = 1.0 / np.array([sigma[c] for c in problem.channels]) ** 2
-    A = (problem.whiten(S, ar) * np.sqrt(W)[None, :, None]).reshape(-1, S.shape[-1])
+    A = (problem.whiten(problem.standardized(S), ar) * np.sqrt(W)[None, :, None]).reshape(-1, S.shape[-1])
     M = A.T @ A
     pr, pJ = problem.prior_terms(theta)
     if pr.size:
@@ -523,7 +523,7 @@ class LogPosterior:
                 y, _ = self.problem.predict(self.full_theta(X[ok]))
             except (FloatingPointError, ValueError, ZeroDivisionError):
                 return out
-            r = self.problem.z[None] - y                      # (w, N, C)
+            r = (self.problem.z[None] - y) / self.problem.noise_scale[None]   # (w, N, C), per-sample sd out
             finite = np.all(np.isfinite(r), axis=(1, 2))
             r = np.where(finite[:, None, None], r, 0.0)
             ss = np.sum(r ** 2, axis=1)                       # (w, C)

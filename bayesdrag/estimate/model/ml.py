@@ -368,7 +368,7 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
     D = np.zeros_like(M)
     sig_vec = np.array([sigma[c] for c in problem.channels])
     Sw = Sw_all * np.sqrt(problem.weights)[:, :, None] / sig_vec[None, :, None]  # R^-1 S (whitened)
-    resid_w = problem.whiten(resid, ar)
+    resid_w = problem.whiten(problem.standardized(resid), ar)
     N = resid.shape[0]
     for j in range(len(problem.channels)):
         wj = problem.weights[:, j] > 0

@@ -38,8 +38,8 @@ import numpy as np
 
 from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ...errors import InputError
-from ...measure import RadarSite, channel_values, near_branch
-from ...track import ALL_CHANNELS
+from ...measure import RadarSite, channel_values, near_branch, sample_noise
+from ...track import ALL_CHANNELS, NATIVE_CHANNELS
 from . import colored
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
@@ -72,7 +72,7 @@ class Prior:
     row: object = None
 
 
-def outputs(traj_state, channels, site=None, measured=None):
+def outputs(traj_state, channels, site=None, measured=None, offset=None, site_shift=None):
     """Model outputs (B, N, C) for channels from states (B, N, 6).
 
     Parameters
@@ -84,8 +84,22 @@ def outputs(traj_state, channels, site=None, measured=None):
     measured : (N, C) array, optional
         The measurements: a predicted azimuth is put on the branch (whole turns) nearest its
         measurement, so that measurement minus prediction is the wrapped difference.
+    offset : dict channel -> (B,) array, optional
+        Constants added per trajectory (a radar's range [m] and angle [rad] biases).
+    site_shift : (B, 3) array, optional, m
+        The radar's site moved per trajectory: its native channels are seen from there.
     """
-    out = channel_values(traj_state, channels, RadarSite() if site is None else site)
+    site = RadarSite() if site is None else site
+    out = channel_values(traj_state, channels, site)
+    native = [j for j, c in enumerate(channels) if c in NATIVE_CHANNELS]
+    if site_shift is not None and native:
+        # the line of sight depends on the shell's position less the site's: shift the shell
+        moved = np.array(traj_state, float, copy=True)
+        moved[..., :3] -= np.asarray(site_shift, float)[:, None, :]
+        out[..., native] = channel_values(moved, [channels[j] for j in native], site)
+    for j, c in enumerate(channels):
+        if offset and c in offset:
+            out[..., j] += np.asarray(offset[c], float)[:, None]
     if measured is not None and "azimuth" in channels:
         j = list(channels).index("azimuth")
         out[..., j] = near_branch(out[..., j], measured[:, j])
@@ -123,10 +137,16 @@ class OutputErrorProblem:
     site : RadarSite, optional
         Where the radar stands (its native channels are seen from there); default the muzzle
         with azimuth 0, which only gun-frame channels may rely on.
+    noise_scale : (N, C) array, optional
+        Each sample's noise sd over its channel's sd (``sigma_c``); default read off the
+        track's ``sigma_<channel>`` and ``snr`` columns (:func:`bayesdrag.measure.sample_noise`),
+        else 1. A ``sigma_<channel>`` column's median also fixes the channel's sd unless
+        ``sigma`` gives it.
     """
 
     def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
-                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None, site=None):
+                 extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None, site=None,
+                 noise_scale=None):
         self.model = model
         self.track = track
         self.site = RadarSite() if site is None else site
@@ -150,6 +170,14 @@ class OutputErrorProblem:
         self.sigma_fixed = {c: float(s) for c, s in (sigma or {}).items() if c in self.channels}
         self.priors = tuple(priors)
         self.z = np.stack([track.channels[c] for c in self.channels], axis=-1)  # (N, C)
+        if noise_scale is None:
+            noise_scale, level = sample_noise(track, self.channels)
+            for c, s in level.items():
+                self.sigma_fixed.setdefault(c, s)
+        #: each sample's noise sd over its channel's (N, C); ones when every sample is alike
+        self.noise_scale = np.ones_like(self.z) if noise_scale is None else np.asarray(noise_scale, float)
+        if self.noise_scale.shape != self.z.shape or not np.all(self.noise_scale > 0):
+            raise ValueError(f"noise_scale must be (N, C) = {self.z.shape} and positive")
         if weights is None:
             self.weights = np.ones_like(self.z)
         else:
@@ -235,7 +263,14 @@ class OutputErrorProblem:
         sw = np.sqrt(self.weights) / np.array([sigma[c] for c in self.channels])[None, :]
         if a.ndim == 3:
             sw = sw[:, :, None]
-        return self.whiten(a, ar) * sw
+        return self.whiten(self.standardized(a), ar) * sw
+
+    def standardized(self, a):
+        """Residual-like arrays (N, C) or (N, C, k) over each sample's noise scale: samples of
+        one channel then share its sd (``a`` itself when every sample is alike)."""
+        if np.all(self.noise_scale == 1.0):
+            return a
+        return a / (self.noise_scale if a.ndim == 2 else self.noise_scale[:, :, None])
 
     def update_noise(self, resid, sigma, ar):
         """Noise relaxation: new ``(sigma, ar)`` at fixed parameters.
@@ -250,7 +285,7 @@ class OutputErrorProblem:
             if self.noise_model[c] != "ar1":
                 continue
             start = (ar or {}).get(c)
-            s, rho, q, _ = colored.fit_noise(resid[:, j], self.dt_ratio, start=start)
+            s, rho, q, _ = colored.fit_noise(resid[:, j] / self.noise_scale[:, j], self.dt_ratio, start=start)
             new[c] = (rho, q)
             sig[c] = s
         return sig, new
@@ -272,9 +307,14 @@ class OutputErrorProblem:
                     y[:, :, j] *= np.asarray(inp.output_scale[c], float)[:, None]
         return y, mach
 
-    def outputs(self, state):
-        """The problem's channels (B, N, C) from states (B, N, 6), seen from its radar site."""
-        return outputs(state, self.channels, self.site, self.z)
+    def outputs(self, state, inp=None, g=None):
+        """The problem's channels (B, N, C) from states (B, N, 6), seen from its radar site
+        (moved and biased per trajectory by :class:`SimInputs` ``inp``, rows ``g`` of its batch)."""
+        if inp is None or (not inp.output_offset and inp.site_shift is None):
+            return outputs(state, self.channels, self.site, self.z)
+        off = {c: np.asarray(v, float)[g] for c, v in inp.output_offset.items()}
+        shift = None if inp.site_shift is None else np.asarray(inp.site_shift, float)[g]
+        return outputs(state, self.channels, self.site, self.z, off, shift)
 
     def _predict_effects(self, thetas, inp):
         """Outputs and Mach of a batch whose extras give ``inp`` (:class:`SimInputs`)."""
@@ -293,7 +333,7 @@ class OutputErrorProblem:
             if inp.atmosphere_tables is not None:
                 atm = np.asarray(inp.atmosphere_tables)[g]
             state, m = self._simulate_shifted(thetas[g], t_out, ov, atm)
-            y[g] = self.outputs(state)
+            y[g] = self.outputs(state, inp, g)
             mach[g] = m
         return y, mach
 
@@ -404,7 +444,8 @@ class OutputErrorProblem:
                 sig[c] = self.sigma_fixed[c]
             else:
                 w = self.weights[:, j]
-                sig[c] = max(float(np.sqrt(np.sum(w * resid[:, j] ** 2) / max(np.sum(w), 1.0))), 1e-9)
+                e = resid[:, j] / self.noise_scale[:, j]
+                sig[c] = max(float(np.sqrt(np.sum(w * e ** 2) / max(np.sum(w), 1.0))), 1e-9)
         return sig
 
     def cost(self, resid, sigma, theta, ar=None):

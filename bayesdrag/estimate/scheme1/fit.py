@@ -62,7 +62,7 @@ from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from ..model.problem import OutputErrorProblem
 from .systematics import fit_with_sources
 from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
-from .native_start import start_view
+from .native_start import start_position, start_view
 from .start import DataStart, check_gravity_units, check_heights, data_start
 from ...measure import gun_equivalent, site_of
 
@@ -290,7 +290,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     seen_as = gun_equivalent(chans)      # what a radar's own channels observe in the gun's frame
     if not any(c in seen_as for c in ("x", "y", "z")):
         s0 = s0.copy()
-        s0[:3] = 0.0 if abs(t0) < 1e-9 else s0[:3]
+        s0[:3] = 0.0 if abs(t0) < 1e-9 else start_position(s0, t0, chans)[:3]
     # launch values the channels cannot see (no z: the muzzle height and the elevation) are
     # priors from the start; the others are checked against the track first
     unseen = unseen_launch_priors(track, rnd, chans)
@@ -533,7 +533,7 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
     """
     chans = prob.channels
     for _ in range(iterations):
-        r = np.stack([res.residuals[c] for c in chans], axis=-1)
+        r = np.stack([res.residuals[c] for c in chans], axis=-1) / prob.noise_scale   # per-sample sd out
         scale = np.empty(len(chans))
         for j, c in enumerate(chans):
             if sigma and c in sigma:
@@ -551,7 +551,7 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
         res = new
         if np.all(step <= 1e-3 * np.where(res.crb[res.free] > 0, res.crb[res.free], np.inf)):
             break
-    r = np.stack([res.residuals[c] for c in chans], axis=-1)
+    r = np.stack([res.residuals[c] for c in chans], axis=-1) / prob.noise_scale
     rejected = {c: [int(i) for i in np.flatnonzero(np.abs(r[:, j]) > REJECT_K * scale[j])]
                 for j, c in enumerate(chans)}
     return res, rejected

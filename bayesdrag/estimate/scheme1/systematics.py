@@ -17,7 +17,19 @@ position_scale   ``position_scale`` [-] the radar reports ``(1 + s)`` times x, y
 velocity_scale   ``velocity_scale`` [-] the radar reports ``(1 + s)`` times v
 time_offset      ``radar_time.dt`` [s]  the radar clock is late by dt (the ``radar_time``
                                         effect, same sign)
+range_bias       ``range_bias`` [m]     added to the radar's measured range
+azimuth_bias     ``azimuth_bias`` [rad] added to its measured azimuth
+elevation_bias   ``elevation_bias``     added to its measured elevation
+                 [rad]
+radar_position   ``radar_position.x``,  the radar stands this far [m] from its declared site
+                 ``.y``, ``.z`` [m]     (one budget key for the three)
 ===============  =====================  =====================================================
+
+The radar's sources (``[radar] range_bias_sd``, ``azimuth_bias_sd``, ``elevation_bias_sd``,
+``position_sd``) act on its own channels only: each is fitted when the fit's channels depend on
+it (a range bias on ``range``, an angle bias on its angle, the site on every native channel) and
+otherwise stated as declared but not fitted (:func:`radar_unused`); an undeclared one the
+channels depend on is named in the budget's ``conditional_on`` (:func:`radar_conditional`).
 
 One quantity is one parameter: the names of the density, temperature and clock sources are the
 parameters of the diagnosis effects of the same quantity, so a ``--with`` of such an effect adds
@@ -48,14 +60,22 @@ import numpy as np
 from ...dynamics import kernel as K
 from ...dynamics.pointmass import atmosphere_table
 from ...effect_inputs import ExtraParam, SimInputs
+from ...track import NATIVE_CHANNELS
 from ..model.problem import Prior
 
-__all__ = ["SOURCE_PARAMS", "source_extras", "source_priors", "source_fn"]
+__all__ = ["SOURCE_PARAMS", "RADAR_SOURCES", "source_extras", "source_priors", "source_fn", "radar_conditional",
+           "radar_unused"]
 
 #: parameter name of each source (the diagnosis effect's name where one exists)
 SOURCE_PARAMS = {"mass": "mass", "diameter": "diameter", "density": "density.ratio",
                  "temperature": "temperature.dT", "position_scale": "position_scale",
                  "velocity_scale": "velocity_scale", "time_offset": "radar_time.dt"}
+#: the radar's systematic sources: budget key -> (``Radar`` attribute of its sd, the native
+#: channels it moves; None: every native channel)
+RADAR_SOURCES = {"range_bias": ("range_bias_sd", ("range",)),
+                 "azimuth_bias": ("azimuth_bias_sd", ("azimuth",)),
+                 "elevation_bias": ("elevation_bias_sd", ("elevation",)),
+                 "radar_position": ("position_sd", None)}
 #: temperature interpolation nodes at +-T_NODE_SDS declared sd ...
 T_NODE_SDS = 3.0
 #: ... and at least this far [K]
@@ -67,12 +87,69 @@ FD_STEP_SDS = 0.1
 BOUND_SDS = 20.0
 
 
-def source_extras(rnd):
-    """Extra parameters of the round's declared sources (in :data:`SOURCE_PARAMS` order).
+def _depends(stem, channels):
+    """Whether channels depend on the radar source ``stem`` (bool)."""
+    moved = RADAR_SOURCES[stem][1]
+    return any(c in (NATIVE_CHANNELS if moved is None else moved) for c in channels)
+
+
+def radar_conditional(channels, fitted):
+    """The radar sources the channels depend on that are not fitted (list of budget keys): the
+    Cd is conditional on them (held at their nominal values: no bias, the declared site).
+
+    Parameters
+    ----------
+    channels : sequence of str
+        The fit's channels.
+    fitted : collection of str
+        The stems of the sources fitted.
+    """
+    return [k for k in RADAR_SOURCES if k not in fitted and _depends(k, channels)]
+
+
+def radar_unused(rnd, channels):
+    """The declared radar sources the channels do not depend on, with why (dict stem -> str)."""
+    out = {}
+    for stem, (attr, moved) in RADAR_SOURCES.items():
+        if getattr(rnd.radar, attr) is not None and not _depends(stem, channels):
+            what = "no radar-native channel" if moved is None else f"no {moved[0]} channel"
+            out[stem] = f"[radar] {attr} is declared but the fit has {what}: not fitted (nothing depends on it)"
+    return out
+
+
+def radar_extras(rnd, channels):
+    """Extra parameters of the declared radar sources the channels depend on.
 
     Parameters
     ----------
     rnd : Round
+    channels : sequence of str
+
+    Returns
+    -------
+    tuple of (stem, ExtraParam, nominal, sd)
+        ``radar_position`` gives three (``radar_position.x``, ``.y``, ``.z``), one stem.
+    """
+    out = []
+    for stem, (attr, _) in RADAR_SOURCES.items():
+        sd = getattr(rnd.radar, attr)
+        if sd is None or not _depends(stem, channels):
+            continue
+        names = (stem,) if stem != "radar_position" else tuple(f"{stem}.{a}" for a in "xyz")
+        for n in names:
+            out.append((stem, ExtraParam(n, 0.0, -BOUND_SDS * sd, BOUND_SDS * sd, sd * FD_STEP_SDS), 0.0, sd))
+    return tuple(out)
+
+
+def source_extras(rnd, channels=()):
+    """Extra parameters of the round's declared sources (in :data:`SOURCE_PARAMS` order, then
+    the radar's the channels depend on, :func:`radar_extras`).
+
+    Parameters
+    ----------
+    rnd : Round
+    channels : sequence of str
+        The fit's channels (the radar's sources act on its native channels only).
 
     Returns
     -------
@@ -88,7 +165,7 @@ def source_extras(rnd):
         if stem in ("mass", "diameter", "density"):
             lo = max(lo, 0.2 * nom)
         out.append((stem, ExtraParam(SOURCE_PARAMS[stem], nom, lo, hi, max(sd * FD_STEP_SDS, 1e-9)), nom, sd))
-    return tuple(out)
+    return tuple(out) + radar_extras(rnd, channels)
 
 
 def source_priors(extras, offset):
@@ -98,7 +175,8 @@ def source_priors(extras, offset):
         j = offset + k
         row = np.zeros(j + 1)
         row[j] = 1.0
-        pri.append(Prior(f"{stem}_sd", (lambda th, j=j: th[..., j]), float(nom), float(sd), row=row))
+        name = f"{stem}_sd" + (ep.name[len(stem):] if ep.name.startswith(stem + ".") else "")
+        pri.append(Prior(name, (lambda th, j=j: th[..., j]), float(nom), float(sd), row=row))
     return tuple(pri)
 
 
@@ -132,7 +210,8 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
     callable ``E (B, n_inner + len(extras)) -> SimInputs``
     """
     stems = [e[0] for e in extras]
-    col = {s: n_inner + k for k, s in enumerate(stems)}
+    col = {s: n_inner + k for k, s in enumerate(stems) if s != "radar_position"}
+    pos_cols = [n_inner + k for k, e in enumerate(extras) if e[0] == "radar_position"]
     m0, d0 = rnd.projectile.mass, rnd.projectile.diameter
     T_tabs = None
     if "temperature" in col:
@@ -167,7 +246,14 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
                 scale[c] = (1.0 + E[:, col["position_scale"]]) * scale.get(c, 1.0)
         if "velocity_scale" in col:
             scale["v"] = (1.0 + E[:, col["velocity_scale"]]) * scale.get("v", 1.0)
-        return SimInputs(ov, base.atmospheres, shift, scale, tables)
+        offset = dict(base.output_offset)
+        for stem, c in (("range_bias", "range"), ("azimuth_bias", "azimuth"), ("elevation_bias", "elevation")):
+            if stem in col:
+                offset[c] = E[:, col[stem]] + offset.get(c, 0.0)
+        site_shift = base.site_shift
+        if pos_cols:
+            site_shift = E[:, pos_cols] + (0.0 if site_shift is None else np.asarray(site_shift, float))
+        return SimInputs(ov, base.atmospheres, shift, scale, tables, offset, site_shift)
 
     return fn
 
@@ -230,8 +316,18 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
     (OutputErrorProblem, MLResult, tuple, tuple)
         The problem with the nuisance parameters, its fit, the sources (:func:`source_extras`)
         and the effects fitted; the inputs and empty tuples when there is nothing to add or the
-        fit fails.
+        fit fails. A declared radar source nothing in the fit depends on is said so in the
+        fit's warnings.
     """
+    unused = tuple(radar_unused(rnd, prob.channels).values())
+    out = _fit_sources_effects(prob, res, rnd, effects, wind_layers)
+    if not unused:
+        return out
+    return (out[0], replace(out[1], warnings=tuple(out[1].warnings) + unused)) + tuple(out[2:])
+
+
+def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
+    """:func:`fit_with_sources` but for the note on declared radar sources nothing depends on."""
     from ...effects import EffectContext
     from .winds import WIND_AXES, fit_layers
 
@@ -265,7 +361,7 @@ def _fit_with(prob, res, rnd, effects, ctx):
     from ..model.problem import OutputErrorProblem
     from .winds import layer_free, wind_layer_priors
 
-    extras = source_extras(rnd)
+    extras = source_extras(rnd, prob.channels)
     effs = tuple(get_effect(n) for n in effects)
     if not extras and not effs:
         return prob, res, (), ()
@@ -289,7 +385,7 @@ def _fit_with(prob, res, rnd, effects, ctx):
                             channels=prob.channels,
                             extras=tuple(eff_extras) + tuple(e[1] for e in extras),
                             effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model,
-                            site=prob.site)
+                            site=prob.site, noise_scale=prob.noise_scale)
     res2 = p2.fit(fallback=True)
     if not res2.success:
         return prob, res, (), ()
