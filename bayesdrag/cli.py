@@ -102,6 +102,21 @@ def _number_list(unit, lo, hi, hi_open=False):
     return parse
 
 
+def _radar_sites(value):
+    """An argparse type: radar sites ``x,y,z;x,y,z`` [m] in the gun frame."""
+    sites = []
+    for part in value.split(";"):
+        try:
+            xyz = tuple(float(v) for v in part.split(","))
+        except ValueError:
+            xyz = ()
+        if len(xyz) != 3 or not all(v == v and abs(v) != float("inf") for v in xyz):
+            raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()!r} is not a site; use x,y,z [m] in the gun "
+                                             f"frame, sites separated by ';' (e.g. -40,25,2;0,-30,1)")
+        sites.append(xyz)
+    return tuple(sites)
+
+
 def _non_negative_float(value):
     v = _finite_float(value)
     if v < 0:
@@ -137,6 +152,10 @@ def _add_plan_parser(sub):
                         "drag, else a generic 155 mm curve)")
     p.add_argument("--seed", type=_seed, default=po.seed,
                    help="seed of the noisy realisation that places the fit's knots (default 0)")
+    p.add_argument("--radar-sites", type=_radar_sites, default=None, metavar="X,Y,Z;...",
+                   help="candidate sites [m, gun frame] of a radar recording its own channels (range, azimuth, "
+                        "elevation, range_rate in [radar] sigma): every case from each; plan.json ranks them "
+                        "and names best_site")
     _add_quiet(p)
 
 
@@ -409,7 +428,8 @@ def cmd_plan(args):
     from .commands.plan import run_plan
 
     opts = PlanOptions(elevations=args.elevations, velocities=args.velocities, dt=args.dt, rounds=args.rounds,
-                       scatter=args.scatter, target=args.target, lock_on=args.lock_on, loss=args.loss, seed=args.seed)
+                       scatter=args.scatter, target=args.target, lock_on=args.lock_on, loss=args.loss, seed=args.seed,
+                       radar_sites=args.radar_sites)
     run_plan(args.round, args.output, opts, assumed_drag_path=args.assumed_drag, echo=_stdout(args))
     return 0
 

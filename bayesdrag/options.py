@@ -373,6 +373,8 @@ PLAN_VELOCITY_MAX = 3000.0
 PLAN_SCATTER_MAX = 0.5
 #: most cases (elevations x velocities) one plan may hold
 PLAN_MAX_CASES = 64
+#: farthest candidate radar site from the gun [m]
+PLAN_SITE_MAX = 50_000.0
 
 
 def _number_list(name, values, lo, hi, unit, lo_open=True):
@@ -418,6 +420,10 @@ class PlanOptions:
         impact).
     seed : int
         Seed of the noisy realisation whose start curve places the fit's knots (default 0).
+    radar_sites : tuple of (x, y, z) or None, m
+        Candidate sites of a radar recording its own channels (``range, azimuth, elevation,
+        range_rate`` in the round's ``[radar] sigma``), in the gun frame: every case is planned
+        from each (cases x sites at most 64), and the plan names the best.
     """
 
     elevations: tuple | None = None
@@ -429,16 +435,28 @@ class PlanOptions:
     lock_on: float | None = None
     loss: float | None = None
     seed: int = 0
+    radar_sites: tuple | None = None
 
     def __post_init__(self):
         lo, hi = PLAN_ELEVATION_RANGE
+        if self.radar_sites is not None:
+            try:
+                sites = tuple(tuple(float(v) for v in p) for p in self.radar_sites)
+            except (TypeError, ValueError):
+                sites = None
+            if not sites or any(len(p) != 3 or not all(math.isfinite(v) and abs(v) <= PLAN_SITE_MAX for v in p)
+                                for p in sites):
+                _bad("radar_sites", self.radar_sites,
+                     f"give sites as x,y,z [m] in the gun frame, each within {PLAN_SITE_MAX:g} m (e.g. -40,25,2;0,-30,1)")
+            object.__setattr__(self, "radar_sites", sites)
         el = _number_list("elevations", self.elevations, lo, hi, "deg")
         if el is not None and any(v >= hi for v in el):
             _bad("elevations", self.elevations, f"use elevations in ({lo:g}, {hi:g}) deg")
         object.__setattr__(self, "elevations", el)
         object.__setattr__(self, "velocities", _number_list("velocities", self.velocities, 0.0, PLAN_VELOCITY_MAX, "m/s"))
-        if el is not None and self.velocities is not None and len(el) * len(self.velocities) > PLAN_MAX_CASES:
-            _bad("elevations x velocities", f"{len(el)} x {len(self.velocities)}",
+        n_sites = len(self.radar_sites) if self.radar_sites else 1
+        if el is not None and self.velocities is not None and len(el) * len(self.velocities) * n_sites > PLAN_MAX_CASES:
+            _bad("elevations x velocities x radar sites", f"{len(el)} x {len(self.velocities)} x {n_sites}",
                  f"plan at most {PLAN_MAX_CASES} cases at once")
         if isinstance(self.dt, bool) or not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt)
                                              and 1e-4 <= self.dt <= 5.0):
@@ -464,4 +482,6 @@ class PlanOptions:
         for k in ("elevations", "velocities"):
             if d[k] is not None:
                 d[k] = list(d[k])
+        if d["radar_sites"] is not None:
+            d["radar_sites"] = [list(p) for p in d["radar_sites"]]
         return d

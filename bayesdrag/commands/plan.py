@@ -29,7 +29,9 @@ def plan(rnd: Round, options: PlanOptions | None = None, *, assumed_drag: Refere
     options : PlanOptions, optional
         Keyword arguments override single fields: ``elevations=(15, 45)`` [deg],
         ``velocities=(684, 818)`` [m/s] (defaults: the round's launch), ``dt`` [s],
-        ``rounds``, ``scatter``, ``target``, ``lock_on``, ``loss`` [s], ``seed``.
+        ``rounds``, ``scatter``, ``target``, ``lock_on``, ``loss`` [s], ``seed``,
+        ``radar_sites=((-40, 25, 2), (0, -30, 1))`` [m] (candidate sites of a radar recording its
+        own channels: ``plan.json`` then has ``radar_sites`` ranked and ``best_site``).
     assumed_drag : ReferenceTable, optional
         The drag the shell is expected to have (default: the round's reference drag, else a
         generic 155 mm curve).
@@ -59,11 +61,13 @@ def plan(rnd: Round, options: PlanOptions | None = None, *, assumed_drag: Refere
     if velocities is None:
         raise InputError(f"{where}: plan needs launch velocities: give --velocities (e.g. 684,818) or "
                          f"[launch] velocity")
-    if len(elevations) * len(velocities) > PLAN_MAX_CASES:
-        raise InputError(f"{len(elevations)} elevations x {len(velocities)} velocities are "
-                         f"{len(elevations) * len(velocities)} cases; plan at most {PLAN_MAX_CASES} at once")
+    n_sites = len(opts.radar_sites) if opts.radar_sites else 1
+    if len(elevations) * len(velocities) * n_sites > PLAN_MAX_CASES:
+        raise InputError(f"{len(elevations)} elevations x {len(velocities)} velocities x {n_sites} radar site(s) are "
+                         f"{len(elevations) * len(velocities) * n_sites} cases; plan at most {PLAN_MAX_CASES} at once")
     p = make_plan(rnd, elevations, velocities, dt=opts.dt, rounds=opts.rounds, scatter=opts.scatter,
-                  target=opts.target, lock_on=opts.lock_on, loss=opts.loss, assumed_drag=assumed_drag, seed=opts.seed)
+                  target=opts.target, lock_on=opts.lock_on, loss=opts.loss, assumed_drag=assumed_drag, seed=opts.seed,
+                  radar_sites=opts.radar_sites)
     return PlanResult(p.to_dict(), p, rnd, opts, time.perf_counter() - t0)
 
 

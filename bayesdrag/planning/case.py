@@ -87,13 +87,15 @@ from ..dynamics.trajectory import initial_state
 from ..effect_inputs import ExtraParam, SimInputs
 from ..errors import InputError
 from ..io.drag_tables import load_m101
+from ..measure import channel_values, site_of
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
-from ..track import GUN_CHANNELS as CHANNELS, MAX_FIT_SAMPLES, RadarTrack
+from ..track import ALL_CHANNELS, MAX_FIT_SAMPLES, NATIVE_CHANNELS, RadarTrack
 from ..estimate.scheme1.launch import launch_state_priors
 from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
 from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty
+from ..estimate.scheme1.native_start import start_view
 from ..estimate.scheme1.start import data_start
 
 __all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
@@ -175,14 +177,11 @@ def drag_assumption(rnd, assumed_drag=None):
 
 
 def radar_channels(rnd):
-    """The channels the radar gives (those with a ``[radar] sigma``) and their sd."""
+    """The channels the radar gives (those with a ``[radar] sigma``: the gun frame's ``x, y, z,
+    v`` or the radar's own ``range, azimuth, elevation, range_rate``, seen from its site) and
+    their sd."""
     sig = dict(rnd.radar.sigma)
-    chans = tuple(c for c in CHANNELS if c in sig)
-    if not chans and sig:
-        # planning a radar's own channels needs its site among the planned cases: not yet
-        raise InputError(f"{rnd.path or 'round'}: plan predicts x, y, z, v tracks only; the round's [radar] sigma "
-                         f"gives {', '.join(sig)}: add the sd of the x, y, z, v channels the radar's track "
-                         f"would give to plan with them")
+    chans = tuple(c for c in ALL_CHANNELS if c in sig)
     if not chans:
         raise InputError(f"{rnd.path or 'round'}: plan needs the radar's noise: [radar] sigma = "
                          f"{{x = 1.0, y = 1.0, z = 1.0, v = 0.3}} (the channels it tracks and their sd)")
@@ -262,9 +261,19 @@ def _radar_times(t_imp, dt):
     return np.append(t, t_imp) if t_imp - t[-1] > 1e-9 else t
 
 
-def _outputs(state, chans):
-    d = {"x": state[:, 0], "y": state[:, 1], "z": state[:, 2], "v": np.linalg.norm(state[:, 3:], axis=1)}
-    return {c: d[c] for c in chans}
+def _outputs(state, chans, site):
+    """The channels (dict of (N,) arrays) a radar at ``site`` records of the states (N, 6)."""
+    y = channel_values(state, chans, site)
+    return {c: y[:, j] for j, c in enumerate(chans)}
+
+
+def site_round(rnd, position):
+    """The round with its radar at ``position`` [m] in the gun frame (a candidate site)."""
+    try:
+        radar = replace(rnd.radar, position=tuple(float(v) for v in position))
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"radar site {position!r}: {exc}") from None
+    return replace(rnd, radar=radar)
 
 
 def systematic_parameters(rnd):
@@ -363,8 +372,14 @@ def case_information(rnd_case, dm, track, state0, theta_drag, sigma, chans):
         free[P + 1] = free[P + 4] = False
     if not any(c in chans for c in ("x", "y", "z")):
         free[P:P + 3] = False
+    native = any(c in NATIVE_CHANNELS for c in chans)
+    if native:
+        free[P:P + 6] = True          # a radar's range and angles see every coordinate ...
+        if "azimuth" not in chans and abs(float(rnd_case.radar.position[1])) < 1e-6:
+            free[P + 1] = free[P + 4] = False   # ... except across a plane of fire its site lies in
     prob = OutputErrorProblem(model, track, theta, free=free, sigma=sigma, channels=chans, extras=extras,
-                              effect_fn=_systematic_effect(rnd_case, sim) if extras else None)
+                              effect_fn=_systematic_effect(rnd_case, sim) if extras else None,
+                              site=site_of(rnd_case, chans) if native else None)
     y, _, S = prob.sensitivities(theta)
     if not np.all(np.isfinite(S)):
         raise InputError("the planned track's sensitivities are not finite (the flight leaves the drag "
@@ -490,6 +505,8 @@ class CasePlan:
     drag_model : str
         The fit's drag model for this track (name and number of coefficients).
     notes : tuple of str
+    radar : dict or None
+        A radar's own channels: its site ``position`` [m] in the gun frame and the ``channels``.
     model : DragModel
         That drag model itself, with ``base`` (the table and shape its penalty is relative to,
         :func:`build_drag_model`) and ``truth_params`` (its coefficients of the assumed drag):
@@ -515,6 +532,7 @@ class CasePlan:
     model: object = field(default=None, repr=False)
     base: tuple | None = field(default=None, repr=False)
     truth_params: np.ndarray = field(default=None, repr=False)
+    radar: dict | None = None
 
     @property
     def systematic(self):
@@ -580,10 +598,17 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     rc = case_round(rnd, elevation_deg, velocity)
     t, state, mach, t_imp = nominal_flight(rc, truth, dt, lock_on, loss)
     thinned = int(round((t[1] - t[0]) / dt))          # k > 1: every k-th radar sample (nominal_flight)
-    out = _outputs(state, chans)
+    out = _outputs(state, chans, site_of(rc, chans))
+    flat = [c for c in chans if c in NATIVE_CHANNELS
+            and np.ptp(out[c]) <= 1e-12 * max(1.0, float(np.max(np.abs(out[c]))))]
+    if flat and len(flat) < len(chans):
+        # a radar on the line of fire sees a constant azimuth: no information, and no track has it
+        chans = tuple(c for c in chans if c not in flat)
+        sigma = {c: sigma[c] for c in chans}
+        out = {c: out[c] for c in chans}
     track = RadarTrack(t, out, {}, source=f"planned QE {elevation_deg:g} deg, {velocity:g} m/s")
     noisy = add_noise(track, sigma, np.random.default_rng(seed))
-    start = data_start(noisy, rc)
+    start = data_start(start_view(noisy, rc, site_of(rc, chans)), rc)   # as the fit reads its start
     lo, hi = float(mach.min()), float(mach.max())
     span = (min(start.mach_span[0], lo), max(start.mach_span[1], hi))
     dm, base = build_drag_model("spline", rnd.reference_drag, start, span=span)
@@ -596,6 +621,9 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"], level_shares(rc, cd))
     smoothing.pop("R")
     notes = []
+    if flat and len(flat) < len(chans) + len(flat):
+        notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: the radar at {list(rc.radar.position)} m sees a "
+                     f"constant {', '.join(flat)} (on the line of fire): planned without it")
     if thinned > 1:
         notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: samples every {dt:g} s are more than a fit uses "
                      f"({MAX_FIT_SAMPLES}): planned with one sample in {thinned} ({t.size} samples), as the fit "
@@ -608,10 +636,13 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
         notes.append(f"the flight reaches Mach {hi:.2f}, beyond the assumed drag table's last row "
                      f"(Mach {hi_table:.2f}): Cd is held at its end value above it")
     kind = "the table times a spline correction" if base is not None and base[0] is not None else "spline in Cd"
+    radar = None
+    if any(c in NATIVE_CHANNELS for c in chans):
+        radar = {"position": [float(v) for v in rc.radar.position], "channels": list(chans)}
     return CasePlan(float(elevation_deg), float(velocity), int(rounds), float(scatter), float(dt),
                     (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, cd,
                     stat, shares, smoothing, f"{kind}, {dm.n_params} coefficients", tuple(notes),
-                    dm, base, theta_drag)
+                    dm, base, theta_drag, radar)
 
 
 def _choose_smoothing(info, pen, theta_drag):

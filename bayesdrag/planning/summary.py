@@ -19,7 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..round import SYSTEMATIC_SOURCES
-from .case import ASSUMPTIONS, PLAN_MACH_STEP, drag_assumption, plan_case, radar_channels
+from ..errors import InputError
+from ..track import NATIVE_CHANNELS
+from .case import ASSUMPTIONS, PLAN_MACH_STEP, drag_assumption, plan_case, radar_channels, site_round
 
 __all__ = ["Plan", "make_plan", "combine", "best_combination", "summary_paragraph", "target_paragraph",
            "EXHAUSTIVE_MAX"]
@@ -69,6 +71,7 @@ class Plan:
     declared: dict
     target: float | None = None
     best: dict | None = None
+    radar_sites: tuple | None = None
 
     @property
     def paragraph(self):
@@ -79,7 +82,8 @@ class Plan:
 
     def to_dict(self):
         """The content of ``plan.json`` (docs/planning.md: ``cases`` with ``elevation``, ``velocity``,
-        ``rounds``, ``mach_range``, ``cd`` rows of ``mach`` and ``sd``; more keys beside them)."""
+        ``rounds``, ``mach_range``, ``cd`` rows of ``mach`` and ``sd``; more keys beside them; with
+        radar sites each case's ``radar`` and the plan's ``radar_sites`` and ``best_site``)."""
         undeclared = [s for s in SYSTEMATIC_SOURCES if s not in self.declared]
         target = None
         if self.target is not None:
@@ -94,7 +98,15 @@ class Plan:
                 "rounds": self.rounds, "scatter": self.scatter,
                 "systematics": {"declared": dict(self.declared), "undeclared": undeclared},
                 "target": target, "summary": summary_paragraph(self), "assumptions": list(ASSUMPTIONS),
-                "notes": sorted({n for c in self.cases for n in c.notes})}
+                "notes": sorted({n for c in self.cases for n in c.notes}),
+                **self._sites()}
+
+    def _sites(self):
+        """``radar_sites`` (ranked) and ``best_site`` when candidate sites were planned."""
+        if not self.radar_sites:
+            return {}
+        ranked = site_ranking(self.cases)
+        return {"radar_sites": ranked, "best_site": ranked[0] if ranked else None}
 
 
 def _f(v, digits=6):
@@ -122,6 +134,8 @@ def _case_dict(c, target):
                        "t_impact": _f(c.t_impact, 4)},
            "smoothing": {k: c.smoothing[k] for k in ("sd", "edf", "at_grid_end")}, "drag_model": c.drag_model,
            "best_relative_sd": _sig(np.min(sd / c.cd), 4), "notes": list(c.notes)}
+    if c.radar is not None:
+        out["radar"] = dict(c.radar)
     if target is not None:
         run = _longest_run(c.mach, sd / c.cd <= target)
         out["target_mach_range"] = None if run is None else [float(c.mach[run[0]]), float(c.mach[run[1]])]
@@ -129,21 +143,47 @@ def _case_dict(c, target):
 
 
 def make_plan(rnd, elevations, velocities, *, dt, rounds=1, scatter=0.0, target=None, lock_on=None, loss=None,
-              assumed_drag=None, seed=0):
-    """Every elevation x velocity case of a round, and the combination that reaches ``target``.
+              assumed_drag=None, seed=0, radar_sites=None):
+    """Every elevation x velocity case of a round (x every candidate radar site), and the
+    combination that reaches ``target``.
+
+    ``radar_sites``: candidate positions [m] of a radar recording its own channels (the round's
+    ``[radar] sigma`` gives ``range, azimuth, elevation, range_rate``); each case is planned from
+    each site and ``best_site`` names the site with the smallest median relative sd over the
+    cases' Mach grids.
 
     Returns
     -------
     Plan
     """
     _, source, generic = drag_assumption(rnd, assumed_drag)
-    _, sigma = radar_channels(rnd)
-    cases = tuple(plan_case(rnd, e, v, dt=dt, rounds=rounds, scatter=scatter, lock_on=lock_on, loss=loss,
+    chans, sigma = radar_channels(rnd)
+    if radar_sites and not any(c in NATIVE_CHANNELS for c in chans):
+        raise InputError(f"{rnd.path or 'round'}: radar sites are planned for a radar's own channels; the round's "
+                         f"[radar] sigma gives {', '.join(chans)}: give the sd of range, azimuth, elevation or "
+                         f"range_rate")
+    rounds_at = [site_round(rnd, p) for p in radar_sites] if radar_sites else [rnd]
+    cases = tuple(plan_case(r, e, v, dt=dt, rounds=rounds, scatter=scatter, lock_on=lock_on, loss=loss,
                             assumed_drag=assumed_drag, seed=seed)
-                  for e in elevations for v in velocities)
+                  for r in rounds_at for e in elevations for v in velocities)
     best = best_combination(cases, target) if target is not None else None
     return Plan(cases, rnd.projectile.name, rnd.path, source, generic, sigma, float(dt), lock_on, loss, int(rounds),
-                float(scatter), rnd.systematics.declared(), target, best)
+                float(scatter), rnd.systematics.declared(), target, best,
+                tuple(tuple(float(v) for v in p) for p in radar_sites) if radar_sites else None)
+
+
+def site_ranking(cases):
+    """Candidate radar sites ranked by the median relative Cd sd of their cases (best first):
+    list of ``{"position", "median_relative_sd", "cases"}``; empty without sites."""
+    by = {}
+    for c in cases:
+        if c.radar is None:
+            continue
+        key = tuple(c.radar["position"])
+        by.setdefault(key, []).append(np.median(c.sd / c.cd))
+    ranked = sorted(by.items(), key=lambda kv: float(np.mean(kv[1])))
+    return [{"position": list(k), "median_relative_sd": _sig(float(np.mean(v)), 4), "cases": len(v)}
+            for k, v in ranked]
 
 
 def _common(cases):
