@@ -92,6 +92,7 @@ from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
 from ..track import ALL_CHANNELS, MAX_FIT_SAMPLES, NATIVE_CHANNELS, RadarTrack
 from ..estimate.scheme1.launch import launch_state_priors
+from ..estimate.model.layout import ParameterLayout
 from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
 from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty
@@ -368,15 +369,16 @@ def case_information(rnd_case, dm, track, state0, theta_drag, sigma, chans):
     extras = tuple(p for _, p, _ in sim)
     theta = np.concatenate([theta_drag, state0, [p.start for p in extras]])
     free = np.ones(theta.size, bool)
+    lay = ParameterLayout(P, len(extras))
     if "y" not in chans:
-        free[P + 1] = free[P + 4] = False
+        free[lay.index("y")] = free[lay.index("vy")] = False
     if not any(c in chans for c in ("x", "y", "z")):
-        free[P:P + 3] = False
+        free[lay.position] = False
     native = any(c in NATIVE_CHANNELS for c in chans)
     if native:
-        free[P:P + 6] = True          # a radar's range and angles see every coordinate ...
+        free[lay.state] = True        # a radar's range and angles see every coordinate ...
         if "azimuth" not in chans and abs(float(rnd_case.radar.position[1])) < 1e-6:
-            free[P + 1] = free[P + 4] = False   # ... except across a plane of fire its site lies in
+            free[lay.index("y")] = free[lay.index("vy")] = False   # ... nor across a plane of fire holding its site
     prob = OutputErrorProblem(model, track, theta, free=free, sigma=sigma, channels=chans, extras=extras,
                               effect_fn=_systematic_effect(rnd_case, sim) if extras else None,
                               site=site_of(rnd_case, chans) if native else None)
@@ -394,7 +396,7 @@ def case_information(rnd_case, dm, track, state0, theta_drag, sigma, chans):
     S = np.concatenate(cols, axis=-1)
     w = 1.0 / np.array([sigma[c] for c in chans])
     A = (S * w[None, :, None]).reshape(-1, S.shape[-1])
-    n_stat = int(free[:P + 6].sum())
+    n_stat = int(free[:lay.state.stop].sum())
     L = np.zeros((0, A.shape[1]))
     if abs(float(track.t[0])) < 1e-9:
         prob.priors = launch_state_priors(rnd_case.launch, P)

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .layout import ParameterLayout
 from ...errors import FitError
 from .filters import convolve_same
 
@@ -131,12 +132,12 @@ class MLResult:
 
     @property
     def state0(self):
-        return self.theta[self.n_drag:self.n_drag + 6]
+        return self.theta[ParameterLayout(self.n_drag).state]
 
     @property
     def extras(self):
         """Extra (effect) parameters as a dict name -> value (empty without extras)."""
-        k = self.n_drag + 6
+        k = ParameterLayout(self.n_drag).effects.start
         return dict(zip(self.names[k:], map(float, self.theta[k:])))
 
     def correlation(self):

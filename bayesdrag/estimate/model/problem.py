@@ -41,6 +41,7 @@ from ...errors import InputError
 from ...measure import RadarSite, channel_values, near_branch, sample_noise
 from ...track import ALL_CHANNELS, NATIVE_CHANNELS
 from . import colored
+from .layout import ParameterLayout
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
 _CH_INDEX = {"x": 0, "y": 1, "z": 2}
@@ -162,7 +163,7 @@ class OutputErrorProblem:
         self.effect_fn = effect_fn
         self.t_ic = float(track.t[0]) if t_ic is None else float(t_ic)
         self.names = tuple(model.drag.param_names) + IC_NAMES + tuple(e.name for e in self.extras)
-        n = self.P + 6 + self.E
+        n = self.layout.size
         self.theta0 = np.asarray(theta0, dtype=float).copy()
         if self.theta0.shape != (n,):
             raise ValueError(f"theta0 must have {n} entries, got {self.theta0.shape}")
@@ -290,16 +291,21 @@ class OutputErrorProblem:
             sig[c] = s
         return sig, new
 
+    @property
+    def layout(self):
+        """Where the drag coefficients, the initial state and the effects sit in theta
+        (:class:`~bayesdrag.estimate.model.layout.ParameterLayout`)."""
+        return ParameterLayout(self.P, self.E)
+
     def predict(self, thetas):
         """Model outputs (B, N, C) and Mach (B, N) for parameter sets (B, P + 6)."""
         thetas = np.atleast_2d(thetas)
-        P = self.P
         if not self.E:
-            tr = self.model.simulate_batch(thetas[:, :P], thetas[:, P:P + 6], self.track.t,
+            lay = self.layout
+            tr = self.model.simulate_batch(thetas[:, lay.drag], thetas[:, lay.state], self.track.t,
                                            t_start=self.t_ic)
             return self.outputs(tr.state), tr.mach
-        B = thetas.shape[0]
-        inp = self.effect_fn(thetas[:, P + 6:])
+        inp = self.effect_fn(thetas[:, self.layout.effects])
         y, mach = self._predict_effects(thetas, inp)
         if inp.output_scale:
             for j, c in enumerate(self.channels):
@@ -340,17 +346,16 @@ class OutputErrorProblem:
     def _simulate_shifted(self, th, t_out, ov, atm):
         """States (G, N, 6) and Mach (G, N) at ``t_out``; samples before the initial state (an
         early radar clock) are extrapolated backwards to second order from it."""
-        P = self.P
         pre = t_out < self.t_ic - 1e-12
         if not pre.any():
-            tr = self.model.simulate_batch(th[:, :P], th[:, P:P + 6], t_out, t_start=self.t_ic,
+            tr = self.model.simulate_batch(th[:, self.layout.drag], th[:, self.layout.state], t_out, t_start=self.t_ic,
                                            overrides=ov, atmospheres=atm)
             return tr.state, tr.mach
         hh = 1e-3
         t_post = t_out[~pre]
         extra = [t for t in (self.t_ic, self.t_ic + hh) if not np.any(np.abs(t_post - t) < 1e-9)]
         t_req = np.sort(np.concatenate([extra, t_post]))
-        tr = self.model.simulate_batch(th[:, :P], th[:, P:P + 6], t_req, t_start=self.t_ic,
+        tr = self.model.simulate_batch(th[:, self.layout.drag], th[:, self.layout.state], t_req, t_start=self.t_ic,
                                        overrides=ov, atmospheres=atm)
         st = tr.state
         i1 = int(np.argmin(np.abs(t_req - (self.t_ic + hh))))

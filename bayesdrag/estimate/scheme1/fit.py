@@ -59,6 +59,7 @@ from .model_size import check_determinable, default_knots, free_mask
 from ..model.ml import MLResult
 from ..model import colored
 from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
+from ..model.layout import ParameterLayout
 from ..model.problem import OutputErrorProblem
 from .systematics import fit_with_sources
 from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
@@ -314,7 +315,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     P = dm.n_params
     fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
     prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * start.curve(m),
-                               state if free_ic else s0, free_mask(P, P + 6, chans, free_ic, dm.name, span), sig,
+                               state if free_ic else s0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig,
                                chans, likelihood, fixed_pri, site)
     # stage B: the full curve without the checked launch priors, then check them against it
     say(f"the whole curve ({P} drag coefficients)")
@@ -331,7 +332,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         P = dm.n_params
         fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
         prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
-                                   res_b.state0, free_mask(P, P + 6, chans, free_ic, dm.name, span), sig, chans,
+                                   res_b.state0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig, chans,
                                    likelihood, fixed_pri, site)
         say(f"the whole curve over the flight's Mach span ({P} drag coefficients)")
         res_b = prob.fit(fallback=True)

@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from ...measure import gun_equivalent
+from ..model.layout import ParameterLayout
 from ..model.problem import Prior
 
 __all__ = ["LAUNCH_CONFLICT_K", "ORIGIN_NOISE_K", "launch_state_priors", "unseen_launch_priors",
@@ -40,15 +41,16 @@ def launch_state_priors(L, P, heading=False, names=None):
     The functions take one parameter vector (n,) or many (W, n): the sampler evaluates all
     walkers at once.
     """
-    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., P + k]), 0.0, L.position_sd)
-           for k, n in enumerate(("X0", "Y0", "Z0"))]
-    pri.append(Prior("launch_speed", lambda th: np.sqrt(th[..., P + 3] ** 2 + th[..., P + 4] ** 2
-                                                        + th[..., P + 5] ** 2), L.velocity, L.velocity_sd))
-    pri.append(Prior("elevation", lambda th: np.degrees(np.arctan2(th[..., P + 5], np.hypot(th[..., P + 3],
-                                                                                           th[..., P + 4]))),
+    lay = ParameterLayout(P)
+    x, y, z, vx, vy, vz = (lay.index(c) for c in ("x", "y", "z", "vx", "vy", "vz"))
+    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., k]), 0.0, L.position_sd)
+           for k, n in zip((x, y, z), ("X0", "Y0", "Z0"))]
+    pri.append(Prior("launch_speed", lambda th: np.sqrt(th[..., vx] ** 2 + th[..., vy] ** 2 + th[..., vz] ** 2),
+                     L.velocity, L.velocity_sd))
+    pri.append(Prior("elevation", lambda th: np.degrees(np.arctan2(th[..., vz], np.hypot(th[..., vx], th[..., vy]))),
                      L.elevation_deg, L.elevation_sd_deg))
     if heading:
-        pri.append(Prior("heading", lambda th: np.degrees(np.arctan2(th[..., P + 4], th[..., P + 3])),
+        pri.append(Prior("heading", lambda th: np.degrees(np.arctan2(th[..., vy], th[..., vx])),
                          0.0, L.elevation_sd_deg))
     if names is not None:
         pri = [p for p in pri if p.name in names]

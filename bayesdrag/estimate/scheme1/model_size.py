@@ -22,6 +22,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...measure import gun_equivalent
+from ..model.layout import ParameterLayout
 from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, coefficient_budget, rise_regions, sparse_knots
 from .launch import unseen_launch_priors
 
@@ -38,12 +39,13 @@ def free_mask(P, n, chans, free_ic, drag_name, span):
     only on the sides of Mach 1 the data's Mach ``span`` reaches."""
     free = np.ones(n, bool)
     chans = gun_equivalent(chans)      # a radar's range, angles, range rate observe x, y, z, v
+    lay = ParameterLayout(P)
     if not free_ic:
-        free[P:P + 6] = False
+        free[lay.state] = False
     if "y" not in chans:
-        free[P + 1] = free[P + 4] = False
+        free[lay.index("y")] = free[lay.index("vy")] = False
     if not any(c in chans for c in ("x", "y", "z")):
-        free[P:P + 3] = False
+        free[lay.position] = False
     if drag_name == "poly2-split":
         lo, hi = span
         if hi < 1.0:
