@@ -92,10 +92,11 @@ from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
 from ..track import ALL_CHANNELS, MAX_FIT_SAMPLES, NATIVE_CHANNELS, RadarTrack
 from ..estimate.scheme1.launch import launch_state_priors
+from ..estimate.cd.budget import LEVEL_SOURCES
 from ..estimate.model.layout import ParameterLayout
 from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
-from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty
+from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty, walk_evidence
 from ..estimate.scheme1.native_start import start_view
 from ..estimate.scheme1.start import data_start
 
@@ -125,14 +126,6 @@ NOMINAL_ATOL = 1e-6
 #: finite-difference steps of the temperature offset [K] and the clock offset [s]
 TEMPERATURE_STEP = 0.05
 TIME_STEP = 1e-4
-#: sources exactly confounded with the level of Cd (the track sees rho Cd d^2 / m): the signed
-#: relative Cd error per unit of the declared sd, as a function of (sd, mass [kg], diameter [m])
-LEVEL_SOURCES = {
-    "mass": lambda sd, m, d: sd / m,              # Cd ∝ m
-    "diameter": lambda sd, m, d: -2.0 * sd / d,   # Cd ∝ 1 / d^2
-    "density": lambda sd, m, d: -sd,              # Cd ∝ 1 / rho (density_sd is relative)
-}
-
 #: what every plan assumes (written in plan.json and plan.html)
 ASSUMPTIONS = (
     "the point-mass model is the shell's physics (no wind, lift, yaw drag or other unmodelled effect)",
@@ -448,24 +441,6 @@ def expected_log_evidence(F_meas, R, p, sds, prior_diag):
     ev = -0.5 * chi2 - 0.5 * logdet - float(np.sum(np.log(sds)))
     edf = float(F.shape[0] - np.trace(Finv @ (R.T @ R)) - np.count_nonzero(prior_diag))
     return float(ev), edf, Finv
-
-
-def walk_evidence(evaluate, n_grid):
-    """The fit's walk over the smoothing grid (:func:`fit_penalised`): from the middle uphill
-    towards the flexible end, else towards the stiff end. ``evaluate(i)`` returns the evidence
-    at grid index ``i``. Returns the chosen index."""
-    i = n_grid // 2
-    best = evaluate(i)
-    for step in (1, -1):
-        moved = False
-        while 0 <= i + step < n_grid:
-            ev = evaluate(i + step)
-            if not ev > best:
-                break
-            i, best, moved = i + step, ev, True
-        if moved:
-            break
-    return i
 
 
 def case_mach_grid(lo, hi, step=PLAN_MACH_STEP):

@@ -68,7 +68,14 @@ def budget_rows(budget, mach):
 
 
 #: sources that move Cd by one factor whatever the Mach number: Cd ~ 1/rho, ~ m, ~ 1/d^2
-LEVEL_SOURCES = ("density", "mass", "diameter")
+#: the level sources: the track sees only ``rho Cd d^2 / m``, so an error of one of them is an
+#: error of Cd by a fixed relative amount at every Mach: the signed relative Cd error per declared
+#: sd (``density_sd`` is relative), from the sd, the mass [kg] and the diameter [m]
+LEVEL_SOURCES = {
+    "density": lambda sd, m, d: -sd,              # Cd ∝ 1 / rho
+    "mass": lambda sd, m, d: sd / m,              # Cd ∝ m
+    "diameter": lambda sd, m, d: -2.0 * sd / d,   # Cd ∝ 1 / d^2
+}
 
 
 def level_shares(rnd):
@@ -83,15 +90,9 @@ def level_shares(rnd):
     (dict stem -> float, list of str)
         The relative shares, and the sources the windows stay conditional on (the others).
     """
-    dec = rnd.systematics.declared()
-    rel = {}
-    for stem, sd in dec.items():
-        if stem == "density":
-            rel[stem] = float(sd)
-        elif stem == "mass":
-            rel[stem] = float(sd) / rnd.projectile.mass
-        elif stem == "diameter":
-            rel[stem] = 2.0 * float(sd) / rnd.projectile.diameter
+    m, d = rnd.projectile.mass, rnd.projectile.diameter
+    rel = {stem: abs(LEVEL_SOURCES[stem](float(sd), m, d)) for stem, sd in rnd.systematics.declared().items()
+           if stem in LEVEL_SOURCES}
     from ...round import SYSTEMATIC_SOURCES
 
     return rel, [k for k in SYSTEMATIC_SOURCES if k not in rel]

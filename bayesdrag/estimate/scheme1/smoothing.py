@@ -15,7 +15,7 @@ from ...drag import TableSpline
 from .basis import curvature_weights, second_difference_rows
 from ..model.problem import Prior
 
-__all__ = ["SMOOTHING_GRID", "penalty", "smoothness_priors", "fit_penalised", "drop_coefficient_correlations"]
+__all__ = ["SMOOTHING_GRID", "penalty", "smoothness_priors", "fit_penalised", "walk_evidence", "drop_coefficient_correlations"]
 
 #: initial-condition parameters after the drag coefficients (X0, Y0, Z0, Ux0, Uy0, Uz0)
 _N_IC = 6
@@ -120,17 +120,8 @@ def fit_penalised(prob, base_priors, P, penalty, progress=None):
             state["theta"] = res.theta.copy()
         return float(ev)
 
-    i = len(grid) // 2
-    best = evaluate(i)
-    for step in (1, -1):
-        moved = False
-        while 0 <= i + step < len(grid):
-            ev = evaluate(i + step)
-            if not ev > best:
-                break
-            i, best, moved = i + step, ev, True
-        if moved:
-            break
+    i = walk_evidence(evaluate, len(grid))
+    best = cache[i][0]
     if not np.isfinite(best):
         # no smoothing gave a converged fit: the best finite-evidence or the last tried
         finite = [k for k, v in cache.items() if v[1].success]
@@ -161,3 +152,21 @@ def drop_coefficient_correlations(res, P):
                  if not (w.startswith("parameters ") and "strongly correlated" in w
                          and set(w.split()[1:4:2]) <= drag_names))
     return replace(res, warnings=kept)
+
+
+def walk_evidence(evaluate, n_grid):
+    """The walk over the smoothing grid that :func:`fit_penalised` makes and the planner
+    predicts: from the middle uphill towards the flexible end, else towards the stiff end.
+    ``evaluate(i)`` returns the evidence at grid index ``i``. Returns the chosen index."""
+    i = n_grid // 2
+    best = evaluate(i)
+    for step in (1, -1):
+        moved = False
+        while 0 <= i + step < n_grid:
+            ev = evaluate(i + step)
+            if not ev > best:
+                break
+            i, best, moved = i + step, ev, True
+        if moved:
+            break
+    return i
