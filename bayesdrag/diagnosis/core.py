@@ -12,6 +12,7 @@ from .._threads import single_blas
 from ..effects import EFFECTS
 from ..errors import FitError, InputError
 from ..track import NATIVE_CHANNELS
+from ..estimate.model.layout import ParameterLayout
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
 from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
@@ -159,7 +160,7 @@ def _fit_names(setup):
     initial state of ``start_fit``."""
     def fit_fn(names, start):
         effs = [EFFECTS[n] for n in names]
-        th = [start[0].theta[:setup.P + 6]]
+        th = [start[0].theta[:ParameterLayout(setup.P).size]]
         return fit_effects(setup, effs, np.concatenate(th + [fit_starts(e) for e in effs]))
     return fit_fn
 

@@ -17,6 +17,7 @@ import numpy as np
 from ..effects import EFFECTS
 from ..errors import FitError
 from ..estimate.model.problem import OutputErrorProblem
+from ..estimate.model.layout import ParameterLayout
 from .setup import effect_problem, launch_priors
 
 __all__ = ["effect_change", "end_shift", "cd_shift", "materiality", "judge_impacts",
@@ -49,7 +50,7 @@ def effect_change(setup, fit, name):
     """
     res, prob, y = fit
     effs = [EFFECTS[n] for n in prob.diag_effects]
-    k0 = setup.P + 6
+    k0 = ParameterLayout(setup.P).size
     keep, j = [res.theta[:k0]], k0
     for e in effs:
         if e.k and e.name != name:
@@ -113,7 +114,7 @@ def cd_shift(setup, theta_eff, dy, mach, n_mach=9):
     from ..drag import TableSpline, default_spline_knots
 
     P = setup.P
-    s0 = theta_eff[P:P + 6]
+    s0 = theta_eff[ParameterLayout(P).state]
     m = np.asarray(mach, float)
     m = m[np.isfinite(m)]
     lo, hi = float(m.min()), float(m.max())
@@ -130,7 +131,7 @@ def cd_shift(setup, theta_eff, dy, mach, n_mach=9):
         pri = setup.priors + setup.smooth
     Pn = dm.n_params
     th = np.concatenate([beta, s0])
-    free = np.concatenate([np.ones(Pn, bool), setup.free[P:P + 6]])
+    free = np.concatenate([np.ones(Pn, bool), setup.free[ParameterLayout(P).state]])
     prob = OutputErrorProblem(model, setup.track, th, free=free, sigma=setup.sigma, priors=pri,
                               channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
     _, _, S = prob.sensitivities(th)

@@ -20,6 +20,7 @@ from scipy.stats import chi2 as _chi2
 
 from ..effects import EFFECTS
 from ..errors import FitError
+from ..estimate.model.layout import ParameterLayout
 from .setup import fit_effects, fit_starts, k_free, noise_floor
 from .signatures import CONFOUND_CORR
 from .winds import finer_layers, refined_start
@@ -257,7 +258,7 @@ def drop_one_fits(setup, verdict, fit, fits):
             continue
         effs = [EFFECTS[m] for m in others]
         try:
-            out[n] = fit_effects(setup, effs, np.concatenate([res.theta[:setup.P + 6]] + [fit_starts(e) for e in effs]))
+            out[n] = fit_effects(setup, effs, np.concatenate([res.theta[:ParameterLayout(setup.P).size]] + [fit_starts(e) for e in effs]))
         except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
             continue
     return out
@@ -353,7 +354,7 @@ def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
         level = [r["name"] for r in rows if r["name"] in ("density", "drag_scale")][:1]
     names = level[:1] + ["drag_shape"]
     res = fit[0]
-    k0 = setup.P + 6
+    k0 = ParameterLayout(setup.P).size
     vals = dict(zip(res.names[k0:], res.theta[k0:]))
     start = [res.theta[:k0]]
     for n in names:

@@ -21,6 +21,7 @@ from .winds import rw_information, rw_priors
 from ..errors import FitError
 from ..estimate.model.noise import OUTLIER_K, noise_and_outliers
 from ..estimate.model.problem import OutputErrorProblem, Prior
+from ..estimate.model.layout import ParameterLayout
 
 __all__ = ["Setup", "make_setup", "nuisance_drag", "flown_mach_span", "drag_shape_for", "launch_priors",
            "extra_free", "k_free", "fit_starts", "effect_problem", "fit_effects", "n_weighted", "edf",
@@ -228,8 +229,8 @@ def drag_shape_for(setup, base_theta, span):
     ref = setup.rnd.reference_drag
     ds0 = drag_shape_model(ref, span)
     P, Pk = setup.P, ds0.n_params
-    th = np.concatenate([[1.0], np.zeros(Pk - 1), base_theta[P:P + 6]])
-    free = np.concatenate([np.ones(Pk, bool), setup.free[P:P + 6]])
+    th = np.concatenate([[1.0], np.zeros(Pk - 1), base_theta[ParameterLayout(P).state]])
+    free = np.concatenate([np.ones(Pk, bool), setup.free[ParameterLayout(P).state]])
     pri = launch_priors(setup.rnd.launch, Pk) if setup.launch_known else ()
     prob = OutputErrorProblem(setup.model.with_(drag=ds0), setup.track, th, free=free, sigma=setup.sigma,
                               priors=pri, channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
@@ -322,9 +323,9 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
     theta0 = np.concatenate([dparams, s0])
     free = np.ones(theta0.size, bool)
     if "y" not in chans:
-        free[P + 1] = free[P + 4] = False
+        free[ParameterLayout(P).index("y")] = free[ParameterLayout(P).index("vy")] = False
     if not any(c in chans for c in ("x", "y", "z")):
-        free[P:P + 3] = False
+        free[ParameterLayout(P).position] = False
     priors = launch_priors(L, P) if launch_known else ()
     ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg,
                         azimuth_deg=L.azimuth_deg, v0=L.velocity)

@@ -30,6 +30,7 @@ from ..effects import EFFECTS
 from ..errors import FitError
 from ..estimate.scheme1.winds import at_fit_resolution, layers_over, wind_layer_priors
 from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD
+from ..estimate.model.layout import ParameterLayout
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
            "wind_prior_precision", "occam", "data_cost", "fit_wind_profile", "rechoose_wind", "cannot_separate", "separable",
@@ -89,7 +90,7 @@ def refined_start(setup, names, res, coarse, fine):
     vals = dict(zip(res.names, res.theta))
     mid = 0.5 * (np.asarray(fine.edges[:-1]) + np.asarray(fine.edges[1:]))
     home = np.clip(np.searchsorted(np.asarray(coarse.edges), mid, side="right"), 1, coarse.n)
-    out = [res.theta[:setup.P + 6]]
+    out = [res.theta[:ParameterLayout(setup.P).size]]
     for n in names:
         e = EFFECTS[n]
         row = []
