@@ -358,7 +358,8 @@ def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
         return best[0]
 
     def score(lay, start):
-        out = _fit_with(prob, res, rnd, effects, replace(ctx, wind_layers=lay), start=start[1].theta)
+        th = None if start is None else start[1].theta
+        out = _fit_with(prob, res, rnd, effects, replace(ctx, wind_layers=lay), start=th)
         return (deviance(out[0], out[1]) if out[3] else np.inf), out
 
     return placed_layers(best[1], best[0], deviance(best[0][0], best[0][1]), score,

@@ -175,7 +175,9 @@ def placed_layers(layers, fit, d0, score, penalty):
     fitted wind changes across by more than :data:`EDGE_PLACE_STEP` (largest first, at most
     :data:`EDGE_PLACE_MAX`) moved by halving steps (:data:`EDGE_PLACE_ROUNDS`), each try started
     from the best fit so far. The best try is kept only when ``d0 - score > penalty(k)``, ``k``
-    the edge parameters it chose (1 for a shift, 1 per edge moved).
+    the edge parameters it chose (1 for a shift, 1 per edge moved), and when the kept grid fitted
+    from the plain start reaches the same optimum (deviance within ``penalty(1)``): separate
+    optima mean the wind and Cd trade and the band of one optimum is not Cd's uncertainty.
 
     Parameters
     ----------
@@ -185,9 +187,9 @@ def placed_layers(layers, fit, d0, score, penalty):
         Their fit ``(problem, MLResult, ...)`` (as :func:`~.systematics.fit_with_sources` returns).
     d0 : float
         Its deviance.
-    score : callable ``score(WindLayers, fit) -> (float, fit)``
-        The fit with those layers started from ``fit``'s estimate, and its deviance (inf when it
-        fails).
+    score : callable ``score(WindLayers, fit or None) -> (float, fit)``
+        The fit with those layers started from ``fit``'s estimate (None: from the fit before the
+        wind), and its deviance (inf when it fails).
     penalty : callable ``penalty(k) -> float``
 
     Returns
@@ -216,9 +218,12 @@ def placed_layers(layers, fit, d0, score, penalty):
                         best = (d, out, lay, best[3] + (not moved))
                         moved = True
             step /= 2.0
-    if best[3] and d0 - best[0] > penalty(best[3]):
-        return best[2], best[1]
-    return layers, fit
+    if not best[3] or d0 - best[0] <= penalty(best[3]):
+        return layers, fit
+    # each try started from the last: the kept grid fitted again from the plain start must reach
+    # the same optimum, else the likelihood has separate optima and the band of one is not Cd's
+    d_cold, _ = score(best[2], None)
+    return (best[2], best[1]) if d_cold - best[0] <= penalty(1) else (layers, fit)
 
 
 def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
