@@ -30,8 +30,8 @@ import numpy as np
 from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
-__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "edge_penalty", "deviance", "PLACED_AXES", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
-           "FIT_LAYERS"]
+__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "edge_penalty", "deviance", "layers_over",
+           "at_fit_resolution", "layer_free", "WIND_AXES", "PLACED_AXES", "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
 FIT_LAYERS = WIND_LAYERS_MAX
