@@ -260,6 +260,10 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
 
 #: effects that carry a source's quantity (one quantity is one parameter)
 EFFECT_SOURCE = {"density": "density", "temperature": "temperature", "radar_time": "time_offset"}
+#: effects fitted beside Cd that trade with it (a temperature's density part is the Cd level, a
+#: decaying yaw's drag a change of its shape): with one of them the edges are not placed, since a
+#: search over edges then trades the layers with Cd as well
+TRADES_WITH_CD = ("temperature", "yaw_drag")
 #: effects that cannot be fitted with Cd without a declared sd: a constant factor on the drag
 #: (``density``, ``drag_scale``) or its shape (``drag_shape``) is Cd itself
 CONFOUNDED_EFFECTS = ("density", "drag_scale", "drag_shape")
@@ -354,7 +358,8 @@ def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
             best = (out, lay)
     if best is None:
         return prob, res, (), ()
-    if not isinstance(wind_layers, (type(None), str)) or best[1].axis not in PLACED_AXES:
+    if not isinstance(wind_layers, (type(None), str)) or best[1].axis not in PLACED_AXES \
+            or any(e in TRADES_WITH_CD for e in effects):
         return best[0]
 
     def score(lay, start):
