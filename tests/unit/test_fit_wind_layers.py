@@ -72,3 +72,51 @@ def test_the_fit_resolution_keeps_span_axis_base_and_cross_wind_rule():
     assert fine.n == FIT_LAYERS and fine.edges[0] == coarse.edges[0] and fine.edges[-1] == coarse.edges[-1]
     assert fine.axis == coarse.axis and fine.base == coarse.base and fine.constant_cross
     assert at_fit_resolution(fine) is None and at_fit_resolution(None) is None
+
+
+#: a BIC price per edge parameter of ln(1000) samples [deviance]
+PENALTY_PER_EDGE = float(np.log(1000.0))
+
+
+def _step_fits(scale, cold_extra=0.0):
+    """A fake fit of a wind stepping +6 -> -7 m/s at 3.5 km downrange: each layer's wind is the
+    step's value at its centre, and the deviance grows by ``scale`` per metre between the step
+    and the nearest edge; a fit from the plain start (``start`` None) lands ``cold_extra`` higher."""
+    from types import SimpleNamespace
+
+    def fit(lay, start):
+        e = np.asarray(lay.edges)
+        centres = 0.5 * (e[1:] + e[:-1])
+        wx = np.where(centres < 3500.0, 6.0, -7.0)
+        names = [f"wind_profile.{c}_{k}" for k in range(1, lay.n + 1) for c in ("wx", "wy")]
+        theta = np.ravel(np.column_stack([wx, np.zeros(lay.n)]))
+        d = scale * float(np.min(np.abs(e - 3500.0))) + (cold_extra if start is None else 0.0)
+        return d, (None, SimpleNamespace(names=names, theta=theta))
+    return fit
+
+
+def test_an_edge_is_placed_at_a_wind_step_when_the_drop_beats_its_bic_price():
+    from bayesdrag.estimate.scheme1.winds import placed_layers
+
+    x = np.linspace(0.0, 10000.0, 200)
+    equal = path_layers("downrange", x, 0.0 * x + 100.0, 0.0, n=10)
+    score = _step_fits(scale=0.2)
+    d0, fit0 = score(equal, "start")
+    lay, _ = placed_layers(equal, fit0, d0, score, lambda k: k * PENALTY_PER_EDGE)
+    # a quarter layer halved three times: within 1/32 of a layer (31 m) and the 10 m rounding
+    assert np.min(np.abs(np.asarray(lay.edges) - 3500.0)) <= 1000.0 / 32 + EDGE_TOL_M
+    assert lay.edges[0] == equal.edges[0] and lay.edges[-1] == equal.edges[-1] and lay.n == equal.n
+
+
+def test_the_equal_grid_stays_when_the_drop_is_within_the_price_or_the_plain_start_disagrees():
+    from bayesdrag.estimate.scheme1.winds import placed_layers
+
+    x = np.linspace(0.0, 10000.0, 200)
+    equal = path_layers("downrange", x, 0.0 * x + 100.0, 0.0, n=10)
+    pen = lambda k: k * PENALTY_PER_EDGE           # noqa: E731
+    weak = _step_fits(scale=0.005)                 # 500 m from the step: a drop of 2.5 < ln 1000
+    d0, fit0 = weak(equal, "start")
+    assert placed_layers(equal, fit0, d0, weak, pen)[0] is equal
+    split = _step_fits(scale=0.2, cold_extra=3.0 * PENALTY_PER_EDGE)   # separate optima
+    d0, fit0 = split(equal, "start")
+    assert placed_layers(equal, fit0, d0, split, pen)[0] is equal

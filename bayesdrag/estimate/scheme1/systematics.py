@@ -260,6 +260,10 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
 
 #: effects that carry a source's quantity (one quantity is one parameter)
 EFFECT_SOURCE = {"density": "density", "temperature": "temperature", "radar_time": "time_offset"}
+#: effects fitted beside Cd that trade with it (a temperature's density part is the Cd level, a
+#: decaying yaw's drag a change of its shape): with one of them the edges are not placed, since a
+#: search over edges then trades the layers with Cd as well
+TRADES_WITH_CD = ("temperature", "yaw_drag")
 #: effects that cannot be fitted with Cd without a declared sd: a constant factor on the drag
 #: (``density``, ``drag_scale``) or its shape (``drag_shape``) is Cd itself
 CONFOUNDED_EFFECTS = ("density", "drag_scale", "drag_shape")
@@ -329,7 +333,7 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
 def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
     """:func:`fit_with_sources` but for the note on declared radar sources nothing depends on."""
     from ...effects import EffectContext
-    from .winds import WIND_AXES, fit_layers
+    from .winds import PLACED_AXES, WIND_AXES, deviance, edge_penalty, fit_layers, placed_layers
 
     effects = tuple(effects)
     if rnd.systematics.wind_profile is not None and "wind_profile" not in effects:
@@ -348,15 +352,28 @@ def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
     if not layers:   # no span to lay layers over (no path): the wind stays the round's
         return _fit_with(prob, res, rnd, tuple(e for e in effects if e != "wind_profile"), ctx)
     best = None
-    for lay in layers:
+    for lay in layers:   # the axes compared at their equal grids: one fit each
         out = _fit_with(prob, res, rnd, effects, replace(ctx, wind_layers=lay))
-        if out[3] and (best is None or out[1].cost < best[1].cost):
-            best = out
-    return best if best is not None else (prob, res, (), ())
+        if out[3] and (best is None or out[1].cost < best[0][1].cost):
+            best = (out, lay)
+    if best is None:
+        return prob, res, (), ()
+    if not isinstance(wind_layers, (type(None), str)) or best[1].axis not in PLACED_AXES \
+            or any(e in TRADES_WITH_CD for e in effects):
+        return best[0]
+
+    def score(lay, start):
+        th = None if start is None else start[1].theta
+        out = _fit_with(prob, res, rnd, effects, replace(ctx, wind_layers=lay), start=th)
+        return (deviance(out[0], out[1]) if out[3] else np.inf), out
+
+    return placed_layers(best[1], best[0], deviance(best[0][0], best[0][1]), score,
+                         lambda k: edge_penalty(prob, k))[1]
 
 
-def _fit_with(prob, res, rnd, effects, ctx):
-    """:func:`fit_with_sources` with the effects' context (and wind layers) settled."""
+def _fit_with(prob, res, rnd, effects, ctx, start=None):
+    """:func:`fit_with_sources` with the effects' context (and wind layers) settled; ``start``:
+    the estimate of a fit with the same parameters (other wind layers) to start from."""
     from ...effects import effect_fn, extra_params, get_effect, static_model
     from ..model.problem import OutputErrorProblem
     from .winds import layer_free, wind_layer_priors
@@ -374,6 +391,8 @@ def _fit_with(prob, res, rnd, effects, ctx):
     inner_fn = effect_fn(with_par, ctx, res.theta[prob.P:prob.P + 6]) if with_par else None
     n_inner = len(eff_extras)
     theta0 = np.concatenate([res.theta, [e.start for e in eff_extras], [e[2] for e in extras]])
+    if start is not None and len(start) == len(theta0):
+        theta0 = np.asarray(start, float).copy()
     eff_free = [layer_free(ctx.wind_layers, e.name, prob.channels) if e.name.startswith("wind_profile.") else True
                 for e in eff_extras]
     free = np.concatenate([res.free, eff_free, np.ones(len(extras), bool)])

@@ -7,7 +7,14 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   the diagnosis's axis is used; otherwise both axes are fitted and the one with the smaller cost
   is kept (the two have the same number of parameters and the same priors, so the cost is their
   evidence up to the determinants). More layers than the diagnosis lays (which only has to name
-  the wind); the random walk keeps the extra layers from wandering.
+  the wind); the random walk keeps the extra layers from wandering. The axes are compared at
+  their equal grids only (one fit each: the same effort, so the cost comparison is fair).
+* **Edges.** A wind that steps inside a layer leaves a misfit the Cd spline bends to follow. On
+  the chosen axis, when it is one of :data:`PLACED_AXES`, the edges are then placed by the fit's
+  deviance (:func:`placed_layers`): the equal grid shifted by fractions of a layer, then the
+  edges the wind steps across moved by halving steps, each try started from the best fit so
+  far. A placement is kept only when its deviance drop beats the BIC price of the edge
+  parameters it chose (:func:`edge_penalty`: ``ln N`` per parameter); else the equal grid stays.
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -20,16 +27,28 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...wind_layers import WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
+from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
-__all__ = ["wind_layer_priors", "fit_layers", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
-           "FIT_LAYERS"]
+__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "edge_penalty", "deviance", "layers_over",
+           "at_fit_resolution", "layer_free", "WIND_AXES", "PLACED_AXES", "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
 FIT_LAYERS = WIND_LAYERS_MAX
 #: the axes a wind profile may be laid on, met practice first
 WIND_AXES = ("altitude", "downrange")
+#: the axes whose edges are placed: zones by downrange distance end at one place; a height is
+#: crossed twice (up and down), where a placed edge traded against transonic Cd
+PLACED_AXES = ("downrange",)
+#: the equal grid is also tried shifted by these fractions of a layer
+GRID_SHIFTS = (0.25, 0.5, 0.75)
+#: an edge the fitted wind changes across by more than this [m/s] (the random walk's sd per
+#: layer: a zone boundary, not a gradient) is moved
+EDGE_PLACE_STEP = WIND_STEP_SD
+#: at most this many edges are moved, largest change first
+EDGE_PLACE_MAX = 2
+#: halving steps of an edge's move, from a quarter layer
+EDGE_PLACE_ROUNDS = 3
 
 
 def _layer_index(names, effect="wind_profile"):
@@ -105,6 +124,106 @@ def fit_layers(prob, res, rnd, axis):
     if not ok.any():
         return None
     return layers_over(axis, st[ok, 0], st[ok, 2], rnd.atmosphere, FIT_LAYERS)
+
+
+def deviance(prob, res):
+    """-2 log-likelihood of a fit up to a constant shared by fits of the same track and noise
+    model: its cost (chi2 with the priors) plus ``sum_c n_c ln sigma_c^2`` for the noise sd the fit
+    estimated (constant when the sd is held), ``n_c`` the channel's weighted sample count."""
+    w = np.asarray(prob.weights, float)
+    return float(res.cost) + sum(float(np.sum(w[:, j])) * 2.0 * np.log(res.sigma[c])
+                                 for j, c in enumerate(prob.channels) if c not in prob.sigma_fixed)
+
+
+def edge_penalty(prob, k):
+    """BIC price [deviance] of ``k`` edge parameters a placement chose (a shift of the grid, each
+    edge moved): ``k ln N``, ``N`` the weighted residual count."""
+    return k * float(np.log(max(float(np.sum(prob.weights)), 2.0)))
+
+
+def _shifted(layers, frac):
+    """``layers`` with every inner edge moved up by ``frac`` of a layer's width."""
+    e = np.asarray(layers.edges, float)
+    w = (e[-1] - e[0]) / layers.n
+    inner = np.round((e[1:-1] + frac * w) / EDGE_ROUND) * EDGE_ROUND
+    out = np.concatenate([[e[0]], inner, [e[-1]]])
+    return replace(layers, edges=tuple(float(v) for v in out)) if np.all(np.diff(out) > 0) else None
+
+
+def _moved(layers, i, pos):
+    """``layers`` with inner edge ``i`` (1..n-1) at ``pos`` [m]; None when it would pass a
+    neighbour."""
+    e = list(layers.edges)
+    pos = float(np.round(pos / EDGE_ROUND) * EDGE_ROUND)
+    if not e[i - 1] < pos < e[i + 1] or pos == e[i]:
+        return None
+    e[i] = pos
+    return replace(layers, edges=tuple(e))
+
+
+def _jumps(layers, res):
+    """{inner edge index: size [m/s] of the fitted wind's change across it}."""
+    vals = dict(zip(res.names, res.theta))
+    w = np.array([[vals.get(f"wind_profile.{c}_{k}", 0.0) for c in ("wx", "wy")] for k in range(1, layers.n + 1)])
+    return {i: float(np.hypot(*(w[i] - w[i - 1]))) for i in range(1, layers.n)}
+
+
+def placed_layers(layers, fit, d0, score, penalty):
+    """The layers' edges placed where the track puts the wind's steps, or ``layers`` unchanged.
+
+    Tries the grid shifted by :data:`GRID_SHIFTS` of a layer, then in the best grid each edge the
+    fitted wind changes across by more than :data:`EDGE_PLACE_STEP` (largest first, at most
+    :data:`EDGE_PLACE_MAX`) moved by halving steps (:data:`EDGE_PLACE_ROUNDS`), each try started
+    from the best fit so far. The best try is kept only when ``d0 - score > penalty(k)``, ``k``
+    the edge parameters it chose (1 for a shift, 1 per edge moved), and when the kept grid fitted
+    from the plain start reaches the same optimum (deviance within ``penalty(1)``): separate
+    optima mean the wind and Cd trade and the band of one optimum is not Cd's uncertainty.
+
+    Parameters
+    ----------
+    layers : WindLayers
+        The equal layers.
+    fit : tuple
+        Their fit ``(problem, MLResult, ...)`` (as :func:`~.systematics.fit_with_sources` returns).
+    d0 : float
+        Its deviance.
+    score : callable ``score(WindLayers, fit or None) -> (float, fit)``
+        The fit with those layers started from ``fit``'s estimate (None: from the fit before the
+        wind), and its deviance (inf when it fails).
+    penalty : callable ``penalty(k) -> float``
+
+    Returns
+    -------
+    (WindLayers, fit)
+        The layers kept and their fit (``fit`` itself when the equal layers stay).
+    """
+    best = (d0, fit, layers, 0)
+    for f in GRID_SHIFTS:
+        lay = _shifted(layers, f)
+        if lay is not None:
+            d, out = score(lay, best[1])
+            if d < best[0]:
+                best = (d, out, lay, 1)
+    w = (layers.edges[-1] - layers.edges[0]) / layers.n
+    jumps = sorted(((j, i) for i, j in _jumps(best[2], best[1][1]).items() if j > EDGE_PLACE_STEP), reverse=True)
+    for _, i in jumps[:EDGE_PLACE_MAX]:
+        step, moved = w / 4.0, False
+        for _ in range(EDGE_PLACE_ROUNDS):
+            centre = best[2].edges[i]
+            for pos in (centre - step, centre + step):
+                lay = _moved(best[2], i, pos)
+                if lay is not None:
+                    d, out = score(lay, best[1])
+                    if d < best[0]:
+                        best = (d, out, lay, best[3] + (not moved))
+                        moved = True
+            step /= 2.0
+    if not best[3] or d0 - best[0] <= penalty(best[3]):
+        return layers, fit
+    # each try started from the last: the kept grid fitted again from the plain start must reach
+    # the same optimum, else the likelihood has separate optima and the band of one is not Cd's
+    d_cold, _ = score(best[2], None)
+    return (best[2], best[1]) if d_cold - best[0] <= penalty(1) else (layers, fit)
 
 
 def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
