@@ -62,6 +62,7 @@ from ...dynamics.pointmass import atmosphere_table
 from ...effect_inputs import ExtraParam, SimInputs
 from ...track import NATIVE_CHANNELS
 from ..model.problem import Prior
+from ..model.layout import ParameterLayout
 
 __all__ = ["SOURCE_PARAMS", "RADAR_SOURCES", "source_extras", "source_priors", "source_fn", "radar_conditional",
            "radar_unused"]
@@ -387,8 +388,9 @@ def _fit_with(prob, res, rnd, effects, ctx, start=None):
     eff_extras = extra_params(with_par)
     if prob.E:
         raise ValueError("fit_with_sources extends a Scheme 1 problem, which has no extra parameters yet")
-    n0 = prob.P + 6
-    inner_fn = effect_fn(with_par, ctx, res.theta[prob.P:prob.P + 6]) if with_par else None
+    lay = ParameterLayout(prob.P)
+    n0 = lay.size
+    inner_fn = effect_fn(with_par, ctx, res.theta[lay.state]) if with_par else None
     n_inner = len(eff_extras)
     theta0 = np.concatenate([res.theta, [e.start for e in eff_extras], [e[2] for e in extras]])
     if start is not None and len(start) == len(theta0):
