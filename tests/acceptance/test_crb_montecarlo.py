@@ -17,12 +17,10 @@ Run the long versions with ``python3 -m pytest -m slow tests/test_crb_montecarlo
 import numpy as np
 import pytest
 
-from bayesdrag.drag import Spline
-from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.model.problem import OutputErrorProblem
 from bayesdrag.synthetic import add_noise
 from bayesdrag.track import RadarTrack
+from fixtures.shell155 import spline_truth_flight
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}
 KNOTS = (1.45, 1.7, 2.0, 2.45)
@@ -37,14 +35,8 @@ AR_RHO = 0.9
 
 @pytest.fixture(scope="module")
 def setup(m101):
-    sp = Spline(KNOTS)
-    m = np.linspace(KNOTS[0], KNOTS[-1], 300)
-    theta_true, _ = sp.fit_curve(m, m101.value(m))
-    model = PointMassModel(42.6, 0.155, sp)
-    s0 = initial_state(818.0, 15.0)
-    t = np.arange(0, 15.0, 0.027)
-    tr = model.simulate(theta_true, s0, t, backend="scipy")
-    clean = RadarTrack(t, {c: tr.channel(c) for c in "xyzv"}, {})
+    _, theta_true, model, s0, tr = spline_truth_flight(m101, KNOTS)
+    clean = RadarTrack(tr.t, {c: tr.channel(c) for c in "xyzv"}, {})
     return model, theta_true, s0, clean
 
 

@@ -21,13 +21,11 @@ import math
 import numpy as np
 import pytest
 
-from bayesdrag.drag import Spline
-from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.estimate.model.problem import OutputErrorProblem
 from bayesdrag.measure import RadarSite, channel_values
 from bayesdrag.synthetic import add_noise
 from bayesdrag.track import RadarTrack
+from fixtures.shell155 import spline_truth_flight
 
 SIGMA = {"range": 2.0, "azimuth": math.radians(0.03), "elevation": math.radians(0.03), "range_rate": 0.1}
 SITE = RadarSite((-40.0, 25.0, 2.0), math.radians(90.0))
@@ -47,14 +45,8 @@ Z90 = 1.6449
 
 @pytest.fixture(scope="module")
 def setup(m101):
-    sp = Spline(KNOTS)
-    m = np.linspace(KNOTS[0], KNOTS[-1], 300)
-    theta_true, _ = sp.fit_curve(m, m101.value(m))
-    model = PointMassModel(42.6, 0.155, sp)
-    s0 = initial_state(818.0, 15.0)
-    t = np.arange(0.0, 15.0, 0.027)
-    tr = model.simulate(theta_true, s0, t, backend="scipy")
-    clean = RadarTrack(t, dict(zip(SIGMA, channel_values(tr.state, tuple(SIGMA), SITE).T)), {})
+    sp, theta_true, model, s0, tr = spline_truth_flight(m101, KNOTS)
+    clean = RadarTrack(tr.t, dict(zip(SIGMA, channel_values(tr.state, tuple(SIGMA), SITE).T)), {})
     return model, sp, theta_true, s0, clean
 
 
