@@ -578,7 +578,9 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     out = _outputs(state, chans, site_of(rc, chans))
     flat = [c for c in chans if c in NATIVE_CHANNELS
             and np.ptp(out[c]) <= 1e-12 * max(1.0, float(np.max(np.abs(out[c]))))]
-    if flat and len(flat) < len(chans):
+    if len(flat) == len(chans):
+        flat = []                     # nothing left to plan with: the track's own check says why
+    if flat:
         # a radar on the line of fire sees a constant azimuth: no information, and no track has it
         chans = tuple(c for c in chans if c not in flat)
         sigma = {c: sigma[c] for c in chans}
@@ -598,7 +600,7 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"], level_shares(rc, cd))
     smoothing.pop("R")
     notes = []
-    if flat and len(flat) < len(chans) + len(flat):
+    if flat:
         notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: the radar at {list(rc.radar.position)} m sees a "
                      f"constant {', '.join(flat)} (on the line of fire): planned without it")
     if thinned > 1:
