@@ -49,7 +49,7 @@ def effect_change(setup, fit, name):
     mach : (N,) Mach along the trajectory without the effect
     """
     res, prob, y = fit
-    effs = [EFFECTS[n] for n in prob.diag_effects]
+    effs = [EFFECTS[n] for n in prob.effect_names]
     k0 = ParameterLayout(setup.P).size
     keep, j = [res.theta[:k0]], k0
     for e in effs:

@@ -375,7 +375,7 @@ def effect_problem(setup, effects, theta_start):
     Returns
     -------
     OutputErrorProblem
-        With ``diag_effects``, the effects' names in the order of the parameters.
+        With ``effect_names``, the effects' names in the order of the parameters.
     """
     eff = [e for e in effects if e.k]
     model = static_model(setup.model, effects, setup.ctx)
@@ -388,8 +388,8 @@ def effect_problem(setup, effects, theta_start):
     walk = rw_priors([""] * setup.theta0.size + [p.name for p in ex], free)
     prob = OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
                               priors=setup.priors + _padded(setup.smooth, len(ex)) + walk, channels=setup.channels,
-                              extras=ex, effect_fn=fn, t_ic=setup.t_ic, weights=setup.weights)
-    prob.diag_effects = tuple(e.name for e in effects)  # in the order of the fit's parameters
+                              extras=ex, effect_fn=fn, t_ic=setup.t_ic, weights=setup.weights,
+                              effect_names=tuple(e.name for e in effects))
     return prob
 
 

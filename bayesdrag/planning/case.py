@@ -392,8 +392,7 @@ def case_information(rnd_case, dm, track, state0, theta_drag, sigma, chans):
     n_stat = int(free[:lay.state.stop].sum())
     L = np.zeros((0, A.shape[1]))
     if abs(float(track.t[0])) < 1e-9:
-        prob.priors = launch_state_priors(rnd_case.launch, P)
-        _, J = prob.prior_terms(theta)
+        _, J = prob.replace(priors=launch_state_priors(rnd_case.launch, P)).prior_terms(theta)
         L = np.concatenate([J, np.zeros((J.shape[0], len(scale)))], axis=1)
     systematics = tuple((s, sd) for s, _, sd in sim) + tuple(scale)
     return CaseInformation(A, L, P, n_stat, systematics)

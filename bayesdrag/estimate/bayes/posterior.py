@@ -61,7 +61,6 @@ Laplace approximation
 """
 from __future__ import annotations
 
-import copy
 import math
 
 import numpy as np
@@ -179,9 +178,7 @@ def mode_fit(problem, ml):
     """
     if not problem.sigma_fixed:
         return None
-    p2 = copy.copy(problem)
-    p2.sigma_fixed = {}
-    p2.theta0 = np.asarray(ml.theta, float).copy()
+    p2 = problem.replace(sigma_fixed={}, theta0=ml.theta)
     try:
         res = p2.fit()
     except FitError:

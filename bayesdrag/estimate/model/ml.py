@@ -167,12 +167,7 @@ def fit(problem, *, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, f
     if alt.converged and (alt.cost <= res.cost * (1 + 1e-9) or not res.converged):
         if len(problem.sigma_fixed) < len(problem.channels) or problem.ar_channels:
             # the noise sd was held at the LM's last estimate: one more relaxation pass
-            theta0 = problem.theta0
-            problem.theta0 = alt.theta.copy()
-            try:
-                again = _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma)
-            finally:
-                problem.theta0 = theta0
+            again = _fit_lm(problem.replace(theta0=alt.theta), max_iter, tol_cost, tol_step, tol_sigma)
             if again.converged:
                 return again
         return alt

@@ -32,7 +32,9 @@ an ``ar1`` channel.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 
@@ -143,11 +145,24 @@ class OutputErrorProblem:
         track's ``sigma_<channel>`` and ``snr`` columns (:func:`bayesdrag.measure.sample_noise`),
         else 1. A ``sigma_<channel>`` column's median also fixes the channel's sd unless
         ``sigma`` gives it.
+    effect_names : sequence of str, optional
+        The effects the extras belong to, in the order of the parameters (the diagnosis's
+        reports read them).
+
+    Notes
+    -----
+    A problem is a value: set once here and frozen. A fit that continues from another start,
+    with other priors, weights, noise sd or noise models works on :meth:`replace`'s copy, so a
+    problem handed to a function is never changed behind its caller's back. The finite-difference
+    steps stay those of the first start (a continued fit differentiates as the first one did).
     """
+
+    #: what :meth:`replace` may change; everything else follows from the model and the track
+    REPLACEABLE = ("theta0", "priors", "sigma_fixed", "weights", "noise_model")
 
     def __init__(self, model, track, theta0, free=None, sigma=None, priors=(), channels=None,
                  extras=(), effect_fn=None, t_ic=None, weights=None, noise_model=None, site=None,
-                 noise_scale=None):
+                 noise_scale=None, effect_names=()):
         self.model = model
         self.track = track
         self.site = RadarSite() if site is None else site
@@ -176,21 +191,21 @@ class OutputErrorProblem:
             for c, s in level.items():
                 self.sigma_fixed.setdefault(c, s)
         #: each sample's noise sd over its channel's (N, C); ones when every sample is alike
-        self.noise_scale = np.ones_like(self.z) if noise_scale is None else np.asarray(noise_scale, float)
+        self.noise_scale = np.ones_like(self.z) if noise_scale is None else np.array(noise_scale, float)
         if self.noise_scale.shape != self.z.shape or not np.all(self.noise_scale > 0):
             raise ValueError(f"noise_scale must be (N, C) = {self.z.shape} and positive")
         if weights is None:
             self.weights = np.ones_like(self.z)
         else:
-            self.weights = np.asarray(weights, dtype=float)
+            self.weights = np.array(weights, dtype=float)
             if self.weights.shape != self.z.shape or np.any(self.weights < 0) or np.any(self.weights > 1):
                 raise ValueError(f"weights must be (N, C) = {self.z.shape} in [0, 1]")
         for j, c in enumerate(self.channels):
             if np.ptp(self.z[:, j]) == 0.0 and c != "y":
                 raise InputError(f"{track.source}: channel {c} is constant ({self.z[0, j]}); "
                                  f"it carries no information — drop the column or fix the track")
-        self.noise_model = {c: "white" for c in self.channels}
-        self.set_noise_model(noise_model or {})
+        self.noise_model = MappingProxyType({c: "white" for c in self.channels})
+        self._set_noise_model(noise_model or {})
         dt = np.diff(np.asarray(track.t, float))
         ratio = dt / float(np.median(dt)) if dt.size else dt
         #: sample intervals over their median (exactly 1.0 on a regular grid)
@@ -201,10 +216,67 @@ class OutputErrorProblem:
         self.upper = np.concatenate([ub, big, [e.upper for e in self.extras]])
         self.steps = np.concatenate([np.maximum(1e-6, 1e-5 * np.abs(self.theta0[:self.P]) + 1e-7),
                                      IC_STEPS, [e.step for e in self.extras]])
+        self.effect_names = tuple(effect_names)
         n_free = self.effective_free()
         if self.z.shape[0] * len(self.channels) <= n_free:
             raise InputError(f"{track.source}: {self.z.shape[0]} samples x {len(self.channels)} channels "
                              f"are too few for {n_free} free parameters")
+        for a in (self.theta0, self.free, self.z, self.noise_scale, self.weights, self.lower, self.upper,
+                  self.steps, self.dt_ratio):
+            a.flags.writeable = False
+        self._frozen = True
+
+    def __setattr__(self, name, value):
+        if getattr(self, "_frozen", False):
+            raise AttributeError(f"an OutputErrorProblem is frozen: use problem.replace({name}=...) "
+                                 f"for a copy with another {name}")
+        object.__setattr__(self, name, value)
+
+    def replace(self, **changes):
+        """A copy of this problem with some of :attr:`REPLACEABLE` changed.
+
+        Parameters
+        ----------
+        theta0 : (P + 6 + E,) array, optional
+            Another start.
+        priors : sequence of Prior, optional
+        sigma_fixed : dict channel -> sd, optional
+            The noise sd held fixed ({} estimates every channel's).
+        weights : (N, C) array in [0, 1], optional
+        noise_model : dict channel -> {"white", "ar1"}, optional
+            Channels' noise models; channels not named keep theirs.
+
+        Returns
+        -------
+        OutputErrorProblem
+            Sharing the track, model and every array not changed with this one.
+        """
+        unknown = set(changes) - set(self.REPLACEABLE)
+        if unknown:
+            raise TypeError(f"replace() cannot change {', '.join(sorted(unknown))}; "
+                            f"it changes {', '.join(self.REPLACEABLE)}")
+        new = copy.copy(self)
+        object.__setattr__(new, "_frozen", False)
+        if "theta0" in changes:
+            th = np.array(changes["theta0"], dtype=float)
+            if th.shape != self.theta0.shape:
+                raise ValueError(f"theta0 must have {self.theta0.size} entries, got {th.shape}")
+            th.flags.writeable = False
+            new.theta0 = th
+        if "priors" in changes:
+            new.priors = tuple(changes["priors"])
+        if "sigma_fixed" in changes:
+            new.sigma_fixed = {c: float(s) for c, s in changes["sigma_fixed"].items() if c in self.channels}
+        if "weights" in changes:
+            w = np.array(changes["weights"], dtype=float)
+            if w.shape != self.z.shape or np.any(w < 0) or np.any(w > 1):
+                raise ValueError(f"weights must be (N, C) = {self.z.shape} in [0, 1]")
+            w.flags.writeable = False
+            new.weights = w
+        if "noise_model" in changes:
+            new._set_noise_model(changes["noise_model"])
+        new._frozen = True
+        return new
 
     # ----------------------------------------------------------------------------------------
     def effective_free(self):
@@ -219,8 +291,10 @@ class OutputErrorProblem:
         J = J[:, np.all(np.isfinite(J), axis=0)] if J.size else J
         return n_free - (int(np.linalg.matrix_rank(J)) if J.size else 0)
 
-    def set_noise_model(self, model):
-        """Set channels' noise models (dict channel -> ``white`` or ``ar1``); others unchanged."""
+    def _set_noise_model(self, model):
+        """Set channels' noise models (dict channel -> ``white`` or ``ar1``); others unchanged
+        (while the problem is built: :meth:`replace` afterwards)."""
+        new = dict(self.noise_model)
         for c, m in model.items():
             if c not in self.channels:
                 continue
@@ -228,7 +302,8 @@ class OutputErrorProblem:
                 raise ValueError(f"noise model {m!r} of channel {c} is not known; allowed: {', '.join(NOISE_MODELS)}")
             if m == "ar1" and np.any(self.weights[:, self.channels.index(c)] != 1.0):
                 raise ValueError(f"channel {c}: AR(1) noise needs unit sample weights (not a Student-t fit)")
-            self.noise_model[c] = m
+            new[c] = m
+        object.__setattr__(self, "noise_model", MappingProxyType(new))
 
     @property
     def ar_channels(self):

@@ -321,7 +321,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     say(f"the whole curve ({P} drag coefficients)")
     res_b = prob.fit(fallback=True)
     if res_b.success or np.all(np.isfinite(res_b.theta)):
-        prob.theta0 = res_b.theta.copy()
+        prob = prob.replace(theta0=res_b.theta)
     wider = _wider_span(dm, res_b, span)
     if wider is not None and knots is None:
         # the fitted flight reaches beyond the model's Mach span (the smoothed speed's ends
@@ -337,7 +337,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         say(f"the whole curve over the flight's Mach span ({P} drag coefficients)")
         res_b = prob.fit(fallback=True)
         if np.all(np.isfinite(res_b.theta)):
-            prob.theta0 = res_b.theta.copy()
+            prob = prob.replace(theta0=res_b.theta)
     model = prob.model
     say("checking the round's launch values against the track")
     clock = "radar_time" in with_effects or rnd.systematics.time_offset is not None
@@ -349,9 +349,9 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         check["unchecked"] = list(unseen)
     smoothing = rejected = None
     if pen is not None:
-        res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
+        prob, res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
     else:
-        prob.priors = tuple(used)
+        prob = prob.replace(priors=used)
         res = prob.fit(fallback=True) if used else res_b
     prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before = _noise_and_effects(
         prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
@@ -384,13 +384,13 @@ def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, 
         prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects, wind_layers)
     if likelihood == "student-t":
         say("reweighting outliers (Student-t)")
-        res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
+        prob, res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
         noise = {"requested": noise_model, "model": dict(prob.noise_model),
                  "note": "a Student-t fit keeps white noise"} if noise_model != "white" else {}
     else:
         white = res
         say("the noise model")
-        res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
+        prob, res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
         if noise_model == "auto" and "ar1" in noise.get("model", {}).values():
             white_ml = white
     if not winds_first:
@@ -420,7 +420,7 @@ def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chan
     prob = OutputErrorProblem(base_model.with_(drag=dm), track, theta0, free=free, sigma=sig, channels=chans,
                               priors=tuple(fixed_pri) + pen0, site=site)
     if likelihood == "student-t":
-        prob.sigma_fixed = {}
+        prob = prob.replace(sigma_fixed={})
     return prob, pen
 
 
@@ -458,28 +458,27 @@ def colored_refit(prob, res, smoothing, requested):
 
     Returns
     -------
-    (MLResult, dict or None, dict)
-        The fit, its smoothing record and the noise record of :class:`Scheme1Fit`.
+    (OutputErrorProblem, MLResult, dict or None, dict)
+        The problem with the chosen noise models (started at the white fit), the fit, its
+        smoothing record and the noise record of :class:`Scheme1Fit`.
     """
     if requested == "white":
-        return res, smoothing, {"requested": "white", "model": dict(prob.noise_model)}
+        return prob, res, smoothing, {"requested": "white", "model": dict(prob.noise_model)}
     models, lr = choose_noise_model(prob, res, requested)
     noise = {"requested": requested, "model": models,
              "lr": {c: (None if not np.isfinite(v) else round(v, 2)) for c, v in lr.items()}}
     if "ar1" not in models.values():
-        return res, smoothing, noise
-    prob.set_noise_model(models)
-    prob.theta0 = res.theta.copy()
-    new = prob.fit(fallback=True)
+        return prob, res, smoothing, noise
+    colored_prob = prob.replace(noise_model=models, theta0=res.theta)
+    new = colored_prob.fit(fallback=True)
     if not new.success:
         # keep the white fit, say so: its bounds ignore the correlation
-        prob.set_noise_model({c: "white" for c in prob.channels})
-        prob.theta0 = res.theta.copy()
+        prob = prob.replace(theta0=res.theta)
         noise["model"] = dict(prob.noise_model)
         noise["note"] = f"the fit with model-error noise failed ({new.message}); white noise kept"
-        return res, smoothing, noise
+        return prob, res, smoothing, noise
     noise["ar"] = {c: {"rho": v[0], "q": v[1]} for c, v in new.ar.items()}
-    return new, smoothing, noise
+    return colored_prob, new, smoothing, noise
 
 
 def _wider_span(dm, res, span):
@@ -524,13 +523,13 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
     weights; this rescales the noise by a constant) and the fit is repeated from the previous
     estimate with the same priors (and smoothing weight) a few times. Samples more than
     :data:`REJECT_K` scales from the curve end with a weight below 0.15: they are listed as
-    rejected (channel -> sample indices). The problem's ``weights`` and ``sigma_fixed`` end at
-    the final ones (the posterior samples the reweighted problem).
+    rejected (channel -> sample indices).
 
     Returns
     -------
-    (MLResult, dict)
-        The final fit and the rejected samples per channel.
+    (OutputErrorProblem, MLResult, dict)
+        The reweighted problem (the final ``weights`` and ``sigma_fixed``: the posterior samples
+        it), the final fit and the rejected samples per channel.
     """
     chans = prob.channels
     for _ in range(iterations):
@@ -542,9 +541,8 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
             else:
                 scale[j] = max(1.4826 * float(np.median(np.abs(r[:, j] - np.median(r[:, j])))), 1e-9)
         w = (nu + 1.0) / (nu + (r / scale) ** 2) * nu / (nu + 1.0)
-        prob.weights = np.clip(w, 0.0, 1.0)
-        prob.sigma_fixed = {c: float(scale[j] * np.sqrt(nu / (nu + 1.0))) for j, c in enumerate(chans)}
-        prob.theta0 = res.theta.copy()
+        prob = prob.replace(weights=np.clip(w, 0.0, 1.0), theta0=res.theta,
+                            sigma_fixed={c: float(scale[j] * np.sqrt(nu / (nu + 1.0))) for j, c in enumerate(chans)})
         new = prob.fit()
         if not np.all(np.isfinite(new.theta)):
             break
@@ -555,5 +553,5 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
     r = np.stack([res.residuals[c] for c in chans], axis=-1) / prob.noise_scale
     rejected = {c: [int(i) for i in np.flatnonzero(np.abs(r[:, j]) > REJECT_K * scale[j])]
                 for j, c in enumerate(chans)}
-    return res, rejected
+    return prob, res, rejected
 

@@ -68,8 +68,8 @@ def fit_penalised(prob, base_priors, P, penalty, progress=None):
     Parameters
     ----------
     prob : OutputErrorProblem
-        Its ``priors`` end as ``base_priors`` plus the chosen penalty (the problem's definition,
-        which the posterior samples); its ``theta0`` is moved along the walk.
+        Not changed: each smoothing's fit works on a copy with ``base_priors`` plus that
+        smoothing's penalty, started at the previous converged fit.
     base_priors : sequence of Prior
         Priors besides the penalty (the launch priors).
     P : int
@@ -81,8 +81,9 @@ def fit_penalised(prob, base_priors, P, penalty, progress=None):
 
     Returns
     -------
-    (MLResult, dict or None)
-        The fit at the chosen smoothing and the smoothing record (None when no smoothing gave a
+    (OutputErrorProblem, MLResult, dict or None)
+        The problem at the chosen smoothing (its priors are the problem's definition, which the
+        posterior samples), its fit and the smoothing record (None when no smoothing gave a
         converged fit).
 
     ``sd`` is walked uphill in the Laplace evidence over :data:`SMOOTHING_GRID` from its middle;
@@ -101,21 +102,20 @@ def fit_penalised(prob, base_priors, P, penalty, progress=None):
         if progress is not None:
             progress(f"choosing the smoothing by the evidence: fit {len(cache) + 1} (sd {grid[i]:.3g})")
         pen, D, sds = penalty(grid[i])
-        prob.priors = tuple(base_priors) + pen
-        prob.theta0 = state["theta"]
-        res = prob.fit(fallback=True)
+        trial = prob.replace(priors=tuple(base_priors) + pen, theta0=state["theta"])
+        res = trial.fit(fallback=True)
         idx = np.flatnonzero(res.free)
         ok = np.all(np.isfinite(res.theta)) and np.all(np.isfinite(res.cov))
         sign, logdet_cov = np.linalg.slogdet(res.cov[np.ix_(idx, idx)]) if ok else (0, 0.0)
         if sign <= 0:
-            cache[i] = (-np.inf, res, prob.priors, np.nan)
+            cache[i] = (-np.inf, res, trial, np.nan)
             return -np.inf
         # log evidence (+ const): -1/2 chi2_penalised - 1/2 log|F| + 1/2 log|Lambda D'D|_+
         ev = -0.5 * res.cost + 0.5 * logdet_cov - float(np.sum(np.log(sds)))
         edf = float(idx.size - np.trace(res.cov[:P, :P] @ (D.T @ (D / sds[:, None] ** 2))))
         if not res.converged:
             ev = -np.inf
-        cache[i] = (float(ev), res, prob.priors, edf)
+        cache[i] = (float(ev), res, trial, edf)
         if res.converged:
             state["theta"] = res.theta.copy()
         return float(ev)
@@ -127,11 +127,9 @@ def fit_penalised(prob, base_priors, P, penalty, progress=None):
         finite = [k for k, v in cache.items() if v[1].success]
         if finite:
             i = max(finite, key=lambda k: cache[k][0] if np.isfinite(cache[k][0]) else -1e300)
-    ev, res, pri, edf = cache[i]
+    ev, res, chosen, edf = cache[i]
     if not res.success and not any(v[1].success for v in cache.values()):
-        prob.priors = pri
-        return res, None
-    prob.priors = pri
+        return chosen, res, None
     table = [{"sd": float(grid[k]), "log_evidence": v[0], "edf": v[3], "converged": v[1].converged}
              for k, v in sorted(cache.items())]
     n_ic = int(res.free[P:].sum())
@@ -141,7 +139,7 @@ def fit_penalised(prob, base_priors, P, penalty, progress=None):
                  "base": "table" if isinstance(prob.model.drag, TableSpline) else "start curve from the track",
                  "sd": float(grid[i]), "edf": edf, "edf_drag": edf - n_ic,
                  "at_grid_end": end, "fits": len(cache), "grid": table}
-    return res, smoothing
+    return chosen, res, smoothing
 
 
 def drop_coefficient_correlations(res, P):

@@ -1,0 +1,70 @@
+"""The output-error problem is a value: fixed when built, changed only by copying."""
+import numpy as np
+import pytest
+
+import bayesdrag
+
+
+@pytest.fixture(scope="module")
+def problem(round_, clean_track):
+    res = bayesdrag.fit(clean_track, round_, mcmc=False, with_effects="none", model_check=False)
+    return res.scheme1.problem, res.scheme1.ml
+
+
+def test_a_problem_refuses_new_attribute_values(problem):
+    prob, _ = problem
+    with pytest.raises(AttributeError, match=r"frozen: use problem.replace\(theta0=...\)"):
+        prob.theta0 = prob.theta0 + 1.0
+    with pytest.raises(AttributeError, match="frozen"):
+        prob.priors = ()
+
+
+@pytest.mark.parametrize("name", ["theta0", "free", "z", "weights", "noise_scale", "steps"])
+def test_its_arrays_cannot_be_written_in_place(problem, name):
+    prob, _ = problem
+    with pytest.raises(ValueError, match="read-only"):
+        getattr(prob, name)[0] = 0.0
+
+
+def test_its_noise_models_cannot_be_changed_in_place(problem):
+    prob, _ = problem
+    with pytest.raises(TypeError, match="does not support item assignment"):
+        prob.noise_model[prob.channels[0]] = "ar1"
+
+
+def test_replace_gives_a_changed_copy_and_leaves_the_original(problem):
+    prob, ml = problem
+    before = prob.theta0.copy(), prob.priors, dict(prob.sigma_fixed), dict(prob.noise_model)
+    c = prob.channels[0]
+    models = {**{k: "white" for k in prob.channels}, c: "ar1"}
+    new = prob.replace(theta0=ml.theta, priors=(), sigma_fixed={}, noise_model=models)
+    np.testing.assert_array_equal(new.theta0, ml.theta)
+    assert new.priors == () and new.sigma_fixed == {} and new.noise_model[c] == "ar1"
+    assert new.ar_channels == (c,)
+    np.testing.assert_array_equal(prob.theta0, before[0])
+    assert (prob.priors, dict(prob.sigma_fixed), dict(prob.noise_model)) == before[1:]
+    assert new.track is prob.track and new.z is prob.z     # the data are shared, not copied
+    # the finite-difference steps stay those of the first start
+    np.testing.assert_array_equal(new.steps, prob.steps)
+
+
+def test_replace_checks_what_it_is_given(problem):
+    prob, _ = problem
+    with pytest.raises(ValueError, match=rf"theta0 must have {prob.theta0.size} entries"):
+        prob.replace(theta0=prob.theta0[:-1])
+    with pytest.raises(ValueError, match=r"weights must be \(N, C\)"):
+        prob.replace(weights=np.full(prob.z.shape, 2.0))
+    with pytest.raises(ValueError, match="noise model 'pink'"):
+        prob.replace(noise_model={prob.channels[0]: "pink"})
+    with pytest.raises(TypeError, match="replace\\(\\) cannot change track"):
+        prob.replace(track=None)
+
+
+def test_a_refit_from_a_replaced_start_reaches_the_same_optimum(problem):
+    prob, ml = problem
+    again = prob.replace(theta0=ml.theta).fit(fallback=True)
+    assert again.converged
+    # 1e-3 of a Cramer-Rao sd: the fit's own step tolerance
+    free = ml.free
+    dz = np.abs(again.theta - ml.theta)[free] / ml.crb[free]
+    assert float(np.max(dz)) < 1e-2
