@@ -95,7 +95,8 @@ def _doppler_view(track, rnd, site, note=True):
                           track.notes + (note + "taken as the speed (no [launch] velocity and elevation)",))
     ref = rnd.reference_drag or ReferenceTable((0.0, 6.0), (NOMINAL_CD, NOMINAL_CD), source="nominal")
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ref, rnd.atmosphere)
-    tr = model.simulate((), initial_state(L.velocity, L.elevation_deg), np.asarray(track.t, float), backend="scipy")
+    # the compiled kernel: the nominal flight only gives the line of sight (no tight tolerance needed)
+    tr = model.simulate((), initial_state(L.velocity, L.elevation_deg), np.asarray(track.t, float))
     y = channel_values(tr.state, ("range_rate", "v"), site)
     frac = y[:, 0] / np.maximum(y[:, 1], 1e-9)
     keep = frac > MIN_RADIAL_FRACTION
