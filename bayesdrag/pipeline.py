@@ -140,6 +140,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                                 f"parameters (ml_without_effects: the plain fit; --with none keeps the plain fit "
                                 f"with the shift as model error)")}
         timing["refit"] = round(time.perf_counter() - t0, 3)
+    placement = _placement_error(f1, grid, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if gap is not None:
         note_model_error(gap, quality, grid, rows)
@@ -161,6 +162,8 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         with_note.setdefault("effects", list(f1.effects))
         lay = _fitted_layers(f1)
         if lay is not None:
+            if placement is not None:
+                lay["placement_sd_max"] = placement
             with_note["wind_layers"] = lay
         summary["ml"]["with_effects"] = with_note
     if floored:
@@ -238,6 +241,22 @@ def _effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
         r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, e))
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
     gap["effect_residual_share"] = float(f"{share:.4g}")
+
+
+def _placement_error(f1, grid, rows):
+    """Add the Cd spread of the wind layers' equivalent placements
+    (:func:`~bayesdrag.estimate.scheme1.winds.placement_sd`) to each row's ``model_error_sd`` in
+    squares: where the track cannot tell where a wind step lies, the Cd that follows from each
+    choice is as good as the kept one. Returns its largest value [Cd], or None without such
+    placements."""
+    from .estimate.scheme1.winds import placement_sd
+
+    if not f1.layer_placements:
+        return None
+    sd = placement_sd(f1.drag_model, f1.layer_placements, grid)
+    for r, v in zip(rows, sd):
+        r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, v))
+    return float(f"{float(np.max(sd)):.4g}")
 
 
 def _trades_with_cd(f1, rnd):

@@ -120,3 +120,29 @@ def test_the_equal_grid_stays_when_the_drop_is_within_the_price_or_the_plain_sta
     split = _step_fits(scale=0.2, cold_extra=3.0 * PENALTY_PER_EDGE)   # separate optima
     d0, fit0 = split(equal, "start")
     assert placed_layers(equal, fit0, d0, split, pen)[0] is equal
+
+
+def _placement_fit(d, coef, ok=True):
+    """A fake ``(problem, MLResult, extras, effects)`` of one placement: its drag coefficients."""
+    from types import SimpleNamespace
+
+    return d, (None, SimpleNamespace(drag_params=np.asarray(coef, float)), (), ("wind_profile",) if ok else ())
+
+
+def test_placements_the_track_cannot_tell_apart_give_cd_model_error():
+    from bayesdrag.drag import ReferenceScale, ReferenceTable
+    from bayesdrag.estimate.scheme1.winds import equivalent_placements, placement_sd
+
+    model = ReferenceScale(reference=ReferenceTable((0.5, 3.0), (0.3, 0.3)))   # Cd = 0.3 x factor
+    kept = _placement_fit(100.0, [1.0])
+    tried = [kept, _placement_fit(99.0, [1.02]), _placement_fit(100.0 + PENALTY_PER_EDGE + 2.0, [1.5]),
+             _placement_fit(99.5, [0.99]), _placement_fit(np.inf, [3.0]), _placement_fit(99.2, [5.0], ok=False)]
+    found = equivalent_placements(tried, kept[1], PENALTY_PER_EDGE)
+    # within one edge's price of the best (99): the kept one's and two others; not the worse, the
+    # failed or the one that fitted no wind
+    np.testing.assert_array_equal(found[0], [1.0])
+    assert sorted(float(a[0]) for a in found[1]) == [0.99, 1.02]
+    sd = placement_sd(model, found, np.array([1.0, 2.0]))
+    np.testing.assert_allclose(sd, 0.3 * np.sqrt((0.02**2 + 0.01**2) / 2.0), rtol=1e-12)
+    assert equivalent_placements([kept], kept[1], PENALTY_PER_EDGE) is None
+    np.testing.assert_array_equal(placement_sd(model, None, np.array([1.0, 2.0])), 0.0)

@@ -125,6 +125,11 @@ class Scheme1Fit:
         How the drag model's size followed the data (:func:`default_knots`): ``samples``,
         ``coefficients``, ``knot_rules``, ``short``; a short track's bands include the bends
         its samples cannot resolve (:func:`bayesdrag.estimate.cd.quality.unresolved_bend`).
+    layer_placements : tuple or None
+        With a ``wind_profile`` whose edges were placed: the kept placement's drag coefficients
+        and those of the placements the track cannot tell from the best
+        (:func:`bayesdrag.estimate.scheme1.winds.equivalent_placements`); their Cd spread is
+        model error.
     """
 
     ml: MLResult
@@ -140,6 +145,7 @@ class Scheme1Fit:
     effects: tuple = ()
     ml_without_effects: MLResult | None = None
     model_size: dict = field(default_factory=dict)
+    layer_placements: tuple | None = None
 
     @property
     def drag_model(self):
@@ -353,7 +359,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     else:
         prob = prob.replace(priors=used)
         res = prob.fit(fallback=True) if used else res_b
-    prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before = _noise_and_effects(
+    prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = _noise_and_effects(
         prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
     if pen is not None:
         res = drop_coefficient_correlations(res, P)
@@ -361,7 +367,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         size["note"] = (f"{track.n} samples x {len(chans)} channels are too few for the default spline: Cd is the "
                         f"firing table times one fitted factor (reference-scale)")
     return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
-                      before if fitted_effects else None, size)
+                      before if fitted_effects else None, size, placements)
 
 
 def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say):
@@ -372,16 +378,17 @@ def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, 
 
     Returns
     -------
-    (prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before)
+    (prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements)
     """
-    rejected = white_ml = None
+    rejected = white_ml = placements = None
     sources, fitted_effects = (), ()
     winds_first = ("wind_profile" in with_effects or rnd.systematics.wind_profile is not None) \
         and likelihood != "student-t"
     before = res
     if winds_first:
         say("the declared systematic sources and effects")
-        prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects, wind_layers)
+        prob, res, sources, fitted_effects, placements = fit_with_sources(prob, res, rnd, with_effects,
+                                                                             wind_layers)
     if likelihood == "student-t":
         say("reweighting outliers (Student-t)")
         prob, res, rejected = robust_refit(prob, res, sigma=sig, nu=nu)
@@ -397,8 +404,9 @@ def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, 
         before = res
         if with_effects or rnd.systematics.declared():
             say("the declared systematic sources and effects")
-        prob, res, sources, fitted_effects = fit_with_sources(prob, res, rnd, with_effects, wind_layers)
-    return prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before
+        prob, res, sources, fitted_effects, placements = fit_with_sources(prob, res, rnd, with_effects,
+                                                                             wind_layers)
+    return prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements
 
 
 def _curve_problem(base_model, dm, base, track, cd_start, state, free, sig, chans, likelihood, fixed_pri, site=None):

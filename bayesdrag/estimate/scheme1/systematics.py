@@ -318,14 +318,16 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
 
     Returns
     -------
-    (OutputErrorProblem, MLResult, tuple, tuple)
+    (OutputErrorProblem, MLResult, tuple, tuple, placements)
         The problem with the nuisance parameters, its fit, the sources (:func:`source_extras`)
         and the effects fitted; the inputs and empty tuples when there is nothing to add or the
         fit fails. A declared radar source nothing in the fit depends on is said so in the
-        fit's warnings.
+        fit's warnings. ``placements``: the wind layers' equivalent placements
+        (:func:`.winds.equivalent_placements`), None without placed layers.
     """
     unused = tuple(radar_unused(rnd, prob.channels).values())
     out = _fit_sources_effects(prob, res, rnd, effects, wind_layers)
+    out = tuple(out) + (None,) * (5 - len(out))
     if not unused:
         return out
     return (out[0], replace(out[1], warnings=tuple(out[1].warnings) + unused)) + tuple(out[2:])
@@ -334,7 +336,7 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
 def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
     """:func:`fit_with_sources` but for the note on declared radar sources nothing depends on."""
     from ...effects import EffectContext
-    from .winds import PLACED_AXES, WIND_AXES, deviance, edge_penalty, fit_layers, placed_layers
+    from .winds import PLACED_AXES, WIND_AXES, deviance, edge_penalty, equivalent_placements, fit_layers, placed_layers
 
     effects = tuple(effects)
     if rnd.systematics.wind_profile is not None and "wind_profile" not in effects:
@@ -368,8 +370,10 @@ def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
         out = _fit_with(prob, res, rnd, effects, replace(ctx, wind_layers=lay), start=th)
         return (deviance(out[0], out[1]) if out[3] else np.inf), out
 
-    return placed_layers(best[1], best[0], deviance(best[0][0], best[0][1]), score,
-                         lambda k: edge_penalty(prob, k))[1]
+    tried = []
+    kept = placed_layers(best[1], best[0], deviance(best[0][0], best[0][1]), score,
+                         lambda k: edge_penalty(prob, k), tried)[1]
+    return kept + (equivalent_placements(tried, kept, edge_penalty(prob, 1)),)
 
 
 def _fit_with(prob, res, rnd, effects, ctx, start=None):

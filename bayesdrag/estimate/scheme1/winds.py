@@ -15,6 +15,11 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   edges the wind steps across moved by halving steps, each try started from the best fit so
   far. A placement is kept only when its deviance drop beats the BIC price of the edge
   parameters it chose (:func:`edge_penalty`: ``ln N`` per parameter); else the equal grid stays.
+* **Placement as model error.** The placements whose deviance is within one edge parameter's
+  price of the best one tried are ones the track cannot tell apart, and each gives its own Cd
+  (the spline bends where a wind step is put). Their spread about the kept fit's Cd is part of
+  Cd's uncertainty: :func:`equivalent_placements` keeps them, and the fit adds their RMS Cd
+  difference to each row's model error (:func:`placement_sd`).
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -30,8 +35,9 @@ import numpy as np
 from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
-__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "edge_penalty", "deviance", "layers_over",
-           "at_fit_resolution", "layer_free", "WIND_AXES", "PLACED_AXES", "FIT_LAYERS"]
+__all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "equivalent_placements", "placement_sd",
+           "edge_penalty", "deviance", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
+           "PLACED_AXES", "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
 FIT_LAYERS = WIND_LAYERS_MAX
@@ -168,7 +174,7 @@ def _jumps(layers, res):
     return {i: float(np.hypot(*(w[i] - w[i - 1]))) for i in range(1, layers.n)}
 
 
-def placed_layers(layers, fit, d0, score, penalty):
+def placed_layers(layers, fit, d0, score, penalty, tried=None):
     """The layers' edges placed where the track puts the wind's steps, or ``layers`` unchanged.
 
     Tries the grid shifted by :data:`GRID_SHIFTS` of a layer, then in the best grid each edge the
@@ -191,12 +197,23 @@ def placed_layers(layers, fit, d0, score, penalty):
         The fit with those layers started from ``fit``'s estimate (None: from the fit before the
         wind), and its deviance (inf when it fails).
     penalty : callable ``penalty(k) -> float``
+    tried : list, optional
+        Each placement's ``(deviance, fit)`` is appended to it, the equal layers' first
+        (:func:`equivalent_placements` reads it).
 
     Returns
     -------
     (WindLayers, fit)
         The layers kept and their fit (``fit`` itself when the equal layers stay).
     """
+    if tried is not None:
+        tried.append((d0, fit))
+        inner = score
+
+        def score(lay, start):
+            d, out = inner(lay, start)
+            tried.append((d, out))
+            return d, out
     best = (d0, fit, layers, 0)
     for f in GRID_SHIFTS:
         lay = _shifted(layers, f)
@@ -224,6 +241,58 @@ def placed_layers(layers, fit, d0, score, penalty):
     # the same optimum, else the likelihood has separate optima and the band of one is not Cd's
     d_cold, _ = score(best[2], None)
     return (best[2], best[1]) if d_cold - best[0] <= penalty(1) else (layers, fit)
+
+
+def equivalent_placements(tried, kept, penalty):
+    """The drag coefficients of the placements the track cannot tell from the best one.
+
+    Parameters
+    ----------
+    tried : list of (float, fit)
+        Deviance and fit of every placement :func:`placed_layers` tried.
+    kept : fit
+        The fit it kept.
+    penalty : float
+        One edge parameter's price (``edge_penalty(prob, 1)``): placements whose deviance is
+        within it of the smallest are equally supported.
+
+    Returns
+    -------
+    (ndarray, tuple of ndarray) or None
+        The kept fit's drag coefficients and each other equivalent placement's; None when no
+        other placement is equivalent.
+    """
+    ok = [(d, f) for d, f in tried if f is not None and np.isfinite(d) and f[3]]
+    if not ok:
+        return None
+    d_min = min(d for d, _ in ok)
+    alts = tuple(np.array(f[1].drag_params, float) for d, f in ok
+                 if d - d_min <= penalty and f[1] is not kept[1])
+    return (np.array(kept[1].drag_params, float), alts) if alts else None
+
+
+def placement_sd(drag_model, placements, mach):
+    """Cd's sd [Cd] from where the layers' edges are put: the RMS, over the equivalent
+    placements (:func:`equivalent_placements`), of their Cd less the kept placement's.
+
+    Parameters
+    ----------
+    drag_model : DragModel
+    placements : (ndarray, tuple of ndarray) or None
+    mach : (M,) array
+
+    Returns
+    -------
+    (M,) ndarray
+        Zeros without equivalent placements.
+    """
+    mach = np.asarray(mach, float)
+    if not placements:
+        return np.zeros(mach.size)
+    kept, alts = placements
+    base = drag_model.cd(kept, mach)
+    diff = np.array([drag_model.cd(a, mach) - base for a in alts])
+    return np.sqrt(np.mean(diff**2, axis=0))
 
 
 def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
