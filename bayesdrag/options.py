@@ -102,7 +102,7 @@ class FitOptions:
         (density, temperature, radar_time) or are confounded with Cd (density without
         ``density_sd``, drag_scale, drag_shape) are left out and the result says why.
     model_check : bool
-        Without ``with_effects``, check the Cd against the misfit that remains (default True): the
+        Unless ``with_effects`` is ``auto``, check the Cd against the misfit that remains (default True): the
         diagnosis's material effects, a robust fit for outliers, the white fit for AR(1) noise; the Cd
         shifts they imply widen the bands as model error (:mod:`bayesdrag.estimate.cd.model_error`).
         ``--no-model-check`` skips it (faster; bands then hold noise only).

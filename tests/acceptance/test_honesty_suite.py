@@ -42,3 +42,20 @@ def test_full_suite_claims_no_wrong_row():
         if r["determined_wrong"]:
             bad.append(f"{c.id}: {r['determined_wrong']}/{r['determined']} (worst z {r['worst_z_wrong']:.1f})")
     assert not bad, "; ".join(bad)
+
+
+#: a warm day (+15 K, undeclared) under winds that step at 6 km downrange: the user names the
+#: wind profile only, and the misfit the temperature leaves must still keep every claim honest
+USER_WITH_CASE = "pbc-wind_profile-42"
+
+
+def test_effects_the_user_names_leave_a_misfit_that_is_still_checked():
+    from acceptance import cases as wcases
+
+    c = next(c for c in wcases.PROFILE_CASES if c.id == USER_WITH_CASE)
+    r = hs.run_case(hs.HonestyCase(f"w-{c.id}", "withheld", seed=c.seed, withheld=c), with_effects=("wind_profile",))
+    assert "error" not in r, r.get("error")
+    assert r["effects_added"] == ["wind_profile"]
+    # before the check ran on named effects: 62 of 118 determined rows wrong, up to 53 band sd
+    assert r["determined_wrong"] == 0, (f"{r['determined_wrong']} of {r['determined']} determined rows wrong "
+                                        f"(worst {r['worst_z_wrong']:.1f} band sd)")

@@ -129,20 +129,20 @@ def _placement_fit(d, coef, ok=True):
     return d, (None, SimpleNamespace(drag_params=np.asarray(coef, float)), (), ("wind_profile",) if ok else ())
 
 
-def test_placements_the_track_cannot_tell_apart_give_cd_model_error():
+def test_the_placements_tried_give_cd_model_error_weighted_by_their_likelihood():
     from bayesdrag.drag import ReferenceScale, ReferenceTable
     from bayesdrag.estimate.scheme1.winds import equivalent_placements, placement_sd
 
     model = ReferenceScale(reference=ReferenceTable((0.5, 3.0), (0.3, 0.3)))   # Cd = 0.3 x factor
     kept = _placement_fit(100.0, [1.0])
-    tried = [kept, _placement_fit(99.0, [1.02]), _placement_fit(100.0 + PENALTY_PER_EDGE + 2.0, [1.5]),
-             _placement_fit(99.5, [0.99]), _placement_fit(np.inf, [3.0]), _placement_fit(99.2, [5.0], ok=False)]
-    found = equivalent_placements(tried, kept[1], PENALTY_PER_EDGE)
-    # within one edge's price of the best (99): the kept one's and two others; not the worse, the
-    # failed or the one that fitted no wind
+    tried = [kept, _placement_fit(100.0, [1.02]), _placement_fit(100.0 + 2.0 * np.log(4.0), [0.98]),
+             _placement_fit(np.inf, [3.0]), _placement_fit(99.0, [5.0], ok=False)]
+    found = equivalent_placements(tried, kept[1])
     np.testing.assert_array_equal(found[0], [1.0])
-    assert sorted(float(a[0]) for a in found[1]) == [0.99, 1.02]
+    # the failed try and the one that fitted no wind are left out; deviance 2 ln 4 higher weighs 1/4
+    assert sorted(float(a[0]) for a in found[1]) == [0.98, 1.0, 1.02]
+    np.testing.assert_allclose(sorted(found[2]), [1.0 / 9.0, 4.0 / 9.0, 4.0 / 9.0], rtol=1e-12)
     sd = placement_sd(model, found, np.array([1.0, 2.0]))
-    np.testing.assert_allclose(sd, 0.3 * np.sqrt((0.02**2 + 0.01**2) / 2.0), rtol=1e-12)
-    assert equivalent_placements([kept], kept[1], PENALTY_PER_EDGE) is None
+    np.testing.assert_allclose(sd, 0.3 * np.sqrt((4.0 * 0.02**2 + 1.0 * 0.02**2) / 9.0), rtol=1e-12)
+    assert equivalent_placements([kept], kept[1]) is None
     np.testing.assert_array_equal(placement_sd(model, None, np.array([1.0, 2.0])), 0.0)

@@ -373,7 +373,7 @@ def _fit_sources_effects(prob, res, rnd, effects, wind_layers):
     tried = []
     kept = placed_layers(best[1], best[0], deviance(best[0][0], best[0][1]), score,
                          lambda k: edge_penalty(prob, k), tried)[1]
-    return kept + (equivalent_placements(tried, kept, edge_penalty(prob, 1)),)
+    return kept + (equivalent_placements(tried, kept),)
 
 
 def _fit_with(prob, res, rnd, effects, ctx, start=None):

@@ -15,11 +15,10 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   edges the wind steps across moved by halving steps, each try started from the best fit so
   far. A placement is kept only when its deviance drop beats the BIC price of the edge
   parameters it chose (:func:`edge_penalty`: ``ln N`` per parameter); else the equal grid stays.
-* **Placement as model error.** The placements whose deviance is within one edge parameter's
-  price of the best one tried are ones the track cannot tell apart, and each gives its own Cd
-  (the spline bends where a wind step is put). Their spread about the kept fit's Cd is part of
-  Cd's uncertainty: :func:`equivalent_placements` keeps them, and the fit adds their RMS Cd
-  difference to each row's model error (:func:`placement_sd`).
+* **Placement as model error.** Each placement tried gives its own Cd (the spline bends where
+  a wind step is put), and the track supports each by its likelihood. The edges are nuisance
+  parameters: their Cd spread about the kept fit's, weighted by the likelihood ratios
+  (:func:`equivalent_placements`), is added to each row's model error (:func:`placement_sd`).
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -243,8 +242,13 @@ def placed_layers(layers, fit, d0, score, penalty, tried=None):
     return (best[2], best[1]) if d_cold - best[0] <= penalty(1) else (layers, fit)
 
 
-def equivalent_placements(tried, kept, penalty):
-    """The drag coefficients of the placements the track cannot tell from the best one.
+def equivalent_placements(tried, kept):
+    """The placements tried, weighted by how well the track supports each.
+
+    The edges' positions are nuisance parameters the fit chose among a few tries; each try's
+    weight is its likelihood relative to the best, ``exp(-(d - d_min) / 2)`` (``d`` the deviance,
+    -2 log likelihood up to a constant), i.e. the edges marginalised with a flat prior over the
+    positions tried.
 
     Parameters
     ----------
@@ -252,47 +256,45 @@ def equivalent_placements(tried, kept, penalty):
         Deviance and fit of every placement :func:`placed_layers` tried.
     kept : fit
         The fit it kept.
-    penalty : float
-        One edge parameter's price (``edge_penalty(prob, 1)``): placements whose deviance is
-        within it of the smallest are equally supported.
 
     Returns
     -------
-    (ndarray, tuple of ndarray) or None
-        The kept fit's drag coefficients and each other equivalent placement's; None when no
-        other placement is equivalent.
+    (ndarray, tuple of ndarray, ndarray) or None
+        The kept fit's drag coefficients, every converged try's (the kept one among them) and
+        their weights (summing to 1); None when no other placement converged.
     """
     ok = [(d, f) for d, f in tried if f is not None and np.isfinite(d) and f[3]]
-    if not ok:
+    if not any(f[1] is kept[1] for _, f in ok) or len(ok) < 2:
         return None
-    d_min = min(d for d, _ in ok)
-    alts = tuple(np.array(f[1].drag_params, float) for d, f in ok
-                 if d - d_min <= penalty and f[1] is not kept[1])
-    return (np.array(kept[1].drag_params, float), alts) if alts else None
+    d = np.array([d for d, _ in ok], float)
+    w = np.exp(-0.5 * (d - d.min()))
+    return (np.array(kept[1].drag_params, float), tuple(np.array(f[1].drag_params, float) for _, f in ok),
+            w / w.sum())
 
 
 def placement_sd(drag_model, placements, mach):
-    """Cd's sd [Cd] from where the layers' edges are put: the RMS, over the equivalent
-    placements (:func:`equivalent_placements`), of their Cd less the kept placement's.
+    """Cd's sd [Cd] from where the layers' edges are put: the weighted RMS, over the placements
+    tried (:func:`equivalent_placements`), of their Cd less the kept placement's (its spread and
+    the kept placement's distance from their weighted mean, together).
 
     Parameters
     ----------
     drag_model : DragModel
-    placements : (ndarray, tuple of ndarray) or None
+    placements : (ndarray, tuple of ndarray, ndarray) or None
     mach : (M,) array
 
     Returns
     -------
     (M,) ndarray
-        Zeros without equivalent placements.
+        Zeros without placements.
     """
     mach = np.asarray(mach, float)
     if not placements:
         return np.zeros(mach.size)
-    kept, alts = placements
+    kept, tries, w = placements
     base = drag_model.cd(kept, mach)
-    diff = np.array([drag_model.cd(a, mach) - base for a in alts])
-    return np.sqrt(np.mean(diff**2, axis=0))
+    diff = np.array([drag_model.cd(a, mach) - base for a in tries])
+    return np.sqrt(np.asarray(w, float) @ diff**2)
 
 
 def layers_over(axis, x, z, atmosphere, n=FIT_LAYERS):
