@@ -55,7 +55,8 @@ Fewer than 8 trajectories run as one scalar block in :data:`integrate_batch_seri
 thread pool). What each choice bought, measured: docs/bayes.md "The kernel's layout".
 """
 import numpy as np
-from numba import njit, prange
+from numba import njit
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
 
 P_KREF = 0       # pi d^2 / (8 m)  [m^2/kg]
 P_WX = 1         # wind [m/s]
@@ -332,9 +333,81 @@ def _hermite_row(blk, nl, th, h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC,
             atm_flat[ja + 1] + (zi - j) * (atm_flat[ja + 3] - atm_flat[ja + 1]))
 
 
-@njit(parallel=True, cache=True, **_OPTS)
+class _NoAliasCompiler(CompilerBase):
+    """numba's nopython pipeline with the array arguments marked ``noalias`` (numba's
+    ``Flags.noalias``, which it sets itself for a ``prange`` body it finds alias-free): LLVM may
+    then vectorise the lane loops, whose table gathers could otherwise alias the scratch stores.
+    Sound for :func:`integrate_blocks`: its callers pass distinct arrays, and threads running it
+    side by side write disjoint blocks."""
+
+    def define_pipelines(self):
+        self.state.flags.noalias = True
+        return [DefaultPassBuilder.define_nopython_pipeline(self.state)]
+
+
+@njit(pipeline_class=_NoAliasCompiler, nogil=True, cache=True, **_OPTS)
+def integrate_blocks(blk_lo, blk_hi, y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
+                     m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, yaw, out,
+                     mach_out, BL, LP, CDO, ATO, WTO, ST, AC, K2, K3, K4, ST1, AC1, OB, WD):
+    """Integrate the blocks ``blk_lo <= blk < blk_hi`` of a batch (arguments as
+    :func:`integrate_batch`, ``yaw`` whether any trajectory has a yaw term, then the scratch
+    arrays of :func:`_scratch`). Releases the GIL: threads run disjoint block ranges."""
+    B = y0.shape[0]
+    N = out_step.shape[0]
+    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001, w0, 1.0 / dw, n_w - 1.000001)
+    h2 = 0.5 * h
+    h6 = h / 6.0
+    for blk in range(blk_lo, blk_hi):
+        n_real = min(B, blk * nl + nl) - blk * nl
+        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
+                    ATO, WTO, ST)
+        for l in range(nl):
+            wx, wy, gx, gy, sw = _wind(ST[blk, 0, l], ST[blk, 2, l], blk, l, LP, WTO, wind_flat, w0, 1.0 / dw,
+                                       n_w - 1.000001)
+            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
+                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l], wx, wy,
+                LP[blk, _L_F0, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+        o = 0
+        for s in range(n_steps):
+            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2,
+                      K3, K4, ST1, AC1, WD)
+            while o < N and out_step[o] == s:
+                _hermite_row(blk, nl, out_theta[o], h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB)
+                for l in range(n_real):
+                    b = BL[blk, l]
+                    for c in range(6):
+                        out[b, o, c] = OB[blk, c, l]
+                    mach_out[b, o] = OB[blk, 6, l]
+                o += 1
+            for l in range(nl):
+                for c in range(7):
+                    ST[blk, c, l] = ST1[blk, c, l]
+                for c in range(4):
+                    AC[blk, c, l] = AC1[blk, c, l]
+
+
+def _scratch(n_blk, nl):
+    """The kernel's scratch arrays for ``n_blk`` blocks of ``nl`` lanes, each its own allocation
+    (:class:`_NoAliasCompiler` promises LLVM that no two alias)."""
+    return (np.empty((n_blk, nl), dtype=np.int64),    # BL: trajectory of each lane
+            np.empty((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
+            np.empty((n_blk, nl), dtype=np.int64),    # CDO, ATO, WTO: table offsets
+            np.empty((n_blk, nl), dtype=np.int64),
+            np.empty((n_blk, nl), dtype=np.int64),
+            np.empty((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
+            np.empty((n_blk, 4, nl)),                 # AC: acceleration and dq/dt at t_s
+            np.empty((n_blk, 4, nl)),                 # K2, K3, K4: the other RK stages
+            np.empty((n_blk, 4, nl)),
+            np.empty((n_blk, 4, nl)),
+            np.empty((n_blk, 7, nl)),                 # ST1: state at t_s + h
+            np.empty((n_blk, 4, nl)),                 # AC1: acceleration there (next first stage)
+            np.empty((n_blk, 7, nl)),                 # OB: one output row (state, Mach) of every lane
+            np.zeros((n_blk, 5, nl)))                 # WD: last wind table read (wx, wy, slopes, s)
+
+
 def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
-                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, out, mach_out):
+                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, out, mach_out,
+                    n_threads=1):
     """Integrate B trajectories with classic RK4 on a uniform step, cubic Hermite output.
 
     Parameters
@@ -380,72 +453,53 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
         Filled in place with the states at the output rows.
     mach_out : (B, N) float64
         Filled in place with the Mach number at the output rows.
+    n_threads : int
+        Threads that integrate the blocks side by side (at most one per block): the calling
+        thread and ``n_threads - 1`` started for this call and joined before it returns.
     """
-    B = y0.shape[0]
-    N = out_step.shape[0]
-    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001, w0, 1.0 / dw, n_w - 1.000001)
-    h2 = 0.5 * h
-    h6 = h / 6.0
-    n_blk = (B + nl - 1) // nl
-    # a run-time bool, never the literal False: numba otherwise compiled the lane helpers twice,
-    # once for a constant yaw it then did not use (first-run compile time, docs/report.md "Speed")
+    n_blk = (y0.shape[0] + nl - 1) // nl
     yaw = bool(np.any(par[:, P_YAW_AMP] != 0.0))
-    # All scratch is allocated here, outside the prange: the parallel body then holds no
-    # array views, numba marks its array arguments noalias, and LLVM vectorises the lane loops.
-    BL = np.empty((n_blk, nl), dtype=np.int64)
-    LP = np.empty((n_blk, _N_L, nl))
-    CDO = np.empty((n_blk, nl), dtype=np.int64)
-    ATO = np.empty((n_blk, nl), dtype=np.int64)
-    WTO = np.empty((n_blk, nl), dtype=np.int64)
-    ST = np.empty((n_blk, 7, nl))    # state at t_s (row 6: spin fraction q for the lift)
-    AC = np.empty((n_blk, 4, nl))    # acceleration and dq/dt at t_s (first RK stage)
-    K2 = np.empty((n_blk, 4, nl))
-    K3 = np.empty((n_blk, 4, nl))
-    K4 = np.empty((n_blk, 4, nl))
-    ST1 = np.empty((n_blk, 7, nl))   # state at t_s + h
-    AC1 = np.empty((n_blk, 4, nl))   # acceleration there (= next step's first stage)
-    OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
-    WD = np.zeros((n_blk, 5, nl))    # last wind table read: wx, wy, their slopes, the coordinate
-    for b_u in prange(n_blk):
-        # prange's index is unsigned, range's signed: one type for both kernels lets the serial and
-        # the threaded kernel share every compiled helper (first-run compile time)
-        blk = np.int64(b_u)
-        n_real = min(B, blk * nl + nl) - blk * nl
-        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
-                    ATO, WTO, ST)
-        for l in range(nl):
-            wx, wy, gx, gy, sw = _wind(ST[blk, 0, l], ST[blk, 2, l], blk, l, LP, WTO, wind_flat, w0, 1.0 / dw,
-                                       n_w - 1.000001)
-            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
-                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l], wx, wy,
-                LP[blk, _L_F0, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
-        o = 0
-        for s in range(n_steps):
-            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2,
-                      K3, K4, ST1, AC1, WD)
-            while o < N and out_step[o] == s:
-                _hermite_row(blk, nl, out_theta[o], h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB)
-                for l in range(n_real):
-                    b = BL[blk, l]
-                    for c in range(6):
-                        out[b, o, c] = OB[blk, c, l]
-                    mach_out[b, o] = OB[blk, 6, l]
-                o += 1
-            for l in range(nl):
-                for c in range(7):
-                    ST[blk, c, l] = ST1[blk, c, l]
-                for c in range(4):
-                    AC[blk, c, l] = AC1[blk, c, l]
-    return out
+    args = (y0, float(t_start), float(h), int(n_steps), out_step, out_theta, par, cd_flat, int(n_cells), cd_idx,
+            float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
+            float(w0), float(dw), int(nl), yaw, out, mach_out) + _scratch(n_blk, nl)
+    n_run = max(1, min(int(n_threads), n_blk))
+    # contiguous block ranges, the calling thread's first (it starts at once; the others are
+    # started for this call and joined before it returns: no thread outlives the call)
+    cuts = [n_blk * i // n_run for i in range(n_run + 1)]
+    fn = integrate_blocks_scalar if nl < LANE_WIDTH and wind_flat is None else integrate_blocks
+    return run_threads(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)], out)
 
 
-#: the same kernel without threads, for batches of fewer than LANE_WIDTH trajectories (one
-#: scalar block): waking the thread pool costs more than such a batch, and on a loaded machine
-#: waiting for the second core to be scheduled can cost milliseconds
-#: (a copy of the Python function under its own name: numba's on-disk cache is keyed by the
-#: function's qualified name and line, not by ``parallel``, so the same ``py_func`` compiled
-#: twice with ``cache=True`` would load the serial machine code for the threaded kernel too)
+def run_threads(fn, arg_lists, result):
+    """Call ``fn(*a)`` for every ``a`` of ``arg_lists``, the first in the calling thread and each
+    other in a thread of its own (``fn`` must release the GIL to gain from it); re-raises the
+    first exception any call raised; returns ``result``."""
+    import threading
+
+    errors = []
+
+    def call(a):
+        try:
+            fn(*a)
+        except BaseException as e:   # noqa: BLE001 - handed to the calling thread below
+            errors.append(e)
+
+    others = [threading.Thread(target=call, args=(a,), daemon=True) for a in arg_lists[1:]]
+    for t in others:
+        t.start()
+    try:
+        call(arg_lists[0])
+    finally:
+        for t in others:
+            t.join()
+    if errors:
+        raise errors[0]
+    return result
+
+
 def _renamed(fn, name):
+    """A copy of the Python function ``fn`` under the name ``name`` (numba's on-disk cache is
+    keyed by the function's qualified name and line, not by its compile options)."""
     import types
 
     g = types.FunctionType(fn.__code__.replace(co_name=name), fn.__globals__, name, fn.__defaults__,
@@ -455,4 +509,8 @@ def _renamed(fn, name):
     return g
 
 
-integrate_batch_serial = njit(cache=True, **_OPTS)(_renamed(integrate_batch.py_func, "integrate_batch_serial"))
+#: the same block integrator compiled without ``noalias``, for batches of fewer than
+#: LANE_WIDTH trajectories (one block of B lanes): LLVM then leaves the lane loops scalar, which
+#: for 1-2 lanes is 1.3-1.5x faster than the vector loops' remainder path
+integrate_blocks_scalar = njit(nogil=True, cache=True, **_OPTS)(_renamed(integrate_blocks.py_func,
+                                                                         "integrate_blocks_scalar"))
