@@ -114,7 +114,7 @@ def lanes_per_block(B, n_threads):
     return int(min(MAX_LANES, LANE_WIDTH * max(1, -(-per_thread // LANE_WIDTH))))
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
     """Horizontal wind of lane ``l`` at downrange x and height z [m]: ``(wx, wy, gx, gy, s)``,
     the lane's constant wind plus its wind table (linear on the grid ``w0 + i / inv_dw``, held
@@ -135,7 +135,7 @@ def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
             dx * inv_dw, dy * inv_dw, s)
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 def _wind_near(x, z, blk, l, LP, WD):
     """The wind at (x, z) from the last table read of lane ``l`` (``WD``: wind, slopes and
     coordinate there) along that cell's line: exact for the table while the point stays in the
@@ -145,7 +145,7 @@ def _wind_near(x, z, blk, l, LP, WD):
     return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     """Acceleration (ax, ay, az) [m/s^2] and spin-fraction rate dq/dt [1/s] of lane ``l`` of
     block ``blk`` at height z [m], ground velocity (vx, vy, vz) [m/s], spin fraction q [-] and
@@ -195,7 +195,7 @@ def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     return ax, ay, az, dq
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
                 ATO, WTO, ST):
     """Load block ``blk``'s lanes: state, per-lane parameters, table offsets (lanes past B
@@ -238,7 +238,7 @@ def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells
                 1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2, K3, K4,
               ST1, AC1, WD):
     """One RK4 step of every lane of block ``blk`` from ``ST``/``AC`` (state and acceleration at
@@ -305,7 +305,7 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 def _hermite_row(blk, nl, th, h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB):
     """One output row of every lane: cubic Hermite on [t_s, t_s + h] (position ``th`` in [0, 1])
     from the states and accelerations at both ends, and its Mach number, into ``OB``."""
@@ -345,7 +345,7 @@ class _NoAliasCompiler(CompilerBase):
         return [DefaultPassBuilder.define_nopython_pipeline(self.state)]
 
 
-@njit(pipeline_class=_NoAliasCompiler, nogil=True, cache=True, **_OPTS)
+@njit(pipeline_class=_NoAliasCompiler, nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)
 def integrate_blocks(blk_lo, blk_hi, y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
                      m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, yaw, out,
                      mach_out, BL, LP, CDO, ATO, WTO, ST, AC, K2, K3, K4, ST1, AC1, OB, WD):
@@ -466,7 +466,7 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     # contiguous block ranges, the calling thread's first (it starts at once; the others are
     # started for this call and joined before it returns: no thread outlives the call)
     cuts = [n_blk * i // n_run for i in range(n_run + 1)]
-    fn = integrate_blocks_scalar if nl < LANE_WIDTH and wind_flat is None else integrate_blocks
+    fn = integrate_blocks_scalar if nl < LANE_WIDTH else integrate_blocks
     return run_threads(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)], out)
 
 
@@ -512,5 +512,5 @@ def _renamed(fn, name):
 #: the same block integrator compiled without ``noalias``, for batches of fewer than
 #: LANE_WIDTH trajectories (one block of B lanes): LLVM then leaves the lane loops scalar, which
 #: for 1-2 lanes is 1.3-1.5x faster than the vector loops' remainder path
-integrate_blocks_scalar = njit(nogil=True, cache=True, **_OPTS)(_renamed(integrate_blocks.py_func,
+integrate_blocks_scalar = njit(nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)(_renamed(integrate_blocks.py_func,
                                                                          "integrate_blocks_scalar"))
