@@ -58,6 +58,8 @@ import numpy as np
 from numba import njit
 from numba.core.compiler import CompilerBase, DefaultPassBuilder
 
+from .._threads import run_split
+
 P_KREF = 0       # pi d^2 / (8 m)  [m^2/kg]
 P_WX = 1         # wind [m/s]
 P_WY = 2
@@ -467,34 +469,8 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     # started for this call and joined before it returns: no thread outlives the call)
     cuts = [n_blk * i // n_run for i in range(n_run + 1)]
     fn = integrate_blocks_scalar if nl < LANE_WIDTH else integrate_blocks
-    return run_threads(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)], out)
-
-
-def run_threads(fn, arg_lists, result):
-    """Call ``fn(*a)`` for every ``a`` of ``arg_lists``, the first in the calling thread and each
-    other in a thread of its own (``fn`` must release the GIL to gain from it); re-raises the
-    first exception any call raised; returns ``result``."""
-    import threading
-
-    errors = []
-
-    def call(a):
-        try:
-            fn(*a)
-        except BaseException as e:   # noqa: BLE001 - handed to the calling thread below
-            errors.append(e)
-
-    others = [threading.Thread(target=call, args=(a,), daemon=True) for a in arg_lists[1:]]
-    for t in others:
-        t.start()
-    try:
-        call(arg_lists[0])
-    finally:
-        for t in others:
-            t.join()
-    if errors:
-        raise errors[0]
-    return result
+    run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)])
+    return out
 
 
 def _renamed(fn, name):
