@@ -2,8 +2,8 @@
 
 This module is deliberately small and free of Python objects: everything arrives as arrays so
 that numba compiles it once (``cache=True`` writes the machine code next to this file, or to
-``NUMBA_CACHE_DIR``, so a new process does not recompile) and runs the trajectories of a batch
-in parallel threads (``prange``).
+``NUMBA_CACHE_DIR``, so a new process does not recompile) and runs the blocks of a batch on
+several threads (:func:`bayesdrag._threads.run_split`: the compiled code releases the GIL).
 
 State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in the track frame
 frame (x downrange, y right, z up). Acceleration (paper Eqs. 20-22 in 3-D, plus effects):
@@ -45,14 +45,19 @@ the next step's first stage (4 evaluations per step), and a cubic Hermite interp
 the states and accelerations at both ends of a step for every output time inside it.
 
 Layout. Trajectories are processed in blocks of ``nl`` lanes (8, fewer for tiny batches,
-:func:`lanes_per_block`), one block per ``prange`` iteration; inside a block every RK stage is
-one loop over the lanes, lane index innermost and contiguous, so that LLVM vectorises it (one
-AVX-512 register of doubles, gathers for the table reads). That needs lane loops with a
-run-time trip count (a constant one is unrolled before the vectoriser runs), every scratch
-array allocated outside the ``prange`` (numba then marks the parallel body's arguments
-``noalias``; without it the table gathers could alias the stores) and ``_acc`` inlined.
-Fewer than 8 trajectories run as one scalar block in :data:`integrate_batch_serial` (no
-thread pool). What each choice bought, measured: docs/bayes.md "The kernel's layout".
+:func:`lanes_per_block`); inside a block every RK stage is one loop over the lanes, lane index
+innermost and contiguous, so that LLVM vectorises it (one AVX-512 register of doubles, gathers
+for the table reads). That needs lane loops with a run-time trip count (a constant one is
+unrolled before the vectoriser runs), array arguments LLVM knows not to alias (without that the
+table gathers could alias the stores): :func:`integrate_blocks` is compiled with numba's
+``noalias`` flag (:class:`_NoAliasCompiler`) and takes every scratch array as an argument of
+its own; and the helpers inlined (``forceinline``). Its threads each take a contiguous range of
+blocks. Fewer than 8 trajectories run as one block of B lanes in
+:data:`integrate_blocks_scalar`, the same code compiled without ``noalias`` (scalar lane loops:
+faster for 1-2 lanes than the vector loops' remainder). There is no ``prange``: numba's parfor
+compiled the whole body two more times (the outlined loop and its caller), which took half of
+a first run's compile time. What each choice bought, measured: docs/bayes.md "The kernel's
+layout".
 """
 import numpy as np
 from numba import njit
@@ -97,6 +102,9 @@ LANE_WIDTH = 8
 MAX_LANES = 8
 
 _OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
+#: the lane helpers: inlined into the block integrators and never called from Python, so numba
+#: builds no Python or C entry for them (less to compile on a first run)
+_HELPER = dict(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 #: smallest airspeed^2 [m^2/s^2] in the lift term's denominator
 V2_FLOOR = 1e-12
 #: |L| in the vertical lift force is L^2 / sqrt(L^2 + LIFT_EPS^2) [m/s]: smooth at L = 0 and
@@ -116,7 +124,7 @@ def lanes_per_block(B, n_threads):
     return int(min(MAX_LANES, LANE_WIDTH * max(1, -(-per_thread // LANE_WIDTH))))
 
 
-@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
+@njit(**_HELPER)
 def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
     """Horizontal wind of lane ``l`` at downrange x and height z [m]: ``(wx, wy, gx, gy, s)``,
     the lane's constant wind plus its wind table (linear on the grid ``w0 + i / inv_dw``, held
@@ -137,7 +145,7 @@ def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
             dx * inv_dw, dy * inv_dw, s)
 
 
-@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
+@njit(**_HELPER)
 def _wind_near(x, z, blk, l, LP, WD):
     """The wind at (x, z) from the last table read of lane ``l`` (``WD``: wind, slopes and
     coordinate there) along that cell's line: exact for the table while the point stays in the
@@ -147,7 +155,7 @@ def _wind_near(x, z, blk, l, LP, WD):
     return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
 
 
-@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
+@njit(**_HELPER)
 def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     """Acceleration (ax, ay, az) [m/s^2] and spin-fraction rate dq/dt [1/s] of lane ``l`` of
     block ``blk`` at height z [m], ground velocity (vx, vy, vz) [m/s], spin fraction q [-] and
@@ -197,7 +205,7 @@ def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     return ax, ay, az, dq
 
 
-@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
+@njit(**_HELPER)
 def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
                 ATO, WTO, ST):
     """Load block ``blk``'s lanes: state, per-lane parameters, table offsets (lanes past B
@@ -240,7 +248,7 @@ def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells
                 1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
 
 
-@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
+@njit(**_HELPER)
 def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2, K3, K4,
               ST1, AC1, WD):
     """One RK4 step of every lane of block ``blk`` from ``ST``/``AC`` (state and acceleration at
@@ -307,7 +315,7 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
 
 
-@njit(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
+@njit(**_HELPER)
 def _hermite_row(blk, nl, th, h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB):
     """One output row of every lane: cubic Hermite on [t_s, t_s + h] (position ``th`` in [0, 1])
     from the states and accelerations at both ends, and its Mach number, into ``OB``."""
@@ -457,7 +465,8 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
         Filled in place with the Mach number at the output rows.
     n_threads : int
         Threads that integrate the blocks side by side (at most one per block): the calling
-        thread and ``n_threads - 1`` started for this call and joined before it returns.
+        thread and ``n_threads - 1`` helper threads (:func:`bayesdrag._threads.run_split`),
+        each a contiguous range of blocks; the results do not depend on it.
     """
     n_blk = (y0.shape[0] + nl - 1) // nl
     yaw = bool(np.any(par[:, P_YAW_AMP] != 0.0))
@@ -465,8 +474,6 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
             float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
             float(w0), float(dw), int(nl), yaw, out, mach_out) + _scratch(n_blk, nl)
     n_run = max(1, min(int(n_threads), n_blk))
-    # contiguous block ranges, the calling thread's first (it starts at once; the others are
-    # started for this call and joined before it returns: no thread outlives the call)
     cuts = [n_blk * i // n_run for i in range(n_run + 1)]
     fn = integrate_blocks_scalar if nl < LANE_WIDTH else integrate_blocks
     run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)])
@@ -487,6 +494,7 @@ def _renamed(fn, name):
 
 #: the same block integrator compiled without ``noalias``, for batches of fewer than
 #: LANE_WIDTH trajectories (one block of B lanes): LLVM then leaves the lane loops scalar, which
-#: for 1-2 lanes is 1.3-1.5x faster than the vector loops' remainder path
-integrate_blocks_scalar = njit(nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)(_renamed(integrate_blocks.py_func,
-                                                                         "integrate_blocks_scalar"))
+#: for 1-2 lanes is 1.3-1.5x faster than the vector loops' remainder path, and its results are
+#: those of the scalar kernel before (a trajectory's last bits depend on the code that runs it)
+integrate_blocks_scalar = njit(nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)(
+    _renamed(integrate_blocks.py_func, "integrate_blocks_scalar"))
