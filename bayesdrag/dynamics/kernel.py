@@ -469,7 +469,7 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
         each a contiguous range of blocks; the results do not depend on it.
     """
     n_blk = (y0.shape[0] + nl - 1) // nl
-    yaw = bool(np.any(par[:, P_YAW_AMP] != 0.0))
+    yaw = bool(par[:, P_YAW_AMP].any())
     args = (y0, float(t_start), float(h), int(n_steps), out_step, out_theta, par, cd_flat, int(n_cells), cd_idx,
             float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
             float(w0), float(dw), int(nl), yaw, out, mach_out) + _scratch(n_blk, nl)
