@@ -1,6 +1,6 @@
-"""One BLAS thread while the compiled kernel runs its own threads.
+"""One BLAS thread while the compiled kernel runs its own threads; the kernel's helper threads.
 
-The point-mass kernel runs on numba's threads (OpenMP); the estimators alternate kernel calls
+The point-mass kernel runs on several threads (:func:`run_split`); the estimators alternate kernel calls
 with small dense linear algebra (84 x 4000 products, 84 x 84 solves). With OpenBLAS also
 threaded, each library's idle threads spin while the other works and the two oversubscribe the
 cores, and the matrices are far too small for BLAS threads to help (docs/measurements.md,
@@ -57,6 +57,7 @@ class _Worker:
                 fn(*args)
             except BaseException as e:   # noqa: BLE001 - handed to the caller in run_split
                 self.error = e
+            del fn, args                 # the caller's arrays are not kept alive between calls
             self.done.release()
 
 
