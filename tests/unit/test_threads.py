@@ -59,3 +59,26 @@ def test_a_second_caller_while_the_helpers_are_busy_runs_its_calls_itself():
     run_split(first, [(0,), (1,)])
     assert sorted(i for i, _ in inner) == [0, 1]
     assert len({ident for _, ident in inner}) == 1      # both on the second caller's own thread
+
+
+def _split_in_child(q):
+    out = []
+    run_split(lambda i: out.append(i), [(0,), (1,), (2,)])
+    q.put(sorted(out))
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="fork only")
+def test_a_forked_child_starts_its_own_helpers():
+    """A forked child does not inherit the parent's helper threads (the report forks its figure
+    process): its first split must start new ones rather than wait for threads that do not exist."""
+    import multiprocessing
+
+    run_split(lambda i: None, [(0,), (1,), (2,)])          # the parent's helpers exist
+    ctx = multiprocessing.get_context("fork")
+    q = ctx.Queue()
+    p = ctx.Process(target=_split_in_child, args=(q,))
+    p.start()
+    p.join(30.0)
+    if p.is_alive():
+        p.kill()
+    assert p.exitcode == 0 and q.get(timeout=5.0) == [0, 1, 2]
