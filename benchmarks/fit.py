@@ -95,25 +95,23 @@ class KernelCount:
     def __enter__(self):
         from bayesdrag.dynamics import kernel as K
 
-        self._orig = (K.integrate_batch, K.integrate_batch_serial)
+        self._orig = fn = K.integrate_batch
 
-        def wrap(fn):
-            def run(y0, *args):
-                t = time.perf_counter()
-                out = fn(y0, *args)
-                self.seconds += time.perf_counter() - t
-                self.trajectories += y0.shape[0]
-                self.calls += 1
-                return out
-            return run
+        def run(y0, *args, **kw):
+            t = time.perf_counter()
+            out = fn(y0, *args, **kw)
+            self.seconds += time.perf_counter() - t
+            self.trajectories += y0.shape[0]
+            self.calls += 1
+            return out
 
-        K.integrate_batch, K.integrate_batch_serial = map(wrap, self._orig)
+        K.integrate_batch = run
         return self
 
     def __exit__(self, *exc):
         from bayesdrag.dynamics import kernel as K
 
-        K.integrate_batch, K.integrate_batch_serial = self._orig
+        K.integrate_batch = self._orig
 
 
 def kernel_us_per_trajectory(problem, theta, cov, *, batches=LIMIT_BATCHES, repeats=5, seed=0):

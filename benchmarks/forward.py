@@ -10,8 +10,11 @@ tight-tolerance solve_ivp (rtol 1e-11). The kernel time is the best of many repe
 machine is shared, so the best is the least disturbed); it is also given for the batch sizes
 the ML fit (21 = 2 * 10 free parameters + 1) and emcee (64 walkers) use. Winds that change along
 the flight are timed against the constant wind in the same run (``wind_profile_ratio_vs_constant_wind``:
-a wind by height in layers; ``wind_downrange_ratio_vs_constant_wind``: by downrange distance). The
-last line printed is one JSON object (docs/bayes.md, Speed).
+a wind by height in layers; ``wind_downrange_ratio_vs_constant_wind``: by downrange distance).
+``compile_cpu_seconds``: CPU time a fresh process with an empty ``NUMBA_CACHE_DIR`` spends
+compiling the kernels a first demo needs (calm and wind-table batches of 16 and of 1 trajectory;
+CPU time, so the load of a shared machine barely moves it; ``--compile-only`` prints just that).
+The last line printed is one JSON object (docs/bayes.md, Speed).
 """
 import argparse
 import json
@@ -27,7 +30,15 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="fewer repeats and reference runs (< 1 min)")
     ap.add_argument("--batch", type=int, default=64)
     ap.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    ap.add_argument("--compile-only", action="store_true", help="only the first-run compile time")
+    ap.add_argument("--compile-child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.compile_child:
+        return compile_child()
+    compile_cpu = compile_cpu_seconds()
+    if args.compile_only:
+        print(json.dumps({"compile_cpu_seconds": compile_cpu}))
+        return
 
     import numba
 
@@ -134,6 +145,7 @@ def main(argv=None):
         "wind_profile_ratio_vs_constant_wind": round(wind_us["altitude"] / wind_us["constant"], 3),
         "wind_downrange_ratio_vs_constant_wind": round(wind_us["downrange"] / wind_us["constant"], 3),
         "wind_profile_max_position_error_m": float(f"{wind_err:.3g}"),
+        "compile_cpu_seconds": compile_cpu,
     }
     print(f"kernel: {batch_us:.1f} us/trajectory (batch {B}, {numba.get_num_threads()} threads, "
           f"best of {reps}); solve_ivp DOP853 rtol 1e-8: {ivp_us:.0f} us; ratio {ivp_us / batch_us:.0f}x; "
@@ -143,6 +155,39 @@ def main(argv=None):
           f"{wind_us['downrange']:.1f} us/trajectory, wind-by-height kernel vs scipy {wind_err:.2e} m",
           file=sys.stderr)
     print(json.dumps(res))
+
+
+def compile_cpu_seconds():
+    """CPU seconds of :func:`compile_child` in a fresh process with an empty numba cache."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        done = subprocess.run([sys.executable, os.path.abspath(__file__), "--compile-child"], env=env,
+                              capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.splitlines()[-1])["compile_cpu_seconds"]
+
+
+def compile_child():
+    """Compile the kernels a first demo uses (calm and with a wind table; batches of 16 and 1)
+    and print the CPU seconds it took."""
+    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.dynamics.pointmass import PointMassModel
+    from bayesdrag.dynamics.trajectory import initial_state
+    from bayesdrag.io.drag_tables import load_m101
+    from bayesdrag.wind import WindProfile
+
+    calm = PointMassModel(42.6, 0.155, load_m101())
+    windy = calm.with_(atmosphere=Atmosphere(wind=WindProfile.layered("altitude", (0.0, 500.0, 1000.0),
+                                                                      (-2.0, -4.0), (1.0, 2.0))))
+    t = np.arange(200) * 0.027
+    s0 = np.stack([initial_state(818.0 + i, 19.5) for i in range(16)])
+    t0 = time.process_time()
+    for model in (calm, windy):
+        for B in (16, 1):
+            model.simulate_batch(np.zeros((B, 0)), s0[:B], t)
+    print(json.dumps({"compile_cpu_seconds": round(time.process_time() - t0, 2)}))
 
 
 if __name__ == "__main__":

@@ -2,8 +2,8 @@
 
 This module is deliberately small and free of Python objects: everything arrives as arrays so
 that numba compiles it once (``cache=True`` writes the machine code next to this file, or to
-``NUMBA_CACHE_DIR``, so a new process does not recompile) and runs the trajectories of a batch
-in parallel threads (``prange``).
+``NUMBA_CACHE_DIR``, so a new process does not recompile) and runs the blocks of a batch on
+several threads (:func:`bayesdrag._threads.run_split`: the compiled code releases the GIL).
 
 State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in the track frame
 frame (x downrange, y right, z up). Acceleration (paper Eqs. 20-22 in 3-D, plus effects):
@@ -45,17 +45,25 @@ the next step's first stage (4 evaluations per step), and a cubic Hermite interp
 the states and accelerations at both ends of a step for every output time inside it.
 
 Layout. Trajectories are processed in blocks of ``nl`` lanes (8, fewer for tiny batches,
-:func:`lanes_per_block`), one block per ``prange`` iteration; inside a block every RK stage is
-one loop over the lanes, lane index innermost and contiguous, so that LLVM vectorises it (one
-AVX-512 register of doubles, gathers for the table reads). That needs lane loops with a
-run-time trip count (a constant one is unrolled before the vectoriser runs), every scratch
-array allocated outside the ``prange`` (numba then marks the parallel body's arguments
-``noalias``; without it the table gathers could alias the stores) and ``_acc`` inlined.
-Fewer than 8 trajectories run as one scalar block in :data:`integrate_batch_serial` (no
-thread pool). What each choice bought, measured: docs/bayes.md "The kernel's layout".
+:func:`lanes_per_block`); inside a block every RK stage is one loop over the lanes, lane index
+innermost and contiguous, so that LLVM vectorises it (one AVX-512 register of doubles, gathers
+for the table reads). That needs lane loops with a run-time trip count (a constant one is
+unrolled before the vectoriser runs), array arguments LLVM knows not to alias (without that the
+table gathers could alias the stores): :func:`integrate_blocks` is compiled with numba's
+``noalias`` flag (:class:`_NoAliasCompiler`) and takes every scratch array as an argument of
+its own; and the helpers inlined (``forceinline``). Its threads each take a contiguous range of
+blocks. Fewer than 8 trajectories run as one block of B lanes in
+:data:`integrate_blocks_scalar`, the same code compiled without ``noalias`` (scalar lane loops:
+faster for 1-2 lanes than the vector loops' remainder). There is no ``prange``: numba's parfor
+compiled the whole body two more times (the outlined loop and its caller), which took half of
+a first run's compile time. What each choice bought, measured: docs/bayes.md "The kernel's
+layout".
 """
 import numpy as np
-from numba import njit, prange
+from numba import njit
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
+
+from .._threads import run_split
 
 P_KREF = 0       # pi d^2 / (8 m)  [m^2/kg]
 P_WX = 1         # wind [m/s]
@@ -94,6 +102,9 @@ LANE_WIDTH = 8
 MAX_LANES = 8
 
 _OPTS = dict(fastmath=True, error_model="numpy", boundscheck=False)
+#: the lane helpers: inlined into the block integrators and never called from Python, so numba
+#: builds no Python or C entry for them (less to compile on a first run)
+_HELPER = dict(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTS)
 #: smallest airspeed^2 [m^2/s^2] in the lift term's denominator
 V2_FLOOR = 1e-12
 #: |L| in the vertical lift force is L^2 / sqrt(L^2 + LIFT_EPS^2) [m/s]: smooth at L = 0 and
@@ -113,7 +124,7 @@ def lanes_per_block(B, n_threads):
     return int(min(MAX_LANES, LANE_WIDTH * max(1, -(-per_thread // LANE_WIDTH))))
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_HELPER)
 def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
     """Horizontal wind of lane ``l`` at downrange x and height z [m]: ``(wx, wy, gx, gy, s)``,
     the lane's constant wind plus its wind table (linear on the grid ``w0 + i / inv_dw``, held
@@ -134,7 +145,7 @@ def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
             dx * inv_dw, dy * inv_dw, s)
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_HELPER)
 def _wind_near(x, z, blk, l, LP, WD):
     """The wind at (x, z) from the last table read of lane ``l`` (``WD``: wind, slopes and
     coordinate there) along that cell's line: exact for the table while the point stays in the
@@ -144,7 +155,7 @@ def _wind_near(x, z, blk, l, LP, WD):
     return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_HELPER)
 def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     """Acceleration (ax, ay, az) [m/s^2] and spin-fraction rate dq/dt [1/s] of lane ``l`` of
     block ``blk`` at height z [m], ground velocity (vx, vy, vz) [m/s], spin fraction q [-] and
@@ -194,7 +205,7 @@ def _acc(z, vx, vy, vz, q, wx, wy, fac, blk, l, LP, CDO, ATO, cdf, atf, tab):
     return ax, ay, az, dq
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_HELPER)
 def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
                 ATO, WTO, ST):
     """Load block ``blk``'s lanes: state, per-lane parameters, table offsets (lanes past B
@@ -237,7 +248,7 @@ def _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells
                 1.0 + LP[blk, _L_YAW_AMP, l] * np.exp(LP[blk, _L_YAW_RATE, l] * LP[blk, _L_T0, l]))
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_HELPER)
 def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2, K3, K4,
               ST1, AC1, WD):
     """One RK4 step of every lane of block ``blk`` from ``ST``/``AC`` (state and acceleration at
@@ -304,7 +315,7 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_HELPER)
 def _hermite_row(blk, nl, th, h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB):
     """One output row of every lane: cubic Hermite on [t_s, t_s + h] (position ``th`` in [0, 1])
     from the states and accelerations at both ends, and its Mach number, into ``OB``."""
@@ -332,9 +343,81 @@ def _hermite_row(blk, nl, th, h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC,
             atm_flat[ja + 1] + (zi - j) * (atm_flat[ja + 3] - atm_flat[ja + 1]))
 
 
-@njit(parallel=True, cache=True, **_OPTS)
+class _NoAliasCompiler(CompilerBase):
+    """numba's nopython pipeline with the array arguments marked ``noalias`` (numba's
+    ``Flags.noalias``, which it sets itself for a ``prange`` body it finds alias-free): LLVM may
+    then vectorise the lane loops, whose table gathers could otherwise alias the scratch stores.
+    Sound for :func:`integrate_blocks`: its callers pass distinct arrays, and threads running it
+    side by side write disjoint blocks."""
+
+    def define_pipelines(self):
+        self.state.flags.noalias = True
+        return [DefaultPassBuilder.define_nopython_pipeline(self.state)]
+
+
+@njit(pipeline_class=_NoAliasCompiler, nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)
+def integrate_blocks(blk_lo, blk_hi, y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
+                     m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, yaw, out,
+                     mach_out, BL, LP, CDO, ATO, WTO, ST, AC, K2, K3, K4, ST1, AC1, OB, WD):
+    """Integrate the blocks ``blk_lo <= blk < blk_hi`` of a batch (arguments as
+    :func:`integrate_batch`, ``yaw`` whether any trajectory has a yaw term, then the scratch
+    arrays of :func:`_scratch`). Releases the GIL: threads run disjoint block ranges."""
+    B = y0.shape[0]
+    N = out_step.shape[0]
+    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001, w0, 1.0 / dw, n_w - 1.000001)
+    h2 = 0.5 * h
+    h6 = h / 6.0
+    for blk in range(blk_lo, blk_hi):
+        n_real = min(B, blk * nl + nl) - blk * nl
+        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
+                    ATO, WTO, ST)
+        for l in range(nl):
+            wx, wy, gx, gy, sw = _wind(ST[blk, 0, l], ST[blk, 2, l], blk, l, LP, WTO, wind_flat, w0, 1.0 / dw,
+                                       n_w - 1.000001)
+            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
+                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l], wx, wy,
+                LP[blk, _L_F0, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
+        o = 0
+        for s in range(n_steps):
+            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2,
+                      K3, K4, ST1, AC1, WD)
+            while o < N and out_step[o] == s:
+                _hermite_row(blk, nl, out_theta[o], h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB)
+                for l in range(n_real):
+                    b = BL[blk, l]
+                    for c in range(6):
+                        out[b, o, c] = OB[blk, c, l]
+                    mach_out[b, o] = OB[blk, 6, l]
+                o += 1
+            for l in range(nl):
+                for c in range(7):
+                    ST[blk, c, l] = ST1[blk, c, l]
+                for c in range(4):
+                    AC[blk, c, l] = AC1[blk, c, l]
+
+
+def _scratch(n_blk, nl):
+    """The kernel's scratch arrays for ``n_blk`` blocks of ``nl`` lanes, each its own allocation
+    (:class:`_NoAliasCompiler` promises LLVM that no two alias)."""
+    return (np.empty((n_blk, nl), dtype=np.int64),    # BL: trajectory of each lane
+            np.empty((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
+            np.empty((n_blk, nl), dtype=np.int64),    # CDO, ATO, WTO: table offsets
+            np.empty((n_blk, nl), dtype=np.int64),
+            np.empty((n_blk, nl), dtype=np.int64),
+            np.empty((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
+            np.empty((n_blk, 4, nl)),                 # AC: acceleration and dq/dt at t_s
+            np.empty((n_blk, 4, nl)),                 # K2, K3, K4: the other RK stages
+            np.empty((n_blk, 4, nl)),
+            np.empty((n_blk, 4, nl)),
+            np.empty((n_blk, 7, nl)),                 # ST1: state at t_s + h
+            np.empty((n_blk, 4, nl)),                 # AC1: acceleration there (next first stage)
+            np.empty((n_blk, 7, nl)),                 # OB: one output row (state, Mach) of every lane
+            np.zeros((n_blk, 5, nl)))                 # WD: last wind table read (wx, wy, slopes, s)
+
+
 def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
-                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, out, mach_out):
+                    m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, out, mach_out,
+                    n_threads=1):
     """Integrate B trajectories with classic RK4 on a uniform step, cubic Hermite output.
 
     Parameters
@@ -380,72 +463,26 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
         Filled in place with the states at the output rows.
     mach_out : (B, N) float64
         Filled in place with the Mach number at the output rows.
+    n_threads : int
+        Threads that integrate the blocks side by side (at most one per block): the calling
+        thread and ``n_threads - 1`` helper threads (:func:`bayesdrag._threads.run_split`),
+        each a contiguous range of blocks; the results do not depend on it.
     """
-    B = y0.shape[0]
-    N = out_step.shape[0]
-    tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001, w0, 1.0 / dw, n_w - 1.000001)
-    h2 = 0.5 * h
-    h6 = h / 6.0
-    n_blk = (B + nl - 1) // nl
-    # a run-time bool, never the literal False: numba otherwise compiled the lane helpers twice,
-    # once for a constant yaw it then did not use (first-run compile time, docs/report.md "Speed")
-    yaw = bool(np.any(par[:, P_YAW_AMP] != 0.0))
-    # All scratch is allocated here, outside the prange: the parallel body then holds no
-    # array views, numba marks its array arguments noalias, and LLVM vectorises the lane loops.
-    BL = np.empty((n_blk, nl), dtype=np.int64)
-    LP = np.empty((n_blk, _N_L, nl))
-    CDO = np.empty((n_blk, nl), dtype=np.int64)
-    ATO = np.empty((n_blk, nl), dtype=np.int64)
-    WTO = np.empty((n_blk, nl), dtype=np.int64)
-    ST = np.empty((n_blk, 7, nl))    # state at t_s (row 6: spin fraction q for the lift)
-    AC = np.empty((n_blk, 4, nl))    # acceleration and dq/dt at t_s (first RK stage)
-    K2 = np.empty((n_blk, 4, nl))
-    K3 = np.empty((n_blk, 4, nl))
-    K4 = np.empty((n_blk, 4, nl))
-    ST1 = np.empty((n_blk, 7, nl))   # state at t_s + h
-    AC1 = np.empty((n_blk, 4, nl))   # acceleration there (= next step's first stage)
-    OB = np.empty((n_blk, 7, nl))    # one output row (state, Mach) of every lane
-    WD = np.zeros((n_blk, 5, nl))    # last wind table read: wx, wy, their slopes, the coordinate
-    for b_u in prange(n_blk):
-        # prange's index is unsigned, range's signed: one type for both kernels lets the serial and
-        # the threaded kernel share every compiled helper (first-run compile time)
-        blk = np.int64(b_u)
-        n_real = min(B, blk * nl + nl) - blk * nl
-        _load_lanes(blk, nl, B, y0, par, t_start, cd_idx, atm_idx, wind_idx, n_cells, n_z, n_w, yaw, BL, LP, CDO,
-                    ATO, WTO, ST)
-        for l in range(nl):
-            wx, wy, gx, gy, sw = _wind(ST[blk, 0, l], ST[blk, 2, l], blk, l, LP, WTO, wind_flat, w0, 1.0 / dw,
-                                       n_w - 1.000001)
-            AC[blk, 0, l], AC[blk, 1, l], AC[blk, 2, l], AC[blk, 3, l] = _acc(
-                ST[blk, 2, l], ST[blk, 3, l], ST[blk, 4, l], ST[blk, 5, l], ST[blk, 6, l], wx, wy,
-                LP[blk, _L_F0, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
-        o = 0
-        for s in range(n_steps):
-            _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, wind_flat, tab, ST, AC, K2,
-                      K3, K4, ST1, AC1, WD)
-            while o < N and out_step[o] == s:
-                _hermite_row(blk, nl, out_theta[o], h, tab, LP, ATO, WTO, atm_flat, wind_flat, ST, AC, ST1, AC1, OB)
-                for l in range(n_real):
-                    b = BL[blk, l]
-                    for c in range(6):
-                        out[b, o, c] = OB[blk, c, l]
-                    mach_out[b, o] = OB[blk, 6, l]
-                o += 1
-            for l in range(nl):
-                for c in range(7):
-                    ST[blk, c, l] = ST1[blk, c, l]
-                for c in range(4):
-                    AC[blk, c, l] = AC1[blk, c, l]
+    n_blk = (y0.shape[0] + nl - 1) // nl
+    yaw = bool(par[:, P_YAW_AMP].any())
+    args = (y0, float(t_start), float(h), int(n_steps), out_step, out_theta, par, cd_flat, int(n_cells), cd_idx,
+            float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
+            float(w0), float(dw), int(nl), yaw, out, mach_out) + _scratch(n_blk, nl)
+    n_run = max(1, min(int(n_threads), n_blk))
+    cuts = [n_blk * i // n_run for i in range(n_run + 1)]
+    fn = integrate_blocks_scalar if nl < LANE_WIDTH else integrate_blocks
+    run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)])
     return out
 
 
-#: the same kernel without threads, for batches of fewer than LANE_WIDTH trajectories (one
-#: scalar block): waking the thread pool costs more than such a batch, and on a loaded machine
-#: waiting for the second core to be scheduled can cost milliseconds
-#: (a copy of the Python function under its own name: numba's on-disk cache is keyed by the
-#: function's qualified name and line, not by ``parallel``, so the same ``py_func`` compiled
-#: twice with ``cache=True`` would load the serial machine code for the threaded kernel too)
 def _renamed(fn, name):
+    """A copy of the Python function ``fn`` under the name ``name`` (numba's on-disk cache is
+    keyed by the function's qualified name and line, not by its compile options)."""
     import types
 
     g = types.FunctionType(fn.__code__.replace(co_name=name), fn.__globals__, name, fn.__defaults__,
@@ -455,4 +492,9 @@ def _renamed(fn, name):
     return g
 
 
-integrate_batch_serial = njit(cache=True, **_OPTS)(_renamed(integrate_batch.py_func, "integrate_batch_serial"))
+#: the same block integrator compiled without ``noalias``, for batches of fewer than
+#: LANE_WIDTH trajectories (one block of B lanes): LLVM then leaves the lane loops scalar, which
+#: for 1-2 lanes is 1.3-1.5x faster than the vector loops' remainder path, and its results are
+#: those of the scalar kernel before (a trajectory's last bits depend on the code that runs it)
+integrate_blocks_scalar = njit(nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)(
+    _renamed(integrate_blocks.py_func, "integrate_blocks_scalar"))

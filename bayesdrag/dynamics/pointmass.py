@@ -493,15 +493,15 @@ class PointMassModel:
         step = per_call if B * n_steps > CHUNK_LANE_STEPS else B
         w_flat = None if w_tabs is None else w_tabs.reshape(-1)
         w_cols = 2 if w_tabs is None else w_tabs.shape[1]
+        n_threads = numba.get_num_threads()
         for b0 in range(0, B, step):
             b1 = min(B, b0 + step)
             nb = b1 - b0
-            run = K.integrate_batch_serial if nb < K.LANE_WIDTH else K.integrate_batch
-            run(state0[b0:b1], float(t_start), h, n_steps, out_step, out_theta, par[b0:b1],
-                cd_tabs.reshape(-1), cd_tabs.shape[1], cd_idx[b0:b1], grid.m0, grid.dm,
-                atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx[b0:b1], z0, dz,
-                w_flat, w_cols, w_idx[b0:b1], w0, dw,
-                K.lanes_per_block(nb, numba.get_num_threads()), out[b0:b1], mach[b0:b1])
+            K.integrate_batch(state0[b0:b1], float(t_start), h, n_steps, out_step, out_theta, par[b0:b1],
+                              cd_tabs.reshape(-1), cd_tabs.shape[1], cd_idx[b0:b1], grid.m0, grid.dm,
+                              atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx[b0:b1], z0, dz,
+                              w_flat, w_cols, w_idx[b0:b1], w0, dw,
+                              K.lanes_per_block(nb, n_threads), out[b0:b1], mach[b0:b1], n_threads)
         # a NaN or inf propagates to the last sample, so checking that row is enough
         ok = bool(np.all(np.isfinite(out[:, -1])))
         return Trajectory(t_out, out, mach, ok, "" if ok else "non-finite state: integration failed")

@@ -18,7 +18,7 @@ def test_bayesdrag_registers_its_locator_first():
 
 def test_cache_folder_does_not_depend_on_the_install_folder(tmp_path, monkeypatch):
     monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(tmp_path / "cache"))
-    fn = kernel.integrate_batch.py_func
+    fn = kernel.integrate_blocks.py_func
     here = _numba_cache.PackageCacheLocator.from_function(fn, kernel.__file__)
     # the same source in another installation: the same folder
     other = tmp_path / "site" / "bayesdrag" / "dynamics"

@@ -329,12 +329,41 @@ def test_lift_parameter_and_overrides(m101):
         m.kernel_inputs(np.zeros((1, 0)))
 
 
-def test_serial_and_threaded_kernels_have_separate_disk_caches():
-    """numba keys its on-disk cache by the function's qualified name and line, not by
-    ``parallel``: the serial copy of the kernel must carry its own name, or whichever variant is
-    compiled first is loaded for both (the threaded kernel then ran on one thread)."""
-    from bayesdrag.dynamics import kernel as K
+def test_vector_and_scalar_kernels_have_separate_disk_caches():
+    """numba keys its on-disk cache by the function's qualified name and line, not by its
+    compile options: the scalar copy of the block integrator must carry its own name, or
+    whichever variant is compiled first is loaded for both (the vectorised one then ran scalar)."""
+    assert K.integrate_blocks_scalar.py_func.__qualname__ == "integrate_blocks_scalar"
+    assert K.integrate_blocks.py_func.__qualname__ == "integrate_blocks"
+    assert K.integrate_blocks._compiler.pipeline_class is K._NoAliasCompiler
+    assert K.integrate_blocks_scalar._compiler.pipeline_class is not K._NoAliasCompiler
+    assert K.integrate_blocks.targetoptions.get("nogil") and K.integrate_blocks_scalar.targetoptions.get("nogil")
 
-    assert K.integrate_batch_serial.py_func.__qualname__ == "integrate_batch_serial"
-    assert K.integrate_batch.py_func.__qualname__ == "integrate_batch"
-    assert K.integrate_batch.targetoptions.get("parallel") and not K.integrate_batch_serial.targetoptions.get("parallel")
+
+@pytest.mark.parametrize("B", [1, 7, 8, 9, 21, 40])
+def test_threads_split_blocks_without_changing_a_bit(B, m101):
+    """The helper threads integrate disjoint blocks with the same code: 1, 2 and 3 threads give
+    identical states and Mach numbers (calm and with a wind by height)."""
+    from bayesdrag.wind import WindProfile
+
+    base = PointMassModel(42.6, 0.155, m101)
+    windy = base.with_(atmosphere=Atmosphere(wind=WindProfile.layered(
+        "altitude", (0.0, 500.0, 1500.0), (-3.0, -6.0), (1.0, 2.0))))
+    t = np.linspace(0.0, 20.0, 201)
+    s0 = np.stack([initial_state(800.0 + 2.0 * i, 15.0 + 0.1 * i) for i in range(B)])
+    for model in (base, windy):
+        h, n_steps, out_step, out_theta = output_schedule(t, 0.0, model.kernel_step)
+        par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind = model.kernel_inputs(
+            np.zeros((B, 0)), None, None, s0, None)
+        w_tabs, w_idx, w0, dw = wind
+        runs = []
+        for n_threads in (1, 2, 3):
+            out, mach = np.full((B, t.size, 6), np.nan), np.full((B, t.size), np.nan)
+            K.integrate_batch(s0, 0.0, h, n_steps, out_step, out_theta, par, cd_tabs.reshape(-1), cd_tabs.shape[1],
+                              cd_idx, grid.m0, grid.dm, atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx, z0, dz,
+                              None if w_tabs is None else w_tabs.reshape(-1), 2 if w_tabs is None else w_tabs.shape[1],
+                              w_idx, w0, dw, K.lanes_per_block(B, 2), out, mach, n_threads)
+            runs.append((out, mach))
+        assert np.all(np.isfinite(runs[0][0])) and np.all(np.isfinite(runs[0][1]))
+        for out, mach in runs[1:]:
+            assert np.array_equal(out, runs[0][0]) and np.array_equal(mach, runs[0][1])
