@@ -16,8 +16,8 @@ from ..estimate.model.layout import ParameterLayout
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
 from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
-from .setup import (edf, gun_path, held_params, unseen_effects, fit_effects, fit_starts, flown_mach_span, make_setup, n_weighted, noise_floor,
-                    report_params)
+from .setup import (edf, fit_effects, fit_starts, flown_mach_span, gun_path, held_params, make_setup, n_weighted,
+                    noise_floor, report_params, unseen_effects)
 from .signatures import mark_confounded, signatures
 from .statistics import autocovariance, colored_inflation
 from .winds import (SHAPE_RIVAL_SHARE, WIND_FAMILY, cannot_separate, data_cost, layers_for, rechoose_wind,

@@ -102,8 +102,8 @@ from ..estimate.scheme1.systematics import RADAR_SOURCES, radar_extras
 from ..estimate.scheme1.start import data_start
 
 __all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
-           "walk_evidence", "case_mach_grid", "systematic_parameters", "declared_sources", "PLAN_SOURCES", "level_shares", "LEVEL_SOURCES", "DEFAULT_DT", "PLAN_SEED",
-           "PLAN_MACH_STEP", "MIN_TRACKED_SAMPLES"]
+           "walk_evidence", "case_mach_grid", "systematic_parameters", "level_shares", "LEVEL_SOURCES", "DEFAULT_DT", "PLAN_SEED",
+           "PLAN_MACH_STEP", "MIN_TRACKED_SAMPLES", "declared_sources", "PLAN_SOURCES"]
 
 #: default radar sample interval [s] (the paper's radar, as ``bayesdrag simulate``)
 DEFAULT_DT = 0.027
