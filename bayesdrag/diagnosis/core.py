@@ -10,14 +10,14 @@ import numpy as np
 
 from .._threads import single_blas
 from ..effects import EFFECTS
-from ..errors import FitError, InputError
+from ..errors import FitError
 from ..track import NATIVE_CHANNELS
 from ..estimate.model.layout import ParameterLayout
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
 from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
-from .setup import (edf, fit_effects, fit_starts, flown_mach_span, make_setup, n_weighted, noise_floor,
-                    report_params)
+from .setup import (edf, fit_effects, fit_starts, flown_mach_span, gun_path, held_params, make_setup, n_weighted,
+                    noise_floor, report_params, unseen_effects)
 from .signatures import mark_confounded, signatures
 from .statistics import autocovariance, colored_inflation
 from .winds import (SHAPE_RIVAL_SHARE, WIND_FAMILY, cannot_separate, data_cost, layers_for, rechoose_wind,
@@ -304,7 +304,8 @@ def _baseline_summary(setup, track, b):
         "edf": float(edf(setup, base)),
         "initial_state": {n: float(v) for n, v in zip(base.names[setup.P:], b.theta[setup.P:])},
         # the highest point of the fitted flight [m above the gun] (the met file's top, diagnosis.found_air)
-        "z_max": float(np.nanmax(b.fit[2][:, chans.index("z")])) if "z" in chans else None,
+        "z_max": (float(np.nanmax(b.fit[2][:, chans.index("z")])) if "z" in chans
+                  else None if setup.path is None else float(np.nanmax(setup.path[:, 2]))),
         "ic_time": setup.t_ic, "converged": bool(base.converged), "message": base.message,
     }
 
@@ -351,27 +352,34 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     FitError
         The nominal simulation does not reach the track's times, or (without a reference drag)
         the Scheme 1 fit behind the nuisance Cd failed.
+    InputError
+        The track has the radar's angles and the round gives no ``[launch] azimuth``.
     """
     if not (material_cd_shift >= 0 and material_end_sd >= 0):
         raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
                          f"material_end_sd={material_end_sd!r}")
-    native = [c for c in (channels or track.names) if c in NATIVE_CHANNELS]
-    if native:
-        # the diagnosis' problems do not carry the radar's site yet: refuse rather than misread
-        raise InputError(f"{track.source or 'track'}: the diagnosis does not take the radar's own channels "
-                         f"({', '.join(native)}) yet; fit them with bayesdrag fit, or diagnose the x, y, z, v "
-                         f"channels of the track (--channels)")
     setup = make_setup(track, rnd, sigma=sigma, channels=channels)
     chans = setup.channels
     sig_vec = np.array([setup.sigma[c] for c in chans])
     b = _baseline(setup)
+    unseen = unseen_effects(setup, candidates)
+    if any(c in NATIVE_CHANNELS for c in chans) and not ("x" in chans and "z" in chans):
+        # the radar's own channels: where the shell is comes from the baseline's flight
+        setup.path = gun_path(setup, b.theta)
+    if unseen:
+        candidates = [n for n in (candidates if candidates is not None else EFFECTS) if n not in unseen]
 
     effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span, b.fit[2])
+    skipped.update(unseen)
     K = max(len(effs), 1)
     rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
     if "wind_profile" in fits:  # its signature with the layers the evidence chose
         sigs.update(signatures(setup, b.theta, [EFFECTS["wind_profile"]]))
     mark_confounded(rows, sigs, alpha, K)
+    for r in rows:   # what the radar's own channels cannot see is said, not reported as a value
+        held = held_params(setup, EFFECTS[r["name"]])
+        if held:
+            r["not_identifiable"] = held
 
     opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
     by_name = {r["name"]: r for r in rows}
@@ -397,10 +405,11 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
 
     y_base = b.fit[2]
-    z_model = y_base[:, chans.index("z")] if "z" in chans else None
+    z_model = y_base[:, chans.index("z")] if "z" in chans else (None if setup.path is None else setup.path[:, 2])
     where = where_segments(track.t, b.resid / sig_vec[None, :], setup.weights, b.mach, z_model, chans)
     where = with_launch_misfit(where, track.t[0], b.prior_terms, b.gap)
-    x_end = float(y_base[-1, chans.index("x")]) if "x" in chans else 0.0
+    x_end = float(y_base[-1, chans.index("x")]) if "x" in chans else (
+        0.0 if setup.path is None else float(setup.path[-1, 0]))
     absorbed = absorbed_by_launch(b.prior_terms, {p.name: p.sd for p in setup.priors}, x_end)
     for r in rows:
         r.pop("inflation_raw", None)

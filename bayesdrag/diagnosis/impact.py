@@ -133,7 +133,7 @@ def cd_shift(setup, theta_eff, dy, mach, n_mach=9):
     th = np.concatenate([beta, s0])
     free = np.concatenate([np.ones(Pn, bool), setup.free[ParameterLayout(P).state]])
     prob = OutputErrorProblem(model, setup.track, th, free=free, sigma=setup.sigma, priors=pri,
-                              channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
+                              channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights, site=setup.site)
     _, _, S = prob.sensitivities(th)
     sw = np.sqrt(setup.weights) / np.array([setup.sigma[c] for c in setup.channels])[None, :]
     A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])

@@ -22,10 +22,13 @@ from ..errors import FitError
 from ..estimate.model.noise import OUTLIER_K, noise_and_outliers
 from ..estimate.model.problem import OutputErrorProblem, Prior
 from ..estimate.model.layout import ParameterLayout
+from ..measure import gun_equivalent, site_of
+from ..track import NATIVE_CHANNELS
 
 __all__ = ["Setup", "make_setup", "nuisance_drag", "flown_mach_span", "drag_shape_for", "launch_priors",
            "extra_free", "k_free", "fit_starts", "effect_problem", "fit_effects", "n_weighted", "edf",
-           "noise_floor", "track_chi2", "report_params"]
+           "noise_floor", "track_chi2", "report_params", "gun_path",
+           "unseen_effects", "held_params"]
 
 #: half-width [samples] of the central difference that reads the speed off the positions
 SPEED_HALF_WINDOW = 5
@@ -68,6 +71,17 @@ class Setup:
     pen: np.ndarray | None = None
     #: how the nuisance drag was made (no reference drag), for the output
     nuisance: dict | None = None
+    #: where the radar stands (:class:`bayesdrag.measure.RadarSite`): native channels are seen from there
+    site: object = None
+    #: the baseline's path in the gun's frame (N, 3) [m] of a track without x and z channels
+    #: (radar-native): wind layers and the apex are read off it (:func:`gun_path`)
+    path: np.ndarray | None = None
+
+    @property
+    def seen_as(self):
+        """The gun-frame channels the track's channels observe (a radar's range, angles and range
+        rate stand for x, y, z, v: :func:`bayesdrag.measure.gun_equivalent`)."""
+        return gun_equivalent(self.channels)
 
     @property
     def P(self):
@@ -184,29 +198,38 @@ def flown_mach_span(setup, mach_model):
     setup : Setup
     mach_model : (N,) Mach numbers of the baseline (the fallback)
 
+    A radar's own channels are read in the gun's frame first, as the fit's start reads them
+    (:func:`bayesdrag.estimate.scheme1.native_start.start_view`: positions from range and angles,
+    a speed from the range rate through the nominal flight's line of sight).
+
     Returns
     -------
     (float, float) or None when neither gives a finite range.
     """
-    ch = setup.channels
+    track, ch = setup.track, setup.channels
     ok = setup.weights.min(axis=1) > 0
-    t = np.asarray(setup.track.t, float)
+    if _native_view_needed(ch):
+        from ..estimate.scheme1.native_start import start_view
+
+        track = start_view(track.with_channels(ch) if set(ch) != set(track.names) else track, setup.rnd, setup.site)
+        ch, ok = track.names, np.ones(track.n, bool)
+    t = np.asarray(track.t, float)
     if "v" in ch:
         # every sample: a gross speed outlier (15 noise sd, ~1 % of the speed at most) barely
         # moves the span, while the local-cubic outlier rule flags the first samples of a shell
         # that decelerates fast (a sphere: 9 samples), and they hold the highest Mach
-        speed = np.asarray(setup.track.channels["v"], float)
+        speed = np.asarray(track.channels["v"], float)
         ok = np.ones(t.size, bool)
     elif any(c in ch for c in ("x", "y", "z")) and t.size > 2 * SPEED_HALF_WINDOW + 1:
         h = SPEED_HALF_WINDOW
-        comp = [np.asarray(setup.track.channels[c], float) for c in ("x", "y", "z") if c in ch]
+        comp = [np.asarray(track.channels[c], float) for c in ("x", "y", "z") if c in ch]
         speed = np.full(t.size, np.nan)
         d = np.sqrt(sum((p[2 * h:] - p[:-2 * h]) ** 2 for p in comp)) / (t[2 * h:] - t[:-2 * h])
         speed[h:-h] = d
     else:
         speed = np.full(t.size, np.nan)
     # without a height channel the air at the gun (the model's Mach span covers the rest)
-    z = np.asarray(setup.track.channels["z"], float) if "z" in ch else np.zeros(t.size)
+    z = np.asarray(track.channels["z"], float) if "z" in ch else np.zeros(t.size)
     a = setup.rnd.atmosphere.at_height(np.clip(z, -400.0, 20000.0)).speed_of_sound
     m = np.where(ok, speed / a, np.nan)
     if not np.any(np.isfinite(m)):
@@ -215,6 +238,23 @@ def flown_mach_span(setup, mach_model):
         return None
     lo, hi = float(np.nanmin(m)), float(np.nanmax(m))
     return (lo, hi) if hi > lo else None
+
+
+def _native_view_needed(channels):
+    """Whether channels hold a radar's own ones without the gun-frame speed or positions that
+    the data's Mach span is read from."""
+    return any(c in NATIVE_CHANNELS for c in channels) and "v" not in channels and not (
+        "x" in channels and "z" in channels)
+
+
+def gun_path(setup, theta):
+    """The path (N, 3) [m] in the gun's frame that parameters ``theta`` (drag and initial state,
+    no effects) fly at the track's samples: where a radar-native track's shell is, for the wind
+    layers and the apex."""
+    lay = ParameterLayout(setup.P)
+    th = np.asarray(theta, float)[:lay.size]
+    tr = setup.model.simulate_batch(th[None, lay.drag], th[None, lay.state], setup.track.t, t_start=setup.t_ic)
+    return np.asarray(tr.state[0, :, :3], float)
 
 
 def drag_shape_for(setup, base_theta, span):
@@ -233,7 +273,8 @@ def drag_shape_for(setup, base_theta, span):
     free = np.concatenate([np.ones(Pk, bool), setup.free[ParameterLayout(P).state]])
     pri = launch_priors(setup.rnd.launch, Pk) if setup.launch_known else ()
     prob = OutputErrorProblem(setup.model.with_(drag=ds0), setup.track, th, free=free, sigma=setup.sigma,
-                              priors=pri, channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights)
+                              priors=pri, channels=setup.channels, t_ic=setup.t_ic, weights=setup.weights,
+                              site=setup.site)
     _, _, S = prob.sensitivities(th)
     sw = np.sqrt(setup.weights) / np.array([setup.sigma[c] for c in setup.channels])[None, :]
     A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
@@ -279,7 +320,6 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
     """
     from ..dynamics.pointmass import PointMassModel
     from ..dynamics.trajectory import initial_state
-    from ..estimate.scheme1.start import data_start
 
     chans = tuple(channels) if channels is not None else tuple(track.names)
     L = rnd.launch
@@ -294,9 +334,13 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
     if outl.any():
         notes.append(f"{int(outl.any(axis=1).sum())} samples have gross outliers (> {OUTLIER_K:g} robust sd "
                      f"from a local smoother) and are left out")
-    if "y" not in chans:
-        notes.append("no y channel: the cross wind wy is held at 0 (not identifiable) and lift/Coriolis "
-                     "drift cannot be seen")
+    site = site_of(rnd, chans)
+    seen_as = gun_equivalent(chans)      # a radar's range, angles, range rate observe x, y, z, v
+    if "y" not in seen_as:
+        what = ("no y channel" if not any(c in NATIVE_CHANNELS for c in chans)
+                else f"the radar's channels ({', '.join(chans)}) see no cross-range position")
+        notes.append(f"{what}: the cross wind wy is held at 0 (not identifiable) and lift/Coriolis "
+                     f"drift cannot be seen")
     seen = track.with_channels(chans) if set(chans) != set(track.names) else track
     launch_known = L.velocity is not None and L.elevation_deg is not None
     t_ic = 0.0 if launch_known else float(track.t[0])
@@ -317,21 +361,35 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
                      f"identifiable")
         notes += nuis["notes"]
     if s0 is None:
-        s0 = initial_state(L.velocity, L.elevation_deg) if launch_known else data_start(seen, rnd).state0
+        s0 = initial_state(L.velocity, L.elevation_deg) if launch_known else _data_state(seen, rnd, site, t_ic)
     model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, drag, rnd.atmosphere)
     P = drag.n_params
     theta0 = np.concatenate([dparams, s0])
     free = np.ones(theta0.size, bool)
-    if "y" not in chans:
+    if "y" not in seen_as:
         free[ParameterLayout(P).index("y")] = free[ParameterLayout(P).index("vy")] = False
-    if not any(c in chans for c in ("x", "y", "z")):
+    if not any(c in seen_as for c in ("x", "y", "z")):
         free[ParameterLayout(P).position] = False
     priors = launch_priors(L, P) if launch_known else ()
     ctx = EffectContext(atmosphere=rnd.atmosphere, latitude_deg=L.latitude_deg,
                         azimuth_deg=L.azimuth_deg, v0=L.velocity)
     return Setup(model, track, rnd, chans, theta0, free, priors, t_ic, sig, source, weights, outl,
                  ctx, ref is not None, launch_known, notes, smooth=tuple(smooth),
-                 pen=_penalty_information(smooth, P), nuisance=None if nuis is None else nuis["info"])
+                 pen=_penalty_information(smooth, P), nuisance=None if nuis is None else nuis["info"], site=site)
+
+
+def _data_state(seen, rnd, site, t0):
+    """The initial state at the first sample read off the data, as the fit's start reads it (a
+    radar's own channels through :func:`bayesdrag.estimate.scheme1.native_start.start_view`; a
+    range rate without positions flown out from the muzzle)."""
+    from ..estimate.scheme1.native_start import start_position, start_view
+    from ..estimate.scheme1.start import data_start
+
+    s0 = data_start(start_view(seen, rnd, site), rnd).state0
+    if not any(c in gun_equivalent(seen.names) for c in ("x", "y", "z")):
+        s0 = s0.copy()
+        s0[:3] = start_position(s0, t0, seen.names)[:3]
+    return s0
 
 
 def extra_free(setup, name):
@@ -344,8 +402,40 @@ def extra_free(setup, name):
     if name.startswith("drag_shape.s"):
         return drag_shape_free(setup.ctx, int(name.rsplit("s", 1)[1]) - 1)
     if name.startswith("wind_profile."):
-        return layer_free(setup.ctx.wind_layers, name, setup.channels)
-    return not (name == "wind.wy" and "y" not in setup.channels)
+        return layer_free(setup.ctx.wind_layers, name, setup.seen_as)
+    return not (name == "wind.wy" and "y" not in setup.seen_as)
+
+
+#: effects whose signature at their null value is all cross-range: without a channel that sees
+#: the shell's sideways position they cannot be fitted (the lift's vertical part is even in its
+#: factor, so at factor 0 it has no gradient either)
+CROSS_RANGE_EFFECTS = ("lift",)
+
+
+def unseen_effects(setup, candidates=None):
+    """Effects the radar's own channels cannot see, with the reason (name -> str): on a track of
+    radar-native channels without a cross-range view (a Doppler radar's range rate alone), the
+    effects whose signature is a sideways drift (:data:`CROSS_RANGE_EFFECTS`). They are reported
+    as not identifiable rather than fitted. Empty for gun-frame channels (their screening by
+    signature, :func:`bayesdrag.diagnosis.signatures.signatures`, stands as it is)."""
+    if not any(c in NATIVE_CHANNELS for c in setup.channels) or "y" in setup.seen_as:
+        return {}
+    names = list(candidates) if candidates is not None else list(CROSS_RANGE_EFFECTS)
+    return {n: (f"not identifiable from this track (the radar's channels ({', '.join(setup.channels)}) see no "
+                f"cross-range position, and its signature is a sideways drift)")
+            for n in CROSS_RANGE_EFFECTS if n in names}
+
+
+def held_params(setup, e):
+    """An effect's parameters held at their null value on this track because the channels cannot
+    see them (``wind.wy`` without a cross-range view), with the reason; {} for gun-frame tracks
+    (whose reports keep the held value with a note)."""
+    if not any(c in NATIVE_CHANNELS for c in setup.channels):
+        return {}
+    held = [p.name for p in e.params if p.name.startswith("wy") and not extra_free(setup, f"{e.name}.{p.name}")
+            and (e.name != "wind_profile" or wind_profile_free(setup.ctx, p.name))]
+    why = f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no cross-range position"
+    return {n: why for n in held}
 
 
 def k_free(setup, e):
@@ -389,7 +479,7 @@ def effect_problem(setup, effects, theta_start):
     prob = OutputErrorProblem(model, setup.track, theta0, free=free, sigma=setup.sigma,
                               priors=setup.priors + _padded(setup.smooth, len(ex)) + walk, channels=setup.channels,
                               extras=ex, effect_fn=fn, t_ic=setup.t_ic, weights=setup.weights,
-                              effect_names=tuple(e.name for e in effects))
+                              effect_names=tuple(e.name for e in effects), site=setup.site)
     return prob
 
 

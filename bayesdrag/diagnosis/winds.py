@@ -111,6 +111,9 @@ def _path(setup, y_base):
     ch = setup.channels
     x = y_base[:, ch.index("x")] if "x" in ch else None
     z = y_base[:, ch.index("z")] if "z" in ch else None
+    if setup.path is not None:   # a radar's own channels: the baseline's path in the gun's frame
+        x = setup.path[:, 0] if x is None else x
+        z = setup.path[:, 2] if z is None else z
     return x, z
 
 

@@ -98,11 +98,12 @@ from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
 from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty, walk_evidence
 from ..estimate.scheme1.native_start import start_view
+from ..estimate.scheme1.systematics import RADAR_SOURCES, radar_extras
 from ..estimate.scheme1.start import data_start
 
 __all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
            "walk_evidence", "case_mach_grid", "systematic_parameters", "level_shares", "LEVEL_SOURCES", "DEFAULT_DT", "PLAN_SEED",
-           "PLAN_MACH_STEP", "MIN_TRACKED_SAMPLES"]
+           "PLAN_MACH_STEP", "MIN_TRACKED_SAMPLES", "declared_sources", "PLAN_SOURCES"]
 
 #: default radar sample interval [s] (the paper's radar, as ``bayesdrag simulate``)
 DEFAULT_DT = 0.027
@@ -270,16 +271,30 @@ def site_round(rnd, position):
     return replace(rnd, radar=radar)
 
 
-def systematic_parameters(rnd):
+#: every systematic source a plan carries, in the order of its budget: the round's declared
+#: ``_sd`` keys, then the radar's biases and site (those its planned channels depend on)
+PLAN_SOURCES = tuple(SYSTEMATIC_SOURCES) + tuple(RADAR_SOURCES)
+
+
+def declared_sources(rnd, chans=()):
+    """The declared systematic sources a plan of channels ``chans`` carries (dict stem -> sd):
+    the round's ``_sd`` keys, and the radar's biases and site where the channels depend on them
+    (a range bias needs a range channel; the site, any radar-native channel)."""
+    radar = {stem: sd for stem, _, _, sd in radar_extras(rnd, chans)}
+    return {**rnd.systematics.declared(), **radar}
+
+
+def systematic_parameters(rnd, chans=()):
     """The declared systematic sources as extra parameters of the output-error problem.
 
     Returns
     -------
     (list of (stem, ExtraParam, prior sd), list of (stem, prior sd))
-        Sources entering the simulation (temperature, time_offset: finite differences by the
-        problem) and the radar scale factors (position_scale, velocity_scale: analytic
-        sensitivities). The level sources (:data:`LEVEL_SOURCES`) are not parameters: their
-        shares are :func:`level_shares`.
+        Sources entering the simulation (temperature, time_offset, and for the channels
+        ``chans`` the radar's biases and site: finite differences by the problem; the site is
+        three parameters of one stem) and the radar scale factors (position_scale,
+        velocity_scale: analytic sensitivities). The level sources (:data:`LEVEL_SOURCES`) are
+        not parameters: their shares are :func:`level_shares`.
     """
     declared = rnd.systematics.declared()
     steps = {"temperature": (0.0, TEMPERATURE_STEP), "time_offset": (0.0, TIME_STEP)}
@@ -292,6 +307,7 @@ def systematic_parameters(rnd):
             sim.append((stem, ExtraParam(f"systematic.{stem}", start, -np.inf, np.inf, h), float(sd)))
         else:
             scale.append((stem, float(sd)))
+    sim += [(stem, p, float(sd)) for stem, p, _, sd in radar_extras(rnd, chans)]
     return sim, scale
 
 
@@ -317,7 +333,12 @@ def _systematic_effect(rnd, sim):
                     for v in col["temperature"]]
         if "time_offset" in col:
             shift = col["time_offset"].copy()
-        return SimInputs({}, atms, shift)
+        # the radar's biases add to its channels; its site moves where they are seen from
+        offset = {c: col[stem] for stem, c in (("range_bias", "range"), ("azimuth_bias", "azimuth"),
+                                                ("elevation_bias", "elevation")) if stem in col}
+        pos = [j for j, s in enumerate(stems) if s == "radar_position"]
+        site_shift = E[:, pos] if pos else None
+        return SimInputs({}, atms, shift, output_offset=offset, site_shift=site_shift)
 
     return fn
 
@@ -356,7 +377,7 @@ def case_information(rnd_case, dm, track, state0, theta_drag, sigma, chans):
     the radar scale factors are analytic.
     """
     P = dm.n_params
-    sim, scale = systematic_parameters(rnd_case)
+    sim, scale = systematic_parameters(rnd_case, chans)
     model = PointMassModel(rnd_case.projectile.mass, rnd_case.projectile.diameter, dm, rnd_case.atmosphere,
                            coriolis=coriolis_of(rnd_case))
     extras = tuple(p for _, p, _ in sim)
@@ -658,7 +679,11 @@ def _budget(info, Finv, B, R, level):
     stat_var = np.sum((info.A @ X) ** 2, axis=0) + np.sum((R @ X) ** 2, axis=0)
     if info.L.size:
         stat_var += np.sum((info.L @ X) ** 2, axis=0)
-    shares = {stem: X[info.n_stat + j] / sd for j, (stem, sd) in enumerate(info.systematics)}
+    shares = {}
+    for j, (stem, sd) in enumerate(info.systematics):
+        x = X[info.n_stat + j] / sd
+        # one stem of several parameters (the radar's site x, y, z): their shares add in squares
+        shares[stem] = np.sqrt(shares[stem] ** 2 + x ** 2) if stem in shares else x
     shares.update(level)
-    order = [s for s in SYSTEMATIC_SOURCES if s in shares]
+    order = [s for s in PLAN_SOURCES if s in shares]
     return np.sqrt(stat_var), {s: shares[s] for s in order}

@@ -21,7 +21,8 @@ import numpy as np
 from ..round import SYSTEMATIC_SOURCES
 from ..errors import InputError
 from ..track import NATIVE_CHANNELS
-from .case import ASSUMPTIONS, PLAN_MACH_STEP, drag_assumption, plan_case, radar_channels, site_round
+from .case import (ASSUMPTIONS, PLAN_MACH_STEP, PLAN_SOURCES, declared_sources, drag_assumption, plan_case,
+                   radar_channels, site_round)
 
 __all__ = ["Plan", "make_plan", "combine", "best_combination", "summary_paragraph", "target_paragraph",
            "EXHAUSTIVE_MAX"]
@@ -168,7 +169,7 @@ def make_plan(rnd, elevations, velocities, *, dt, rounds=1, scatter=0.0, target=
                   for r in rounds_at for e in elevations for v in velocities)
     best = best_combination(cases, target) if target is not None else None
     return Plan(cases, rnd.projectile.name, rnd.path, source, generic, sigma, float(dt), lock_on, loss, int(rounds),
-                float(scatter), rnd.systematics.declared(), target, best,
+                float(scatter), declared_sources(rnd, chans), target, best,
                 tuple(tuple(float(v) for v in p) for p in radar_sites) if radar_sites else None)
 
 
@@ -193,7 +194,7 @@ def _common(cases):
     lo = min(int(round(c.mach[0] / step)) for c in cases)
     hi = max(int(round(c.mach[-1] / step)) for c in cases)
     grid = np.round(np.arange(lo, hi + 1) * step, 4)
-    stems = [s for s in SYSTEMATIC_SOURCES if any(s in c.by_source for c in cases)]
+    stems = [s for s in PLAN_SOURCES if any(s in c.by_source for c in cases)]
     n, G = len(cases), grid.size
     v = np.full((n, G), np.inf)
     a = np.zeros((n, len(stems), G))

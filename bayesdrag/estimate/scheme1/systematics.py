@@ -380,6 +380,7 @@ def _fit_with(prob, res, rnd, effects, ctx, start=None):
     """:func:`fit_with_sources` with the effects' context (and wind layers) settled; ``start``:
     the estimate of a fit with the same parameters (other wind layers) to start from."""
     from ...effects import effect_fn, extra_params, get_effect, static_model
+    from ...measure import gun_equivalent
     from ..model.problem import OutputErrorProblem
     from .winds import layer_free, wind_layer_priors
 
@@ -399,8 +400,10 @@ def _fit_with(prob, res, rnd, effects, ctx, start=None):
     theta0 = np.concatenate([res.theta, [e.start for e in eff_extras], [e[2] for e in extras]])
     if start is not None and len(start) == len(theta0):
         theta0 = np.asarray(start, float).copy()
-    eff_free = [layer_free(ctx.wind_layers, e.name, prob.channels) if e.name.startswith("wind_profile.") else True
-                for e in eff_extras]
+    seen = gun_equivalent(prob.channels)   # a radar's range, angles, range rate observe x, y, z, v
+    # no cross-range view (a range rate alone, a speed): the cross wind is held, as the diagnosis holds it
+    eff_free = [layer_free(ctx.wind_layers, e.name, seen) if e.name.startswith("wind_profile.")
+                else not (e.name == "wind.wy" and "y" not in seen) for e in eff_extras]
     free = np.concatenate([res.free, eff_free, np.ones(len(extras), bool)])
     names = [""] * n0 + [e.name for e in eff_extras] + [e[1].name for e in extras]
     walk = wind_layer_priors(names, free, rnd.systematics.wind_profile) if ctx.wind_layers is not None else ()
