@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -140,23 +141,16 @@ class WindProfile:
         """Wind (wx, wy) [m/s] at coordinates ``s`` [m] (height above sea level or downrange
         distance, by :attr:`axis`), shape ``s.shape + (2,)``."""
         s = np.asarray(s, dtype=float)
-        lv = np.asarray(self.levels)
         w = np.column_stack([self.wind_x, self.wind_y])
-        if lv.size == 1:
+        if len(self.levels) == 1:
             return np.broadcast_to(w[0], s.shape + (2,)).copy()
-        sc = np.clip(s, lv[0], lv[-1])
-        k = np.clip(np.searchsorted(lv, sc, side="right") - 1, 0, lv.size - 2)
-        span = lv[k + 1] - lv[k]
-        f = np.where(span > 0, (sc - lv[k]) / np.where(span > 0, span, 1.0), 0.0)
-        out = w[k] + f[..., None] * (w[k + 1] - w[k])
-        for v, hw, wl, sl, wr, sr in self._steps:
-            near = np.abs(sc - v) < hw
-            if np.any(near):
-                d = sc[near] - v
-                u = (d + hw) / (2.0 * hw)
-                g = (u * u * (3.0 - 2.0 * u))[:, None]
+        k, k1, f, near = _placement(self.levels, tuple(st[:2] for st in self._steps), s.shape, s.tobytes())
+        wk = np.take(w, k, axis=0)
+        out = wk + f[..., None] * (np.take(w, k1, axis=0) - wk)
+        for (v, hw, wl, sl, wr, sr), (at, d, g) in zip(self._steps, near):
+            if at is not None:
                 lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
-                out[near] = lo + g * (hi - lo)
+                out[at] = lo + g * (hi - lo)
         return out
 
     def at_scalar(self, s):
@@ -199,6 +193,39 @@ class WindProfile:
         if other.axis != self.axis:
             raise ValueError(f"cannot add a wind by {other.axis} to a wind by {self.axis}")
         return _sum_profiles(self, other)
+
+
+@lru_cache(maxsize=16)
+def _placement(levels, steps, shape, data):
+    """Where coordinates ``data`` (the bytes of a float array of ``shape``) fall among
+    ``levels``: the level below each and the one above, the fraction between them, and per
+    step ``(v, hw)`` the indices of the coordinates it smooths with their offset ``d`` and
+    smoothstep weight ``g`` (Nones when none).
+    It depends on the levels alone, not on the winds: the profiles of one fit share it
+    (memoised; every array read-only)."""
+    s = np.frombuffer(data, dtype=float).reshape(shape)
+    lv = np.asarray(levels)
+    sc = np.clip(s, lv[0], lv[-1])
+    k = np.clip(np.searchsorted(lv, sc, side="right") - 1, 0, lv.size - 2)
+    span = lv[k + 1] - lv[k]
+    f = np.where(span > 0, (sc - lv[k]) / np.where(span > 0, span, 1.0), 0.0)
+    near = []
+    for v, hw in steps:
+        mask = np.abs(sc - v) < hw
+        if not np.any(mask):
+            near.append((None, None, None))
+            continue
+        d = sc[mask] - v
+        u = (d + hw) / (2.0 * hw)
+        g = (u * u * (3.0 - 2.0 * u))[:, None]
+        at = np.nonzero(mask) if mask.ndim else mask       # a 0-d coordinate keeps its mask
+        for a in (at if mask.ndim else (at,)) + (d, g):
+            a.setflags(write=False)
+        near.append((at, d, g))
+    k1 = k + 1
+    for a in (k, k1, f):
+        a.setflags(write=False)
+    return k, k1, f, tuple(near)
 
 
 def _side_value(p, v, upper):
