@@ -7,6 +7,7 @@ its scipy reference and the 6-DOF fly it.
 """
 from __future__ import annotations
 
+import math
 from bisect import bisect_right
 from dataclasses import dataclass
 from functools import lru_cache
@@ -75,41 +76,42 @@ class WindProfile:
     def __post_init__(self):
         if self.axis not in WIND_AXES:
             raise ValueError(f"wind profile axis {self.axis!r} is not allowed; use one of {', '.join(WIND_AXES)}")
-        lv = _float_tuple("wind levels", self.levels)
-        wx = _float_tuple("wind_x", self.wind_x)
-        wy = _float_tuple("wind_y", self.wind_y)
+        lv, wx, wy = _checked_values(self.levels, self.wind_x, self.wind_y)
         if not (len(lv) == len(wx) == len(wy)) or not lv:
             raise ValueError(f"a wind profile needs one wind_x and wind_y per level; got {len(lv)} levels, "
                              f"{len(wx)} wind_x, {len(wy)} wind_y")
-        d = np.diff(lv)
-        if np.any(d < 0):
+        L = np.array(lv)
+        d = np.diff(L)
+        if (d < 0).any():
             i = int(np.argmax(d < 0)) + 1
             raise ValueError(f"wind level {lv[i]:g} m is below the previous level {lv[i - 1]:g} m; levels must "
                              f"be sorted by increasing {self.axis}")
         rep = np.flatnonzero(d == 0)
-        if rep.size and (rep[0] == 0 or rep[-1] == len(lv) - 2 or np.any(np.diff(rep) == 1)):
+        if rep.size and (rep[0] == 0 or rep[-1] == len(lv) - 2 or (np.diff(rep) == 1).any()):
             i = int(rep[0])
             raise ValueError(f"wind level {lv[i]:g} m repeats more than once or at an end; a level may repeat "
                              f"once inside the profile (a step in the wind)")
-        for name, w in (("wind_x", wx), ("wind_y", wy)):
-            wa = np.abs(np.array(w))
-            if np.any(wa > PROFILE_WIND_MAX):
-                i = int(np.argmax(wa > PROFILE_WIND_MAX))
-                raise ValueError(f"{name} = {w[i]:g} m/s at {self.axis} {lv[i]:g} m exceeds the plausible "
-                                 f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
+        w = np.column_stack([wx, wy])
+        if (np.abs(w) > PROFILE_WIND_MAX).any():
+            for j, (name, comp) in enumerate((("wind_x", wx), ("wind_y", wy))):
+                wa = np.abs(w[:, j])
+                if (wa > PROFILE_WIND_MAX).any():
+                    i = int(np.argmax(wa > PROFILE_WIND_MAX))
+                    raise ValueError(f"{name} = {comp[i]:g} m/s at {self.axis} {lv[i]:g} m exceeds the plausible "
+                                     f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
         object.__setattr__(self, "levels", lv)
         object.__setattr__(self, "wind_x", wx)
         object.__setattr__(self, "wind_y", wy)
-        # each step: (level, half width, left value, left slope, right value, right slope) per component
-        steps = []
-        w = np.column_stack([wx, wy])
-        for i in rep:
-            v = lv[i]
-            hw = min(0.5 * WIND_STEP_WIDTH, 0.5 * (v - lv[i - 1]), 0.5 * (lv[i + 2] - v))
-            left = (w[i] - w[i - 1]) / (v - lv[i - 1])
-            right = (w[i + 2] - w[i + 1]) / (lv[i + 2] - v)
-            steps.append((v, hw, w[i], left, w[i + 1], right))
-        object.__setattr__(self, "_steps", tuple(steps))
+        # each step: (level, half width, left value, left slope, right value, right slope) per
+        # component, all steps at once (a fit builds a profile per perturbed trajectory)
+        steps = ()
+        if rep.size:
+            v = L[rep]
+            hw = np.minimum(np.minimum(0.5 * WIND_STEP_WIDTH, 0.5 * (v - L[rep - 1])), 0.5 * (L[rep + 2] - v))
+            left = (w[rep] - w[rep - 1]) / (v - L[rep - 1])[:, None]
+            right = (w[rep + 2] - w[rep + 1]) / (L[rep + 2] - v)[:, None]
+            steps = tuple(zip(v.tolist(), hw.tolist(), w[rep], left, w[rep + 1], right))
+        object.__setattr__(self, "_steps", steps)
 
     @classmethod
     def layered(cls, axis, edges, wind_x, wind_y):
@@ -193,6 +195,18 @@ class WindProfile:
         if other.axis != self.axis:
             raise ValueError(f"cannot add a wind by {other.axis} to a wind by {self.axis}")
         return _sum_profiles(self, other)
+
+
+def _checked_values(levels, wind_x, wind_y):
+    """The three sequences as tuples of finite floats; a non-finite or non-numeric one raises
+    the ValueError of :func:`bayesdrag.validate.float_tuple` naming it."""
+    try:
+        out = tuple(tuple(np.asarray(v, dtype=float).reshape(-1).tolist()) for v in (levels, wind_x, wind_y))
+    except (TypeError, ValueError):
+        out = None
+    if out is None or not all(map(math.isfinite, out[0] + out[1] + out[2])):
+        out = (_float_tuple("wind levels", levels), _float_tuple("wind_x", wind_x), _float_tuple("wind_y", wind_y))
+    return out
 
 
 @lru_cache(maxsize=16)
