@@ -104,14 +104,16 @@ class WindProfile:
         object.__setattr__(self, "wind_y", wy)
         # each step: (level, half width, left value, left slope, right value, right slope) per
         # component, all steps at once (a fit builds a profile per perturbed trajectory)
-        steps = ()
+        steps, rows = (), (np.zeros((0, 2)),) * 4
         if rep.size:
             v = L[rep]
             hw = np.minimum(np.minimum(0.5 * WIND_STEP_WIDTH, 0.5 * (v - L[rep - 1])), 0.5 * (L[rep + 2] - v))
             left = (w[rep] - w[rep - 1]) / (v - L[rep - 1])[:, None]
             right = (w[rep + 2] - w[rep + 1]) / (L[rep + 2] - v)[:, None]
-            steps = tuple(zip(v.tolist(), hw.tolist(), w[rep], left, w[rep + 1], right))
+            rows = (w[rep], left, w[rep + 1], right)
+            steps = tuple(zip(v.tolist(), hw.tolist(), *rows))
         object.__setattr__(self, "_steps", steps)
+        object.__setattr__(self, "_step_rows", rows)      # the same as (S, 2) arrays
 
     @classmethod
     def layered(cls, axis, edges, wind_x, wind_y):
@@ -146,9 +148,16 @@ class WindProfile:
         w = np.column_stack([self.wind_x, self.wind_y])
         if len(self.levels) == 1:
             return np.broadcast_to(w[0], s.shape + (2,)).copy()
-        k, k1, f, near = _placement(self.levels, tuple(st[:2] for st in self._steps), s.shape, s.tobytes())
+        k, k1, f, near, joint = _placement(self.levels, tuple(st[:2] for st in self._steps), s.shape, s.tobytes())
         wk = np.take(w, k, axis=0)
         out = wk + f[..., None] * (np.take(w, k1, axis=0) - wk)
+        if joint is not None:           # every step's coordinates at once, each with its step's row
+            at, which, d, g = joint
+            if which.size:
+                wl, sl, wr, sr = (np.take(a, which, axis=0) for a in self._step_rows)
+                lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
+                out[at] = lo + g * (hi - lo)
+            return out
         for (v, hw, wl, sl, wr, sr), (at, d, g) in zip(self._steps, near):
             if at is not None:
                 lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
@@ -214,7 +223,8 @@ def _placement(levels, steps, shape, data):
     """Where coordinates ``data`` (the bytes of a float array of ``shape``) fall among
     ``levels``: the level below each and the one above, the fraction between them, and per
     step ``(v, hw)`` the indices of the coordinates it smooths with their offset ``d`` and
-    smoothstep weight ``g`` (Nones when none).
+    smoothstep weight ``g`` (Nones when none), and (for an array of coordinates) the same of
+    all steps joined, with each coordinate's step.
     It depends on the levels alone, not on the winds: the profiles of one fit share it
     (memoised; every array read-only)."""
     s = np.frombuffer(data, dtype=float).reshape(shape)
@@ -236,10 +246,20 @@ def _placement(levels, steps, shape, data):
         for a in (at if mask.ndim else (at,)) + (d, g):
             a.setflags(write=False)
         near.append((at, d, g))
+    joint = None
+    if s.ndim:          # the steps' coordinates joined (no coordinate is near two steps: hw <= half a layer)
+        hit = [(i, n) for i, n in enumerate(near) if n[0] is not None]
+        at = tuple(np.concatenate([n[0][j] for _, n in hit]) if hit else np.zeros(0, np.intp) for j in range(s.ndim))
+        which = np.concatenate([np.full(n[1].size, i) for i, n in hit]) if hit else np.zeros(0, np.intp)
+        d = np.concatenate([n[1] for _, n in hit]) if hit else np.zeros(0)
+        g = np.concatenate([n[2] for _, n in hit]) if hit else np.zeros((0, 1))
+        for a in at + (which, d, g):
+            a.setflags(write=False)
+        joint = (at, which, d, g)
     k1 = k + 1
     for a in (k, k1, f):
         a.setflags(write=False)
-    return k, k1, f, tuple(near)
+    return k, k1, f, tuple(near), joint
 
 
 def _side_value(p, v, upper):
