@@ -149,12 +149,12 @@ class WindProfile:
         if len(self.levels) == 1:
             return np.broadcast_to(w[0], s.shape + (2,)).copy()
         k, k1, f, near, joint = _placement(self.levels, tuple(st[:2] for st in self._steps), s.shape, s.tobytes())
-        wk = np.take(w, k, axis=0)
-        out = wk + f[..., None] * (np.take(w, k1, axis=0) - wk)
+        wk = w.take(k, axis=0)
+        out = wk + f[..., None] * (w.take(k1, axis=0) - wk)
         if joint is not None:           # every step's coordinates at once, each with its step's row
             at, which, d, g = joint
             if which.size:
-                wl, sl, wr, sr = (np.take(a, which, axis=0) for a in self._step_rows)
+                wl, sl, wr, sr = (a.take(which, axis=0) for a in self._step_rows)
                 lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
                 out[at] = lo + g * (hi - lo)
             return out
