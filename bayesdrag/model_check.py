@@ -4,7 +4,6 @@ fit where the noise is correlated or has gross outliers), what the Cd assumes of
 the reason and next step a not-clean answer's summary gives."""
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import replace
 
@@ -195,8 +194,7 @@ def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_lay
             if any(m != "white" for m in prob.noise_model.values()):
                 return None
         else:
-            prob, res = copy.copy(prob), plain.white_ml
-            prob.noise_model = {c: "white" for c in prob.channels}
+            prob, res = prob.replace(noise_model={c: "white" for c in prob.channels}), plain.white_ml
         noise, white_ml = {"requested": "white", "model": dict(prob.noise_model)}, None
     p2, res2, sources, fitted = fit_with_sources(prob, res, rnd, effects, wind_layers)
     if plain.base is not None:          # a penalised spline: its neighbours' correlations are by design
