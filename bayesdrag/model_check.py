@@ -196,11 +196,11 @@ def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_lay
         else:
             prob, res = prob.replace(noise_model={c: "white" for c in prob.channels}), plain.white_ml
         noise, white_ml = {"requested": "white", "model": dict(prob.noise_model)}, None
-    p2, res2, sources, fitted = fit_with_sources(prob, res, rnd, effects, wind_layers)
+    p2, res2, sources, fitted, placements = fit_with_sources(prob, res, rnd, effects, wind_layers)
     if plain.base is not None:          # a penalised spline: its neighbours' correlations are by design
         res2 = drop_coefficient_correlations(res2, prob.P)
     return replace(plain, ml=res2, problem=p2, noise=noise, white_ml=white_ml, sources=sources, effects=fitted,
-                   ml_without_effects=res if fitted else None)
+                   ml_without_effects=res if fitted else None, layer_placements=placements)
 
 
 #: how the noise checks are named in the problem line
