@@ -5,6 +5,7 @@ the reason and next step a not-clean answer's summary gives."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -18,14 +19,15 @@ __all__ = ["model_error", "note_model_error", "air", "why_not_clean", "level_shi
            "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
-def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True):
+def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None):
     """The model-error term of each row (:mod:`bayesdrag.estimate.cd.model_error`): the Cd shift
     of the material effects the diagnosis finds and the round does not declare (fitted), and of
     a robust fit where the noise is not white or has gross outliers. Sets each row's
     ``model_error_sd``; returns the record of ``ml.quality.model_error`` and the fit with the
     effects (a ``Scheme1Fit``, or None when none is found or it fails), which the default fit
     takes as its answer (:func:`bayesdrag.pipeline.fit`). ``diagnose_effects=False`` makes the
-    noise check only (the fit already carries the effects)."""
+    noise check only (the fit already carries the effects); ``plain`` is then the fit without
+    them that ``f1`` was made from, whose stages its check shares (:func:`_from_plain`)."""
     from .estimate.model.noise import noise_and_outliers
     from .estimate.scheme1.systematics import plan_effects
 
@@ -98,7 +100,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     elif f1.white_ml is not None:
         # a fit carrying effects started from a white fit without them: the check is the same
         # effects fitted with white noise (one more fit)
-        alt = _alt_rows(track, rnd, opts, chans, f1, grid, noise_model="white", **_same_effects(f1))
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, plain=plain, noise_model="white", **_same_effects(f1))
         if alt is not None:
             # its band's excess over the AR(1) fit's is kept too, not taken as the difference's
             # noise: near rho = 1 the AR(1) bound is too narrow (measured: a wind flight on
@@ -146,14 +148,17 @@ def _same_effects(f1):
     return kw
 
 
-def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
+def _alt_rows(track, rnd, opts, chans, f1, grid, plain=None, **change):
     """``(cd, band_sd, fit)`` on ``grid`` of the same fit with ``change`` (effects, likelihood);
-    None when it fails."""
+    None when it fails. ``plain``: the fit without effects ``f1`` was made from (default
+    ``f1``), whose stages the changed fit shares when :func:`_from_plain` can take them over."""
     kw = dict(drag=f1.drag_model.name, channels=chans, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
               nu=opts.ml_nu, noise_model=opts.noise_model, start=f1.start)   # the plain fit's start: no new search
     kw.update(change)
     try:
-        alt = fit_scheme1(track, rnd, **kw)
+        alt = _from_plain(plain if plain is not None else f1, rnd, opts, **change)
+        if alt is None:
+            alt = fit_scheme1(track, rnd, **kw)
     except (InputError, FitError):
         return None
     if not alt.ml.success:
@@ -162,6 +167,40 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, **change):
     model_error_floor(alt, ra)
     assess(alt, ra, track, rnd.radar.sigma)
     return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra]), alt
+
+
+def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_layers=None, **other):
+    """The Scheme 1 fit with ``with_effects`` (and ``noise_model="white"``) built on the stages
+    the plain fit ``plain`` already made, or None when they are not the changed fit's own.
+
+    :func:`~bayesdrag.estimate.scheme1.fit.fit_scheme1` with effects repeats the plain fit's
+    stages (start, curve, launch check, smoothing walk, noise model) unchanged and then adds
+    the effects to its last problem (stage C, :func:`~bayesdrag.estimate.scheme1.systematics.fit_with_sources`);
+    its white-noise form adds them to the white fit it started from. So the same numbers come
+    from stage C alone, unless the effects change an earlier stage (a radar clock the launch
+    check allows for, a wind profile fitted before the noise model), the plain fit carries
+    declared sources or effects, or the change is another likelihood."""
+    from .estimate.scheme1.smoothing import drop_coefficient_correlations
+    from .estimate.scheme1.systematics import fit_with_sources
+
+    effects = tuple(with_effects)
+    if (other or not effects or plain.effects or plain.sources or plain.problem.E or plain.rejected is not None
+            or opts.likelihood != "gaussian" or rnd.systematics.declared() or rnd.systematics.wind_profile is not None
+            or {"radar_time", "wind_profile"} & set(effects) or noise_model not in (None, "white")):
+        return None
+    prob, res, noise, white_ml = plain.problem, plain.ml, plain.noise, plain.white_ml
+    if noise_model == "white" and opts.noise_model != "white":
+        if plain.white_ml is None:      # the plain fit is white already when auto chose no AR(1)
+            if any(m != "white" for m in prob.noise_model.values()):
+                return None
+        else:
+            prob, res = prob.replace(noise_model={c: "white" for c in prob.channels}), plain.white_ml
+        noise, white_ml = {"requested": "white", "model": dict(prob.noise_model)}, None
+    p2, res2, sources, fitted, placements = fit_with_sources(prob, res, rnd, effects, wind_layers)
+    if plain.base is not None:          # a penalised spline: its neighbours' correlations are by design
+        res2 = drop_coefficient_correlations(res2, prob.P)
+    return replace(plain, ml=res2, problem=p2, noise=noise, white_ml=white_ml, sources=sources, effects=fitted,
+                   ml_without_effects=res if fitted else None, layer_placements=placements)
 
 
 #: how the noise checks are named in the problem line

@@ -131,7 +131,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         budget = _budget(f1, grid, rows)
         floored = model_error_floor(f1, rows)
         found = gap
-        gap, _ = model_error(track, rnd, opts, chans, f1, grid, rows, diagnose_effects=False)
+        gap, _ = model_error(track, rnd, opts, chans, f1, grid, rows, diagnose_effects=False, plain=plain)
         gap.update(verdict=found["verdict"], skipped=found["skipped"], conditional_air=found["conditional_air"],
                    effects_fitted=list(f1.effects))
         _effect_residual(rows, gap, residual_share(plain.ml, f1.ml, f1.problem.channels, rnd.radar.sigma))

@@ -7,8 +7,10 @@ its scipy reference and the 6-DOF fly it.
 """
 from __future__ import annotations
 
+import math
 from bisect import bisect_right
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -74,41 +76,44 @@ class WindProfile:
     def __post_init__(self):
         if self.axis not in WIND_AXES:
             raise ValueError(f"wind profile axis {self.axis!r} is not allowed; use one of {', '.join(WIND_AXES)}")
-        lv = _float_tuple("wind levels", self.levels)
-        wx = _float_tuple("wind_x", self.wind_x)
-        wy = _float_tuple("wind_y", self.wind_y)
+        lv, wx, wy = _checked_values(self.levels, self.wind_x, self.wind_y)
         if not (len(lv) == len(wx) == len(wy)) or not lv:
             raise ValueError(f"a wind profile needs one wind_x and wind_y per level; got {len(lv)} levels, "
                              f"{len(wx)} wind_x, {len(wy)} wind_y")
-        d = np.diff(lv)
-        if np.any(d < 0):
+        L = np.array(lv)
+        d = np.diff(L)
+        if (d < 0).any():
             i = int(np.argmax(d < 0)) + 1
             raise ValueError(f"wind level {lv[i]:g} m is below the previous level {lv[i - 1]:g} m; levels must "
                              f"be sorted by increasing {self.axis}")
         rep = np.flatnonzero(d == 0)
-        if rep.size and (rep[0] == 0 or rep[-1] == len(lv) - 2 or np.any(np.diff(rep) == 1)):
+        if rep.size and (rep[0] == 0 or rep[-1] == len(lv) - 2 or (np.diff(rep) == 1).any()):
             i = int(rep[0])
             raise ValueError(f"wind level {lv[i]:g} m repeats more than once or at an end; a level may repeat "
                              f"once inside the profile (a step in the wind)")
-        for name, w in (("wind_x", wx), ("wind_y", wy)):
-            wa = np.abs(np.array(w))
-            if np.any(wa > PROFILE_WIND_MAX):
-                i = int(np.argmax(wa > PROFILE_WIND_MAX))
-                raise ValueError(f"{name} = {w[i]:g} m/s at {self.axis} {lv[i]:g} m exceeds the plausible "
-                                 f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
+        w = np.column_stack([wx, wy])
+        if (np.abs(w) > PROFILE_WIND_MAX).any():
+            for j, (name, comp) in enumerate((("wind_x", wx), ("wind_y", wy))):
+                wa = np.abs(w[:, j])
+                if (wa > PROFILE_WIND_MAX).any():
+                    i = int(np.argmax(wa > PROFILE_WIND_MAX))
+                    raise ValueError(f"{name} = {comp[i]:g} m/s at {self.axis} {lv[i]:g} m exceeds the plausible "
+                                     f"{PROFILE_WIND_MAX:g} m/s (knots or km/h? the unit is m/s)")
         object.__setattr__(self, "levels", lv)
         object.__setattr__(self, "wind_x", wx)
         object.__setattr__(self, "wind_y", wy)
-        # each step: (level, half width, left value, left slope, right value, right slope) per component
-        steps = []
-        w = np.column_stack([wx, wy])
-        for i in rep:
-            v = lv[i]
-            hw = min(0.5 * WIND_STEP_WIDTH, 0.5 * (v - lv[i - 1]), 0.5 * (lv[i + 2] - v))
-            left = (w[i] - w[i - 1]) / (v - lv[i - 1])
-            right = (w[i + 2] - w[i + 1]) / (lv[i + 2] - v)
-            steps.append((v, hw, w[i], left, w[i + 1], right))
-        object.__setattr__(self, "_steps", tuple(steps))
+        # each step: (level, half width, left value, left slope, right value, right slope) per
+        # component, all steps at once (a fit builds a profile per perturbed trajectory)
+        steps, rows = (), (np.zeros((0, 2)),) * 4
+        if rep.size:
+            v = L[rep]
+            hw = np.minimum(np.minimum(0.5 * WIND_STEP_WIDTH, 0.5 * (v - L[rep - 1])), 0.5 * (L[rep + 2] - v))
+            left = (w[rep] - w[rep - 1]) / (v - L[rep - 1])[:, None]
+            right = (w[rep + 2] - w[rep + 1]) / (L[rep + 2] - v)[:, None]
+            rows = (w[rep], left, w[rep + 1], right)
+            steps = tuple(zip(v.tolist(), hw.tolist(), *rows))
+        object.__setattr__(self, "_steps", steps)
+        object.__setattr__(self, "_step_rows", rows)      # the same as (S, 2) arrays
 
     @classmethod
     def layered(cls, axis, edges, wind_x, wind_y):
@@ -140,23 +145,23 @@ class WindProfile:
         """Wind (wx, wy) [m/s] at coordinates ``s`` [m] (height above sea level or downrange
         distance, by :attr:`axis`), shape ``s.shape + (2,)``."""
         s = np.asarray(s, dtype=float)
-        lv = np.asarray(self.levels)
         w = np.column_stack([self.wind_x, self.wind_y])
-        if lv.size == 1:
+        if len(self.levels) == 1:
             return np.broadcast_to(w[0], s.shape + (2,)).copy()
-        sc = np.clip(s, lv[0], lv[-1])
-        k = np.clip(np.searchsorted(lv, sc, side="right") - 1, 0, lv.size - 2)
-        span = lv[k + 1] - lv[k]
-        f = np.where(span > 0, (sc - lv[k]) / np.where(span > 0, span, 1.0), 0.0)
-        out = w[k] + f[..., None] * (w[k + 1] - w[k])
-        for v, hw, wl, sl, wr, sr in self._steps:
-            near = np.abs(sc - v) < hw
-            if np.any(near):
-                d = sc[near] - v
-                u = (d + hw) / (2.0 * hw)
-                g = (u * u * (3.0 - 2.0 * u))[:, None]
+        k, k1, f, near, joint = _placement(self.levels, tuple(st[:2] for st in self._steps), s.shape, s.tobytes())
+        wk = w.take(k, axis=0)
+        out = wk + f[..., None] * (w.take(k1, axis=0) - wk)
+        if joint is not None:           # every step's coordinates at once, each with its step's row
+            at, which, d, g = joint
+            if which.size:
+                wl, sl, wr, sr = (a.take(which, axis=0) for a in self._step_rows)
                 lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
-                out[near] = lo + g * (hi - lo)
+                out[at] = lo + g * (hi - lo)
+            return out
+        for (v, hw, wl, sl, wr, sr), (at, d, g) in zip(self._steps, near):
+            if at is not None:
+                lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
+                out[at] = lo + g * (hi - lo)
         return out
 
     def at_scalar(self, s):
@@ -199,6 +204,62 @@ class WindProfile:
         if other.axis != self.axis:
             raise ValueError(f"cannot add a wind by {other.axis} to a wind by {self.axis}")
         return _sum_profiles(self, other)
+
+
+def _checked_values(levels, wind_x, wind_y):
+    """The three sequences as tuples of finite floats; a non-finite or non-numeric one raises
+    the ValueError of :func:`bayesdrag.validate.float_tuple` naming it."""
+    try:
+        out = tuple(tuple(np.asarray(v, dtype=float).reshape(-1).tolist()) for v in (levels, wind_x, wind_y))
+    except (TypeError, ValueError):
+        out = None
+    if out is None or not all(map(math.isfinite, out[0] + out[1] + out[2])):
+        out = (_float_tuple("wind levels", levels), _float_tuple("wind_x", wind_x), _float_tuple("wind_y", wind_y))
+    return out
+
+
+@lru_cache(maxsize=16)
+def _placement(levels, steps, shape, data):
+    """Where coordinates ``data`` (the bytes of a float array of ``shape``) fall among
+    ``levels``: the level below each and the one above, the fraction between them, and per
+    step ``(v, hw)`` the indices of the coordinates it smooths with their offset ``d`` and
+    smoothstep weight ``g`` (Nones when none), and (for an array of coordinates) the same of
+    all steps joined, with each coordinate's step.
+    It depends on the levels alone, not on the winds: the profiles of one fit share it
+    (memoised; every array read-only)."""
+    s = np.frombuffer(data, dtype=float).reshape(shape)
+    lv = np.asarray(levels)
+    sc = np.clip(s, lv[0], lv[-1])
+    k = np.clip(np.searchsorted(lv, sc, side="right") - 1, 0, lv.size - 2)
+    span = lv[k + 1] - lv[k]
+    f = np.where(span > 0, (sc - lv[k]) / np.where(span > 0, span, 1.0), 0.0)
+    near = []
+    for v, hw in steps:
+        mask = np.abs(sc - v) < hw
+        if not np.any(mask):
+            near.append((None, None, None))
+            continue
+        d = sc[mask] - v
+        u = (d + hw) / (2.0 * hw)
+        g = (u * u * (3.0 - 2.0 * u))[:, None]
+        at = np.nonzero(mask) if mask.ndim else mask       # a 0-d coordinate keeps its mask
+        for a in (at if mask.ndim else (at,)) + (d, g):
+            a.setflags(write=False)
+        near.append((at, d, g))
+    joint = None
+    if s.ndim:          # the steps' coordinates joined (no coordinate is near two steps: hw <= half a layer)
+        hit = [(i, n) for i, n in enumerate(near) if n[0] is not None]
+        at = tuple(np.concatenate([n[0][j] for _, n in hit]) if hit else np.zeros(0, np.intp) for j in range(s.ndim))
+        which = np.concatenate([np.full(n[1].size, i) for i, n in hit]) if hit else np.zeros(0, np.intp)
+        d = np.concatenate([n[1] for _, n in hit]) if hit else np.zeros(0)
+        g = np.concatenate([n[2] for _, n in hit]) if hit else np.zeros((0, 1))
+        for a in at + (which, d, g):
+            a.setflags(write=False)
+        joint = (at, which, d, g)
+    k1 = k + 1
+    for a in (k, k1, f):
+        a.setflags(write=False)
+    return k, k1, f, tuple(near), joint
 
 
 def _side_value(p, v, upper):

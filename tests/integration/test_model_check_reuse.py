@@ -1,0 +1,64 @@
+"""The model check's fits with the diagnosis's effects are built on the plain fit's stages
+(``bayesdrag.model_check._from_plain``) instead of repeating them: the same numbers as
+``fit_scheme1`` with the effects from the start, for the AR(1) fit and for its white-noise
+check; and no shortcut where the effects change an earlier stage.
+
+The flight is the honesty suite's point-mass track with a 5 m/s head wind the round does not
+declare (its residuals are correlated, so the default noise model takes AR(1) and keeps the
+white fit it started from)."""
+import numpy as np
+import pytest
+
+from acceptance import honesty_suite as hs
+from bayesdrag.estimate.scheme1.fit import fit_scheme1
+from bayesdrag.model_check import _from_plain
+from bayesdrag.options import FitOptions
+
+#: the same arithmetic in the same order: equal to rounding, relative [-]
+SAME_REL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def flight():
+    track, rnd, _ = hs.make(hs.case_by_id("pm-wind-155-01"))
+    opts = FitOptions(mcmc=False)
+    plain = fit_scheme1(track, rnd, noise_model=opts.noise_model)
+    return track, rnd, opts, plain
+
+
+def _assert_same_fit(built, full):
+    assert built.effects == full.effects
+    assert built.noise["model"] == full.noise["model"]
+    np.testing.assert_allclose(built.ml.theta, full.ml.theta, rtol=SAME_REL, atol=0)
+    np.testing.assert_allclose(built.ml.crb, full.ml.crb, rtol=SAME_REL, atol=0)
+    np.testing.assert_allclose(built.ml.cost, full.ml.cost, rtol=SAME_REL)
+    assert built.ml.success == full.ml.success
+    assert (built.white_ml is None) == (full.white_ml is None)
+
+
+def test_the_effects_on_the_plain_stages_are_the_fit_with_them(flight):
+    track, rnd, opts, plain = flight
+    assert plain.white_ml is not None, "the flight's AR(1) choice is the premise of the white check below"
+    built = _from_plain(plain, rnd, opts, with_effects=("wind",))
+    full = fit_scheme1(track, rnd, noise_model=opts.noise_model, with_effects=("wind",), start=plain.start)
+    assert built.effects == ("wind",)
+    _assert_same_fit(built, full)
+
+
+def test_the_white_check_adds_the_effects_to_the_white_fit(flight):
+    track, rnd, opts, plain = flight
+    built = _from_plain(plain, rnd, opts, with_effects=("wind",), noise_model="white")
+    full = fit_scheme1(track, rnd, noise_model="white", with_effects=("wind",), start=plain.start)
+    assert set(built.noise["model"].values()) == {"white"}
+    _assert_same_fit(built, full)
+    # the plain fit's own problem keeps its AR(1) noise model
+    assert "ar1" in plain.problem.noise_model.values()
+
+
+@pytest.mark.parametrize("change", [dict(with_effects=("radar_time",)), dict(with_effects=("wind_profile",)),
+                                    dict(with_effects=("wind",), likelihood="student-t"), dict(with_effects=())])
+def test_no_shortcut_where_the_effects_change_an_earlier_stage(flight, change):
+    _, rnd, opts, plain = flight
+    # a clock offset changes the launch check, a wind profile is fitted before the noise model,
+    # a Student-t fit reweights from the start: those fits are made whole
+    assert _from_plain(plain, rnd, opts, **change) is None
