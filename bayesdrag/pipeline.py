@@ -239,8 +239,7 @@ def _effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
     """Add ``share`` (at most :data:`EFFECT_RESIDUAL_SHARE`) of each row's correction (``ml``
     against ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
     res = [share * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
-    for r, e in zip(rows, res):
-        r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, e))
+    _add_model_error(rows, res)
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
     gap["effect_residual_share"] = float(f"{share:.4g}")
 
@@ -256,9 +255,15 @@ def _placement_error(f1, grid, rows):
     if not f1.layer_placements:
         return None
     sd = placement_sd(f1.drag_model, f1.layer_placements, grid)
+    _add_model_error(rows, sd)
+    return float(f"{float(np.max(sd)):.4g}")
+
+
+def _add_model_error(rows, sd):
+    """Add ``sd`` [Cd], one per row, to each row's ``model_error_sd`` in squares (independent
+    model errors)."""
     for r, v in zip(rows, sd):
         r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, v))
-    return float(f"{float(np.max(sd)):.4g}")
 
 
 def _trades_with_cd(f1, rnd):

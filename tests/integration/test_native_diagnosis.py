@@ -16,14 +16,10 @@ from bayesdrag.io.rounds import write_round
 from bayesdrag.io.tracks import write_track
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round
+from fixtures.judge import wrong_rows
 
 #: a found effect's size is within this many of its reported sd of the truth
 SIZE_SDS = 3.0
-#: a Cd row is right within this fraction of the truth (taken anywhere within TRUTH_MACH) ...
-CD_REL = 0.02
-TRUTH_MACH = 0.01
-#: ... or within this many of its band sd
-BAND_SDS = 3.0
 #: the undeclared effects: a constant headwind [m/s] and a late radar clock [s]
 HEADWIND = -6.0
 CLOCK = 0.04
@@ -111,15 +107,7 @@ def test_the_command_diagnoses_a_native_track(tmp_path, cases):
 
 
 def _wrong_determined(res, ref):
-    bad = []
-    for m, cd, sd, det in zip(res.cd.mach, res.cd.ml, res.cd.sd, res.cd.determined):
-        if not det:
-            continue
-        truth = ref.cd((), np.linspace(m - TRUTH_MACH, m + TRUTH_MACH, 21))
-        err = float(np.min(np.abs(cd - truth)))
-        if not (err <= CD_REL * float(np.min(truth)) or err <= BAND_SDS * sd):
-            bad.append((float(m), float(cd), float(np.mean(truth)), float(sd)))
-    return bad
+    return wrong_rows(res.cd, ref, res.cd.determined)
 
 
 @pytest.mark.slow

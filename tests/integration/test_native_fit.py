@@ -13,13 +13,8 @@ from bayesdrag.io.rounds import write_round
 from bayesdrag.io.tracks import write_track
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round
+from fixtures.judge import wrong_rows
 
-#: a row is right within this fraction of the truth ...
-CD_REL = 0.02
-#: ... taken anywhere within this many Mach of the row ...
-TRUTH_MACH = 0.01
-#: ... or within this many of its band sd
-BAND_SDS = 3.0
 #: margin of the flown Mach span left out at each end when judging rows [fraction of the span]
 SPAN_MARGIN = 0.05
 #: share of the flown Mach span a full tracking radar determines at least
@@ -33,18 +28,9 @@ TRACKING = {"range": 2.0, "azimuth": math.radians(0.03), "elevation": math.radia
 
 
 def _wrong_rows(res, ref, span):
-    tab = res.cd
     lo, hi = span
     margin = SPAN_MARGIN * (hi - lo)
-    bad = []
-    for m, cd, sd in zip(tab.mach, tab.ml, tab.sd):
-        if not lo + margin <= m <= hi - margin:
-            continue
-        truth = ref.cd((), np.linspace(m - TRUTH_MACH, m + TRUTH_MACH, 21))
-        err = float(np.min(np.abs(cd - truth)))
-        if not (err <= CD_REL * float(np.min(truth)) or err <= BAND_SDS * sd):
-            bad.append((float(m), float(cd), float(np.mean(truth)), float(sd)))
-    return bad
+    return wrong_rows(res.cd, ref, (res.cd.mach >= lo + margin) & (res.cd.mach <= hi - margin))
 
 
 def _flown_span(res):
