@@ -1,6 +1,6 @@
 """Run the native acceptance suite: radar-native tracks fitted with the default options, judged.
 
-    python tests/acceptance/run_native.py [--small] [--case ID ...] [--json OUT]
+    python tests/acceptance/run_native.py [--small | --holdout] [--case ID ...] [--json OUT]
 
 Each case is one flight (shell, launch, the radar's site and channels, noise, and an undeclared
 effect or none) simulated by the point mass and recorded in the radar's own coordinates
@@ -86,6 +86,26 @@ CASES = [
                seed=2811),
     NativeCase("dop-m81-qe45-behind-noisy", "m81", 300.0, 45.0, (-8.0, 1.0, 0.5), _rr(), noise=3.0, seed=2812),
 ]
+#: cases written after the suite's figures were settled, never tuned on (``--holdout``): a radar
+#: near the impact looking back, one on a hill to the side, Doppler radars beside and behind in
+#: high-angle fire, angles alone from 4 km to the side (it found the start curve read off such
+#: positions trading against the initial position: fixed by holding it, issue 28), a noisy
+#: mortar, a rifle bullet in flat fire, and a clock offset beside a wind
+HOLDOUT = [
+    NativeCase("ho-155-qe30-downrange-lookback", "155", 818.0, 30.0, (16000.0, 300.0, 20.0), seed=7001),
+    NativeCase("ho-155-qe55-hill-side", "155", 818.0, 55.0, (500.0, -1500.0, 150.0), wind=(3.0, -4.0), seed=7002),
+    NativeCase("ho-s105-qe20-dop-beside-clock", "s105", 600.0, 20.0, (0.0, 15.0, 1.0), _rr(), clock=0.03,
+               seed=7003),
+    NativeCase("ho-m81-qe65-dop-behind-wind", "m81", 300.0, 65.0, (-6.0, 2.0, 0.5), _rr(), wind=(5.0, 0.0),
+               seed=7004),
+    NativeCase("ho-155-qe40-ang-far-xwind", "155", 818.0, 40.0, (1000.0, 4000.0, 30.0), _angles(),
+               wind=(0.0, 7.0), seed=7005),
+    NativeCase("ho-m120-qe45-trk-behind-noisy-wind", "m120", 310.0, 45.0, (-20.0, -10.0, 1.0), noise=2.5,
+               wind=(-4.0, 3.0), seed=7006),
+    NativeCase("ho-b308-qe2-dop-behind", "b308", 850.0, 2.0, (-2.0, 0.5, 0.2), _rr(), seed=7007),
+    NativeCase("ho-s105-qe35-trk-beside-clock-wind", "s105", 600.0, 35.0, (0.0, 40.0, 2.0), clock=0.02,
+               wind=(-5.0, 2.0), seed=7008),
+]
 #: the quick subset (--small): one tracking radar and one Doppler radar with an effect, two clean
 SMALL = ("trk-155-qe45-behind", "trk-155-qe45-beside-clock", "dop-120-qe60-behind", "dop-120-qe60-behind-wind")
 #: the suite's shells beside the honesty suite's: a 120 mm mortar bomb on the M101 curve
@@ -93,10 +113,10 @@ SHELLS = {**hs.SHELLS, "m120": dict(mass=13.2, diameter=0.12, table="M101")}
 
 
 def case_by_id(cid):
-    for c in CASES:
+    for c in CASES + HOLDOUT:
         if c.id == cid:
             return c
-    raise KeyError(f"no native case {cid!r}; cases: {', '.join(c.id for c in CASES)}")
+    raise KeyError(f"no native case {cid!r}; cases: {', '.join(c.id for c in CASES + HOLDOUT)}")
 
 
 def make(case):
@@ -183,9 +203,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--small", action="store_true", help="the quick subset: " + ", ".join(SMALL))
     ap.add_argument("--case", nargs="*")
+    ap.add_argument("--holdout", action="store_true", help="the hold-out cases (HOLDOUT) instead of the suite's")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
-    cases = [case_by_id(c) for c in a.case] if a.case else [c for c in CASES if not a.small or c.id in SMALL]
+    cases = ([case_by_id(c) for c in a.case] if a.case else list(HOLDOUT) if a.holdout
+             else [c for c in CASES if not a.small or c.id in SMALL])
     print(f"{'case':30s} {'effect':16s} {'rows':>4s} {'right':>5s} {'det':>4s} {'WRONG':>5s} {'det %':>6s} "
           f"{'ok':>3s} {'s':>6s}  verdict / added  size (max |z|)")
     out = []

@@ -97,3 +97,29 @@ def test_angle_track_without_the_firing_azimuth_is_refused(tmp_path, tracking_ro
                  "--no-mcmc", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "[launch] azimuth is missing" in err[0]
+
+
+#: a tracking radar without range rate 4 km to the side of the line of fire: 2 m, 0.03 deg
+ANGLES = {c: TRACKING[c] for c in ("range", "azimuth", "elevation")}
+#: how far from the muzzle the fitted initial position may lie [m] (a few noise sd of the first
+#: samples' positions from 4 km: 0.03 deg is 2 m there)
+MUZZLE_TOL_M = 10.0
+
+
+def test_angles_from_far_to_the_side_start_from_the_table(m101):
+    """Positions alone from far away (no range rate): the start curve read off them twice
+    differentiated was off by a factor of 2, the initial position wandered 300 m off the muzzle
+    with it, and the fit never returned (0 % determined, a minute's work). The initial position
+    is now held while the shapes are compared, the firing table's is taken, and the fit is right."""
+    rnd = Round(Projectile("155 mm M101", 42.6, 0.155, m101, None), Launch(40.0, 818.0, azimuth_deg=90.0),
+                radar=Radar(dict(ANGLES), position=(1000.0, 4000.0, 30.0)), path="far.toml")
+    track = add_noise(simulate_round(rnd, channels=tuple(ANGLES), dt=0.05), ANGLES, np.random.default_rng(7005))
+    res = bayesdrag.fit(track, rnd, mcmc=False)
+    d = res.to_dict()
+    assert any("reference drag" in n for n in d["ml"]["quality"]["start"]["notes"])
+    x0 = np.array([d["ml"]["params"][k] for k in ("X0", "Y0", "Z0")])
+    assert np.linalg.norm(x0) < MUZZLE_TOL_M
+    span = _flown_span(res)
+    assert _wrong_rows(res, m101, span) == []
+    det = res.cd.mach[res.cd.determined]
+    assert det.size and (det[-1] - det[0]) >= MIN_DETERMINED_SHARE * (span[1] - span[0])

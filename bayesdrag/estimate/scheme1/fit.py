@@ -45,7 +45,7 @@ How a fit is set up and run (each choice with its reason):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -78,6 +78,10 @@ REJECT_K = 5.0
 #: the Mach span of the drag model extends the data's by this much at each end (the fitted
 #: trajectory may reach a little beyond the smoothed speed's extremes)
 SPAN_MARGIN = 0.02
+#: without a measured speed, another shape replaces the start curve read off the positions when
+#: its stage-A fit (initial state and one scale) costs less than this fraction of the other's: a
+#: clearly better start, never a coin toss between two fair ones (:func:`_better_start_shape`)
+REFERENCE_START_GAIN = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -285,7 +289,8 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         drag = smaller
     site = site_of(rnd, chans)
     seen = track.with_channels(chans) if set(chans) != set(track.names) else track
-    if start is None:
+    own_start = start is None           # a start passed in (a refit's) has its shape chosen already
+    if own_start:
         start = data_start(start_view(seen, rnd, site), rnd)
     check_gravity_units(start.kinematics, track.source)
     L = rnd.launch
@@ -312,19 +317,39 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
     say = progress if progress is not None else (lambda step: None)
     say("the initial state and one scale of the drag read off the track")
-    state, scale, span_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood,
-                                        launch_state_priors(L, 1, names=unseen) if unseen else (), site=site)
+    a_pri = launch_state_priors(L, 1, names=unseen) if unseen else ()
+    # no speed measured: positions alone (a radar's range and angles) start the fit, and a poor
+    # start curve lets the initial position wander; it is held at the track's own start until the
+    # whole curve has its shape (:func:`_better_start_shape`)
+    anchored = own_start and free_ic and "v" not in seen_as and any(c in seen_as for c in ("x", "y", "z"))
+    if anchored:
+        held = ic_free.copy()
+        held[:3] = False
+        start, shape, (state, scale, span_a, cost_a) = _better_start_shape(
+            start, rnd, lambda model: _stage_scale(model, track, s0, held, sig, chans, likelihood, a_pri, site=site),
+            base_model)
+    else:
+        shape = start.curve
+        state, scale, span_a, cost_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood, a_pri,
+                                                    site=site)
     span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
                                                    max(start.mach_span[1], span_a[1]))
     size = {}
     dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
     P = dm.n_params
     fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
-    prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * start.curve(m),
-                               state if free_ic else s0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig,
-                               chans, likelihood, fixed_pri, site)
+    free_b = free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span)
+    prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m),
+                               state if free_ic else s0, free_b, sig, chans, likelihood, fixed_pri, site)
     # stage B: the full curve without the checked launch priors, then check them against it
     say(f"the whole curve ({P} drag coefficients)")
+    if anchored:
+        held_b = free_b.copy()
+        held_b[ParameterLayout(P).position] = False
+        first = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m), state, held_b, sig,
+                               chans, likelihood, fixed_pri, site)[0].fit(fallback=True)
+        if np.all(np.isfinite(first.theta)):
+            prob = prob.replace(theta0=first.theta)
     res_b = prob.fit(fallback=True)
     if res_b.success or np.all(np.isfinite(res_b.theta)):
         prob = prob.replace(theta0=res_b.theta)
@@ -501,12 +526,58 @@ def _wider_span(dm, res, span):
     return min(span[0], lo), max(span[1], hi)
 
 
+def _better_start_shape(start, rnd, stage_a, base_model):
+    """Stage A of a track without a measured speed: the start curve's shape, and the initial
+    velocity and one scale with the initial position held at the track's own start.
+
+    Without a speed the start curve is the positions differentiated twice; from a radar's angles
+    at ranges of km (0.03 deg is 5 m at 10 km) its shape can be off by a factor of 2. Fitted
+    with the position free, the wrong shape is traded against the initial state (hundreds of
+    metres off the muzzle), from where the whole curve's fit does not return. So the position is
+    held, and the shapes are compared by that fit's cost: the curve read off the positions, the
+    round's reference drag and a flat Cd at the read curve's median (each scaled; one fit of 4
+    parameters each). Another shape is kept only when it costs less than
+    :data:`REFERENCE_START_GAIN` of the read curve's.
+
+    Parameters
+    ----------
+    start : DataStart
+    rnd : Round
+    stage_a : callable ``stage_a(model) -> tuple``
+        :func:`_stage_scale` with a model flying another drag (the position held).
+    base_model : PointMassModel
+        Flies the start curve (as a :class:`ReferenceScale`).
+
+    Returns
+    -------
+    (DataStart, callable, tuple)
+        The start (its notes saying which shape starts the curve; the curve read off the
+        positions stays the smoothing's base), the shape kept ``shape(mach) -> Cd`` and its
+        stage-A result.
+    """
+    fitted = stage_a(base_model)
+    shapes = []
+    if rnd.reference_drag is not None:
+        shapes.append(("the round's reference drag", np.asarray(rnd.reference_drag.value(start.mach), float)))
+    shapes.append(("a flat Cd at the read curve's median", np.full(start.cd.shape, float(np.median(start.cd)))))
+    best = (fitted[3], start, start.curve, fitted)
+    for what, cd in shapes:
+        table = ReferenceTable(tuple(start.mach), tuple(cd), source=what)
+        got = stage_a(base_model.with_(drag=ReferenceScale(table)))
+        if got[3] < REFERENCE_START_GAIN * fitted[3] and got[3] < best[0]:
+            note = (f"the whole curve's fit starts from {what}, scaled: it fitted the track better than the curve "
+                    f"read off the positions (no speed measured)")
+            best = (got[3], replace(start, notes=tuple(start.notes) + (note,)),
+                    lambda m, g=np.asarray(start.mach, float), c=cd: np.interp(np.asarray(m, float), g, c), got)
+    return best[1:]
+
+
 def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=(), site=None):
     """Fit the initial state and one scale factor of the start curve (7 parameters; ``model``'s
     drag is the start curve as a :class:`ReferenceScale`).
 
-    Returns the fitted state (6,), the scale and the Mach range of the fitted trajectory; on
-    failure the start's own state, 1 and None."""
+    Returns the fitted state (6,), the scale, the Mach range of the fitted trajectory and the
+    fit's cost; on failure the start's own state, 1, None and inf."""
     free = np.concatenate([[True], free_state])
     prob = OutputErrorProblem(model, track, np.concatenate([[1.0], s0]), free=free,
                               sigma={} if likelihood == "student-t" else sig, channels=chans,
@@ -514,12 +585,12 @@ def _stage_scale(model, track, s0, free_state, sig, chans, likelihood, priors=()
     try:
         res = prob.fit(max_iter=30)
     except FitError:
-        return s0, 1.0, None
+        return s0, 1.0, None, np.inf
     if not np.all(np.isfinite(res.theta)):
-        return s0, 1.0, None
+        return s0, 1.0, None, np.inf
     mach = res.mach[np.isfinite(res.mach)]
     span = (float(mach.min()), float(mach.max())) if mach.size else None
-    return res.theta[1:], float(res.theta[0]), span
+    return res.theta[1:], float(res.theta[0]), span, float(res.cost)
 
 
 def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERATIONS):
