@@ -282,6 +282,8 @@ def plan_effects(names, rnd):
     for n in names:
         if n in EFFECT_SOURCE and EFFECT_SOURCE[n] in declared:
             skipped[n] = f"its quantity is the declared {EFFECT_SOURCE[n]}_sd (one quantity, one parameter)"
+        elif n in RADAR_SOURCES and getattr(rnd.radar, RADAR_SOURCES[n][0]) is not None:
+            skipped[n] = f"its quantity is the declared [radar] {RADAR_SOURCES[n][0]} (one quantity, one parameter)"
         elif n in CONFOUNDED_EFFECTS:
             skipped[n] = ("confounded with the Cd level the fit estimates" if n != "drag_shape" else
                           "confounded with the Cd curve the fit estimates") + \
