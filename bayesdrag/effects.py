@@ -145,6 +145,9 @@ RADAR_EFFECT_CHANNELS = {"range_bias": ("range",), "azimuth_bias": ("azimuth",),
 RANGE_BIAS_MAX = 200.0
 ANGLE_BIAS_MAX = 0.05
 SITE_OFFSET_MAX = 500.0
+#: a coordinate of ``radar_position`` whose signature the nuisance parameters leave less of than
+#: this share is held at 0 (:func:`unabsorbed_fraction`; the diagnosis' identifiability share)
+SITE_SEEN_FRACTION = 0.02
 
 
 @dataclass(frozen=True)
@@ -381,6 +384,16 @@ def check_radar_effects(names, channels, where="track"):
             need = " or ".join(RADAR_EFFECT_CHANNELS[n])
             raise InputError(f"{where}: effect {n!r} acts on the radar's {need}, but {why}; drop it or fit a "
                              f"track that has the channel")
+
+
+def unabsorbed_fraction(nuisance, cols):
+    """Share of each column's norm (k,) that the span of ``nuisance`` (n, q) leaves: how much of an
+    effect parameter's signature (weighted output sensitivities, prior rows appended) is more than
+    the nuisance parameters can make (:data:`SITE_SEEN_FRACTION`)."""
+    Q, _ = np.linalg.qr(nuisance)
+    norms = np.linalg.norm(cols, axis=0)
+    left = np.linalg.norm(cols - Q @ (Q.T @ cols), axis=0)
+    return np.where(norms > 0, left / np.where(norms > 0, norms, 1.0), 0.0)
 
 
 def extra_params(effects):

@@ -87,7 +87,7 @@ def seen_axes(setup, base_theta):
     one, has no first-order view of a sideways shift."""
     from dataclasses import replace
 
-    from ..effects import EFFECTS
+    from ..effects import EFFECTS, unabsorbed_fraction
 
     full = replace(setup, ctx=replace(setup.ctx, radar_axes=("x", "y", "z")))
     sw = np.sqrt(setup.weights / np.array([setup.sigma[c] for c in setup.channels])[None, :] ** 2)
@@ -97,11 +97,7 @@ def seen_axes(setup, base_theta):
     _, pJ = prob.prior_terms(prob.theta0)
     if pJ.shape[0]:    # the launch priors as pseudo-measurements (as in signatures)
         A = np.vstack([A, pJ])
-    nuis, cols = A[:, :-3], A[:, -3:]
-    Qn, _ = np.linalg.qr(nuis)
-    norms = np.linalg.norm(cols, axis=0)
-    proj = np.linalg.norm(cols - Qn @ (Qn.T @ cols), axis=0)
-    frac = np.where(norms > 0, proj / np.where(norms > 0, norms, 1.0), 0.0)
+    frac = unabsorbed_fraction(A[:, :-3], A[:, -3:])
     return tuple(a for a, f in zip("xyz", frac) if f >= IDENTIFIABLE_FRACTION)
 
 
