@@ -84,7 +84,7 @@ Decisions (and why):
 * The radar's effects act on the measurement, not on the flight: they enter as the fields the
   declared radar sources use (``SimInputs.output_offset``, ``site_shift``), so an effect and a
   source of the same quantity are one model, and exist only where the track has a channel they
-  act on (:func:`radar_effect_missing`). Angle biases in rad, as ``result.json`` gives the
+  act on (:func:`bayesdrag.measure.geometry.site_error_missing`). Angle biases in rad, as ``result.json`` gives the
   declared ones; ``radar_position``'s coordinates the channels cannot see are held at 0
   (``EffectContext.radar_axes``: a range rate from a site on the line of fire sees no ``y``).
 * ``drag_scale`` may go further from 1 than ``density`` (bounds 0.2-5 against 0.5-1.6): a table
@@ -103,8 +103,8 @@ from .drag import DragModel, ReferenceTable, Spline
 from .dynamics import kernel as K
 from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from .effect_inputs import ExtraParam, SimInputs
-from .errors import InputError
-from .track import NATIVE_CHANNELS
+from .measure.geometry import SITE_ERRORS, check_site_errors as check_radar_effects, \
+    site_error_missing as radar_effect_missing
 from .wind_layers import WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_PROFILE_KEY, WIND_STEP_SD, WindLayers, \
     WindProfileModel, wind_profile_free
 
@@ -138,8 +138,7 @@ DRAG_SHAPE_BOUND = 1.0
 #: override key of drag_shape's coefficients (not a kernel column: read by DragShapeModel)
 DRAG_SHAPE_KEY = "drag_shape"
 #: the radar's effects and the channels each acts on (it exists only where the track has one)
-RADAR_EFFECT_CHANNELS = {"range_bias": ("range",), "azimuth_bias": ("azimuth",),
-                         "elevation_bias": ("elevation",), "radar_position": NATIVE_CHANNELS}
+RADAR_EFFECT_CHANNELS = SITE_ERRORS
 #: bounds of a fitted range bias [m] and angle bias [rad] (0.05 rad = 2.9 deg: a radar that far
 #: off its boresight is not tracking this shell) and site offset [m]
 RANGE_BIAS_MAX = 200.0
@@ -362,28 +361,6 @@ def get_effect(name):
         return EFFECTS[name]
     except KeyError:
         raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECTS)}") from None
-
-
-def radar_effect_missing(name, channels):
-    """Why the radar's effect ``name`` cannot act on a track with ``channels`` (str), or None when
-    it can (or ``name`` is not a radar effect): a range bias needs ``range``, an angle bias its
-    angle, the site any radar-native channel (:data:`RADAR_EFFECT_CHANNELS`)."""
-    need = RADAR_EFFECT_CHANNELS.get(name)
-    if need is None or any(c in channels for c in need):
-        return None
-    what = need[0] if len(need) == 1 else "radar-native (" + ", ".join(need) + ")"
-    return f"the track has no {what} channel (its channels: {', '.join(channels)})"
-
-
-def check_radar_effects(names, channels, where="track"):
-    """Raise :class:`InputError` when a radar effect among ``names`` (``--with``, the diagnosis'
-    candidates) has no channel among ``channels`` to act on; ``where`` names the track."""
-    for n in names:
-        why = radar_effect_missing(n, tuple(channels))
-        if why is not None:
-            need = " or ".join(RADAR_EFFECT_CHANNELS[n])
-            raise InputError(f"{where}: effect {n!r} acts on the radar's {need}, but {why}; drop it or fit a "
-                             f"track that has the channel")
 
 
 def unabsorbed_fraction(nuisance, cols):
