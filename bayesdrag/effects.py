@@ -84,9 +84,10 @@ Decisions (and why):
 * The radar's effects act on the measurement, not on the flight: they enter as the fields the
   declared radar sources use (``SimInputs.output_offset``, ``site_shift``), so an effect and a
   source of the same quantity are one model, and exist only where the track has a channel they
-  act on (:func:`bayesdrag.measure.geometry.site_error_missing`). Angle biases in rad, as ``result.json`` gives the
-  declared ones; ``radar_position``'s coordinates the channels cannot see are held at 0
-  (``EffectContext.radar_axes``: a range rate from a site on the line of fire sees no ``y``).
+  act on (:func:`bayesdrag.measure.geometry.site_error_missing`). Angle biases in rad, as
+  ``result.json`` gives the declared ones; ``radar_position``'s coordinates the channels cannot
+  see are held at 0 (``EffectContext.radar_axes``: a range rate from a site on the line of fire
+  sees no ``y``).
 * ``drag_scale`` may go further from 1 than ``density`` (bounds 0.2-5 against 0.5-1.6): a table
   off by a factor two is a table of another shell, not air that thin or thick, so with such a
   gap the two twins no longer tie and the drag is named.

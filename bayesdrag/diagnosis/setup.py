@@ -436,7 +436,8 @@ def held_params(setup, e):
         return {}
     if e.name == "radar_position":
         return {a: f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no shift "
-                   f"of the site along {a} apart from a shift of the flight" for a in "xyz" if a not in setup.ctx.radar_axes}
+                   f"of the site along {a} apart from a shift of the flight"
+                for a in "xyz" if a not in setup.ctx.radar_axes}
     held = [p.name for p in e.params if p.name.startswith("wy") and not extra_free(setup, f"{e.name}.{p.name}")
             and (e.name != "wind_profile" or wind_profile_free(setup.ctx, p.name))]
     why = f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no cross-range position"
