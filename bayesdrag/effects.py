@@ -33,6 +33,12 @@ radar_time     dt [s]                 the model is evaluated at ``t + dt`` (reco
 drag_scale     factor [-]             kernel column ``P_CD_SCALE``
 drag_shape     s1..s8 [-]             the firing table times a smooth correction without a
                                       level (:class:`ShapedTable`, :class:`DragShapeModel`)
+range_bias     bias [m]               added to the radar's measured range (``SimInputs.output_offset``)
+azimuth_bias   bias [rad]             added to its measured azimuth
+elevation_bias bias [rad]             added to its measured elevation
+radar_position x, y, z [m]            the radar stands this far from its stated site
+                                      (``SimInputs.site_shift``): every native channel is seen
+                                      from there
 =============  =====================  ========================================================
 
 Decisions (and why):
@@ -75,6 +81,13 @@ Decisions (and why):
   neighbours instead of wandering. The layers (axis and edges, :class:`WindLayers`) are the
   context's; their number is at most :data:`WIND_LAYERS_MAX` (unused ones held at 0). The wind
   adds to the round's own (a met profile's): it is what the round did not state.
+* The radar's effects act on the measurement, not on the flight: they enter as the fields the
+  declared radar sources use (``SimInputs.output_offset``, ``site_shift``), so an effect and a
+  source of the same quantity are one model, and exist only where the track has a channel they
+  act on (:func:`bayesdrag.measure.geometry.site_error_missing`). Angle biases in rad, as
+  ``result.json`` gives the declared ones; ``radar_position``'s coordinates the channels cannot
+  see are held at 0 (``EffectContext.radar_axes``: a range rate from a site on the line of fire
+  sees no ``y``).
 * ``drag_scale`` may go further from 1 than ``density`` (bounds 0.2-5 against 0.5-1.6): a table
   off by a factor two is a table of another shell, not air that thin or thick, so with such a
   gap the two twins no longer tie and the drag is named.
@@ -91,6 +104,8 @@ from .drag import DragModel, ReferenceTable, Spline
 from .dynamics import kernel as K
 from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
 from .effect_inputs import ExtraParam, SimInputs
+from .measure.geometry import SITE_ERRORS, check_site_errors as check_radar_effects, \
+    site_error_missing as radar_effect_missing
 from .wind_layers import WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_PROFILE_KEY, WIND_STEP_SD, WindLayers, \
     WindProfileModel, wind_profile_free
 
@@ -123,6 +138,16 @@ DRAG_SHAPE_RISE_WEIGHT = 1.0
 DRAG_SHAPE_BOUND = 1.0
 #: override key of drag_shape's coefficients (not a kernel column: read by DragShapeModel)
 DRAG_SHAPE_KEY = "drag_shape"
+#: the radar's effects and the channels each acts on (it exists only where the track has one)
+RADAR_EFFECT_CHANNELS = SITE_ERRORS
+#: bounds of a fitted range bias [m] and angle bias [rad] (0.05 rad = 2.9 deg: a radar that far
+#: off its boresight is not tracking this shell) and site offset [m]
+RANGE_BIAS_MAX = 200.0
+ANGLE_BIAS_MAX = 0.05
+SITE_OFFSET_MAX = 500.0
+#: a coordinate of ``radar_position`` whose signature the nuisance parameters leave less of than
+#: this share is held at 0 (:func:`unabsorbed_fraction`; the diagnosis' identifiability share)
+SITE_SEEN_FRACTION = 0.02
 
 
 @dataclass(frozen=True)
@@ -150,6 +175,8 @@ class EffectContext:
     v0: float | None = None
     drag_shape: object = None
     wind_layers: object = None
+    #: the coordinates of ``radar_position`` the track's channels see (the others held at 0)
+    radar_axes: tuple = ("x", "y", "z")
 
 
 @dataclass(frozen=True)
@@ -194,7 +221,8 @@ class Effect:
         Returns
         -------
         dict with optional keys ``overrides`` (column -> (B,)), ``atmospheres`` (list of B
-        Atmosphere), ``time_shift`` ((B,) s).
+        Atmosphere), ``time_shift`` ((B,) s), ``output_offset`` (channel -> (B,): a radar's
+        bias), ``site_shift`` ((B, 3) m: where the radar stands against its stated site).
         """
         values = np.atleast_2d(values)
         B = values.shape[0]
@@ -212,6 +240,10 @@ class Effect:
             return {"atmospheres": [_shifted_atmosphere(a, float(d)) for d in values[:, 0]]}
         if n == "radar_time":
             return {"time_shift": values[:, 0].copy()}
+        if n in ("range_bias", "azimuth_bias", "elevation_bias"):
+            return {"output_offset": {RADAR_EFFECT_CHANNELS[n][0]: values[:, 0].copy()}}
+        if n == "radar_position":
+            return {"site_shift": values[:, :3].copy()}
         if n == "lift":
             v0 = ctx.v0 if ctx.v0 is not None else (
                 np.linalg.norm(np.asarray(state0)[:, 3:], axis=1) if state0 is not None else 800.0)
@@ -302,6 +334,20 @@ def _make_effects():
                "The firing table has the wrong shape for this shell (a table of another shell: its "
                "drag rise earlier, later, higher or lower): the table times a smooth correction in "
                "Mach that carries no overall level (the level is drag_scale)."),
+        Effect("range_bias", (ExtraParam("bias", 0.0, -RANGE_BIAS_MAX, RANGE_BIAS_MAX, 0.01),), ("m",),
+               "The radar's range is off by a constant (a calibration or cable delay): every range it "
+               "records is the true one plus the bias."),
+        Effect("azimuth_bias", (ExtraParam("bias", 0.0, -ANGLE_BIAS_MAX, ANGLE_BIAS_MAX, 1e-6),), ("rad",),
+               "The radar's azimuth is off by a constant (its north alignment or encoder): the shell "
+               "appears turned sideways by the bias, more metres the further it flies."),
+        Effect("elevation_bias", (ExtraParam("bias", 0.0, -ANGLE_BIAS_MAX, ANGLE_BIAS_MAX, 1e-6),), ("rad",),
+               "The radar's elevation is off by a constant (levelling or boresight): the shell appears "
+               "higher or lower by the bias, more metres the further it flies."),
+        Effect("radar_position", tuple(ExtraParam(c, 0.0, -SITE_OFFSET_MAX, SITE_OFFSET_MAX, 0.01) for c in "xyz"),
+               ("m", "m", "m"),
+               "The radar stands elsewhere than the round says (x downrange, y right, z up of its "
+               "stated site): its range, angles and range rate are seen from another place, which "
+               "the track shows as a start away from the muzzle and lines of sight that turn wrongly."),
     ]
     return {e.name: e for e in E}
 
@@ -316,6 +362,16 @@ def get_effect(name):
         return EFFECTS[name]
     except KeyError:
         raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECTS)}") from None
+
+
+def unabsorbed_fraction(nuisance, cols):
+    """Share of each column's norm (k,) that the span of ``nuisance`` (n, q) leaves: how much of an
+    effect parameter's signature (weighted output sensitivities, prior rows appended) is more than
+    the nuisance parameters can make (:data:`SITE_SEEN_FRACTION`)."""
+    Q, _ = np.linalg.qr(nuisance)
+    norms = np.linalg.norm(cols, axis=0)
+    left = np.linalg.norm(cols - Q @ (Q.T @ cols), axis=0)
+    return np.where(norms > 0, left / np.where(norms > 0, norms, 1.0), 0.0)
 
 
 def extra_params(effects):
@@ -345,7 +401,7 @@ def effect_fn(effects, ctx, base_state0=None):
     def fn(E):
         E = np.atleast_2d(E)
         B = E.shape[0]
-        ov, atm, shift = {}, None, None
+        ov, atm, shift, offset, site = {}, None, None, {}, None
         j = 0
         for e in effects:
             s0 = None if base_state0 is None else np.tile(base_state0, (B, 1))
@@ -359,7 +415,11 @@ def effect_fn(effects, ctx, base_state0=None):
                 atm = out["atmospheres"]
             if "time_shift" in out:
                 shift = out["time_shift"]
-        return SimInputs(ov, atm, shift)
+            for c, v in out.get("output_offset", {}).items():
+                offset[c] = np.asarray(v, float) + offset.get(c, 0.0)
+            if "site_shift" in out:
+                site = out["site_shift"] if site is None else site + out["site_shift"]
+        return SimInputs(ov, atm, shift, output_offset=offset, site_shift=site)
 
     return fn
 

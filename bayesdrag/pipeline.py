@@ -304,6 +304,7 @@ def _with_effects(track, rnd, opts, log):
     Returns ``(names, record, layers)``; ``record`` (``requested``, ``skipped``) is None without
     ``--with``; ``layers`` the axis of the diagnosis's ``wind_profile`` when ``auto`` names it
     (else None: the fit tries both)."""
+    from .effects import check_radar_effects
     from .estimate.scheme1.systematics import plan_effects
 
     req = opts.with_effects
@@ -321,6 +322,7 @@ def _with_effects(track, rnd, opts, log):
             log(f"--with auto: the diagnosis names {', '.join(names) if names else 'no material effect'}")
     else:
         names = list(req)
+        check_radar_effects(names, opts.channels or track.names, track.source or "track")
     keep, skipped = plan_effects(names, rnd)
     return keep, {"added_by": "user", "requested": req if req == "auto" else list(req), "candidates": names,
                   "skipped": skipped, "reason": "asked for with --with " + (req if req == "auto" else ",".join(req))}, \
@@ -387,7 +389,7 @@ def _budget(f1, grid, rows):
     out = budget_rows(b, grid)
     declared = {s[0] for s in f1.sources}
     out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared] + \
-        radar_conditional(f1.problem.channels, declared)    # a radar's own sources: its native channels only
+        radar_conditional(f1.problem.channels, declared | set(f1.effects))   # a radar's own: its native channels
     if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
     return out

@@ -13,10 +13,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..effects import EFFECTS
+from ..effects import EFFECTS, radar_effect_missing
 from ..errors import FitError
+from ..track import NATIVE_CHANNELS
 from .setup import (drag_shape_for, fit_effects, k_free, n_weighted, noise_floor, report_params)
-from .signatures import IDENTIFIABLE_FRACTION, signatures
+from .signatures import IDENTIFIABLE_FRACTION, seen_axes, signatures
 from .winds import WIND_FAMILY, fit_wind_profile, layers_for, log_evidence, occam
 from .statistics import autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation, threshold
 
@@ -51,6 +52,13 @@ def screen_candidates(setup, candidates, base_theta, span, y_base=None):
     """
     names = list(candidates) if candidates is not None else list(EFFECTS)
     skipped = {}
+    native = any(c in NATIVE_CHANNELS for c in setup.channels)
+    for n in [n for n in names if radar_effect_missing(n, setup.channels)]:
+        # a radar's bias or site acts on its own channels only: an x, y, z, v track has none (not
+        # a candidate at all), a native one may lack the channel (said)
+        names.remove(n)
+        if native:
+            skipped[n] = radar_effect_missing(n, setup.channels) + ": nothing it acts on"
     if setup.ctx.latitude_deg is None and "coriolis" in names:
         skipped["coriolis"] = "the round gives no [launch] latitude: Earth rotation cannot be formed"
     if not setup.launch_known and "radar_time" in names:
@@ -70,6 +78,11 @@ def screen_candidates(setup, candidates, base_theta, span, y_base=None):
             skipped["wind_profile"] = "the track gives no height or downrange span to lay wind layers over"
         else:
             setup.ctx = replace(setup.ctx, wind_layers=lay)
+    if "radar_position" in names:   # the site's coordinates the channels see; the others held at 0
+        setup.ctx = replace(setup.ctx, radar_axes=seen_axes(setup, base_theta))
+        if not setup.ctx.radar_axes:
+            skipped["radar_position"] = ("not identifiable from this track (absorbed by the initial state: the "
+                                         "channels see no shift of the site apart from a shift of the flight)")
     effs = [EFFECTS[n] for n in names if n not in skipped]
     sigs = signatures(setup, base_theta, effs)
     for e in list(effs):

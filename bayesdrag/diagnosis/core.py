@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._threads import single_blas
-from ..effects import EFFECTS
+from ..effects import EFFECTS, check_radar_effects, radar_effect_missing
 from ..errors import FitError
 from ..track import NATIVE_CHANNELS
 from ..estimate.model.layout import ParameterLayout
@@ -115,7 +115,8 @@ def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec,
     names, nfit, subs = drag
     rnd = setup.rnd
     no_table = replace(rnd, projectile=replace(rnd.projectile, reference_drag=None))
-    sub = diagnose(setup.track, no_table, candidates=[n for n in EFFECTS if n not in DRAG_EFFECTS],
+    sub = diagnose(setup.track, no_table, candidates=[n for n in EFFECTS if n not in DRAG_EFFECTS
+                                                      and radar_effect_missing(n, setup.channels) is None],
                    sigma=dict(setup.sigma), channels=setup.channels, alpha=alpha, **opts)
     return names, nfit, subs, sub.summary
 
@@ -353,11 +354,16 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         The nominal simulation does not reach the track's times, or (without a reference drag)
         the Scheme 1 fit behind the nuisance Cd failed.
     InputError
-        The track has the radar's angles and the round gives no ``[launch] azimuth``.
+        The track has the radar's angles and the round gives no ``[launch] azimuth``, or a
+        radar effect among ``candidates`` has no channel to act on (``range_bias`` without
+        ``range``, an angle bias without its angle, ``radar_position`` without a native channel).
     """
     if not (material_cd_shift >= 0 and material_end_sd >= 0):
         raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
                          f"material_end_sd={material_end_sd!r}")
+    if candidates is not None:    # a radar's bias asked of a track without its channel
+        check_radar_effects(candidates, tuple(channels) if channels is not None else track.names,
+                            track.source or "track")
     setup = make_setup(track, rnd, sigma=sigma, channels=channels)
     chans = setup.channels
     sig_vec = np.array([setup.sigma[c] for c in chans])

@@ -403,6 +403,8 @@ def extra_free(setup, name):
         return drag_shape_free(setup.ctx, int(name.rsplit("s", 1)[1]) - 1)
     if name.startswith("wind_profile."):
         return layer_free(setup.ctx.wind_layers, name, setup.seen_as)
+    if name.startswith("radar_position."):
+        return name.rsplit(".", 1)[1] in setup.ctx.radar_axes
     return not (name == "wind.wy" and "y" not in setup.seen_as)
 
 
@@ -432,6 +434,10 @@ def held_params(setup, e):
     (whose reports keep the held value with a note)."""
     if not any(c in NATIVE_CHANNELS for c in setup.channels):
         return {}
+    if e.name == "radar_position":
+        return {a: f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no shift "
+                   f"of the site along {a} apart from a shift of the flight"
+                for a in "xyz" if a not in setup.ctx.radar_axes}
     held = [p.name for p in e.params if p.name.startswith("wy") and not extra_free(setup, f"{e.name}.{p.name}")
             and (e.name != "wind_profile" or wind_profile_free(setup.ctx, p.name))]
     why = f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no cross-range position"

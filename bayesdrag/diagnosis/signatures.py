@@ -16,7 +16,7 @@ from scipy.stats import chi2 as _chi2
 
 from .setup import effect_problem, k_free
 
-__all__ = ["signatures", "canonical_corr", "mark_confounded"]
+__all__ = ["signatures", "canonical_corr", "mark_confounded", "seen_axes"]
 
 #: canonical correlation of two effects' signatures above which the data cannot separate them
 CONFOUND_CORR = 0.995
@@ -77,6 +77,28 @@ def signatures(setup, base_theta, effects):
         Q, _ = np.linalg.qr(proj[:, pn > 1e-12 * pn.max()])
         out[e.name] = (Q, frac)
     return out
+
+
+def seen_axes(setup, base_theta):
+    """The coordinates of ``radar_position`` (``x``, ``y``, ``z``) whose signature the nuisance
+    parameters leave at least :data:`IDENTIFIABLE_FRACTION` of, each alone: a shift of the site
+    along them is more than a shift of the flight (its start against the launch priors, the
+    lines of sight as the flight goes on). A range rate from a site on the line of fire, for
+    one, has no first-order view of a sideways shift."""
+    from dataclasses import replace
+
+    from ..effects import EFFECTS, unabsorbed_fraction
+
+    full = replace(setup, ctx=replace(setup.ctx, radar_axes=("x", "y", "z")))
+    sw = np.sqrt(setup.weights / np.array([setup.sigma[c] for c in setup.channels])[None, :] ** 2)
+    prob = effect_problem(full, [EFFECTS["radar_position"]], base_theta)
+    _, _, S = prob.sensitivities(prob.theta0)
+    A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
+    _, pJ = prob.prior_terms(prob.theta0)
+    if pJ.shape[0]:    # the launch priors as pseudo-measurements (as in signatures)
+        A = np.vstack([A, pJ])
+    frac = unabsorbed_fraction(A[:, :-3], A[:, -3:])
+    return tuple(a for a, f in zip("xyz", frac) if f >= IDENTIFIABLE_FRACTION)
 
 
 def canonical_corr(Qa, Qb):

@@ -31,7 +31,8 @@ from ..errors import InputError
 from ..track import ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 
 __all__ = ["RadarSite", "site_of", "chronograph_factor", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
-           "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS"]
+           "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS", "SITE_ERRORS",
+           "site_error_missing", "check_site_errors"]
 
 #: mean Earth radius [m], for the curvature figure x^2 / (2 Re) of the docs
 EARTH_RADIUS = 6_371_000.0
@@ -80,6 +81,32 @@ class RadarSite:
             if not (math.isfinite(d) and d >= 0.0):
                 raise ValueError(f"radar device_offset must be a finite distance >= 0 [m], got {d}")
             object.__setattr__(self, "device_offset", d or None)
+
+
+#: the radar's errors (the site's biases and its place) and the channels each moves: a range bias
+#: its range, an angle bias its angle, the place every native channel
+SITE_ERRORS = {"range_bias": ("range",), "azimuth_bias": ("azimuth",), "elevation_bias": ("elevation",),
+               "radar_position": NATIVE_CHANNELS}
+
+
+def site_error_missing(name, channels):
+    """Why the radar's error ``name`` (:data:`SITE_ERRORS`) moves none of ``channels`` (str), or
+    None when it moves one (or ``name`` is not one of the radar's errors)."""
+    need = SITE_ERRORS.get(name)
+    if need is None or any(c in channels for c in need):
+        return None
+    what = need[0] if len(need) == 1 else "radar-native (" + ", ".join(need) + ")"
+    return f"the track has no {what} channel (its channels: {', '.join(channels)})"
+
+
+def check_site_errors(names, channels, where="track"):
+    """Raise :class:`InputError` when one of the radar's errors among ``names`` (effects asked
+    for) moves none of ``channels``; ``where`` names the track."""
+    for n in names:
+        why = site_error_missing(n, tuple(channels))
+        if why is not None:
+            raise InputError(f"{where}: effect {n!r} acts on the radar's {' or '.join(SITE_ERRORS[n])}, but {why}; "
+                             f"drop it or fit a track that has the channel")
 
 
 #: the device's cosine correction is held at this factor where the range nears its offset (a

@@ -282,6 +282,8 @@ def plan_effects(names, rnd):
     for n in names:
         if n in EFFECT_SOURCE and EFFECT_SOURCE[n] in declared:
             skipped[n] = f"its quantity is the declared {EFFECT_SOURCE[n]}_sd (one quantity, one parameter)"
+        elif n in RADAR_SOURCES and getattr(rnd.radar, RADAR_SOURCES[n][0]) is not None:
+            skipped[n] = f"its quantity is the declared [radar] {RADAR_SOURCES[n][0]} (one quantity, one parameter)"
         elif n in CONFOUNDED_EFFECTS:
             skipped[n] = ("confounded with the Cd level the fit estimates" if n != "drag_shape" else
                           "confounded with the Cd curve the fit estimates") + \
@@ -408,13 +410,35 @@ def _fit_with(prob, res, rnd, effects, ctx, start=None):
     names = [""] * n0 + [e.name for e in eff_extras] + [e[1].name for e in extras]
     walk = wind_layer_priors(names, free, rnd.systematics.wind_profile) if ctx.wind_layers is not None else ()
     fn = source_fn(extras, rnd, model, inner=inner_fn, n_inner=n_inner)
-    p2 = OutputErrorProblem(model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
-                            priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)) + walk,
-                            channels=prob.channels,
-                            extras=tuple(eff_extras) + tuple(e[1] for e in extras),
-                            effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model,
-                            site=prob.site, noise_scale=prob.noise_scale)
+
+    def build(free):
+        return OutputErrorProblem(model, prob.track, theta0, free=free, sigma=prob.sigma_fixed,
+                                  priors=tuple(prob.priors) + source_priors(extras, n0 + len(eff_extras)) + walk,
+                                  channels=prob.channels,
+                                  extras=tuple(eff_extras) + tuple(e[1] for e in extras),
+                                  effect_fn=fn, t_ic=prob.t_ic, weights=prob.weights, noise_model=prob.noise_model,
+                                  site=prob.site, noise_scale=prob.noise_scale)
+    p2 = build(free)
+    if any(n.startswith("radar_position.") for n in names[n0:n0 + n_inner]):
+        p2 = build(_hold_unseen_site(p2, res, free, names, n0 + n_inner))
     res2 = p2.fit(fallback=True)
     if not res2.success:
         return prob, res, (), ()
     return p2, res2, extras, tuple(e.name for e in effs)
+
+
+def _hold_unseen_site(p2, res, free, names, stop):
+    """Free flags with the ``radar_position`` effect's coordinates (before index ``stop``) that the
+    channels see no more of than a shift of the flight held at 0 (a range rate from a site on
+    the line of fire has no first-order view of a sideways shift: the fit would be singular)."""
+    from ...effects import SITE_SEEN_FRACTION, unabsorbed_fraction
+
+    _, _, S = p2.sensitivities(p2.theta0)
+    A = p2.weighted(S, res.sigma).reshape(-1, S.shape[-1])
+    _, pJ = p2.prior_terms(p2.theta0)
+    A = np.vstack([A, pJ]) if pJ.shape[0] else A
+    fidx = np.flatnonzero(free)
+    site = [k for k, j in enumerate(fidx) if j < stop and names[j].startswith("radar_position.")]
+    out = np.array(free, bool, copy=True)
+    out[fidx[site]] = unabsorbed_fraction(np.delete(A, site, axis=1), A[:, site]) >= SITE_SEEN_FRACTION
+    return out
