@@ -55,8 +55,14 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     keep, skipped = plan_effects(verdict, rnd)
     rec["verdict"], rec["skipped"] = verdict, skipped
     rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density")]
+    carried = tuple(f1.effects) if diagnose_effects else ()
+    if carried:
+        # the effects the user named are fitted already: no model error of this fit, and no advice
+        # to add them; the check's fit carries them beside what the diagnosis adds
+        rec["effects_fitted"] = list(carried)
+        keep = tuple(n for n in keep if n not in carried)
     if keep:
-        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=keep)
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep))
         if alt is not None:
             parts["effects"] = shift_sd(ml, band, alt[0], alt[1])
             effects_fit = alt[2]

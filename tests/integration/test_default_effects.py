@@ -106,3 +106,18 @@ def test_with_none_and_default_are_options_and_scheme2_refuses_named_effects():
         FitOptions(with_effects="wind", scheme=2)
     with pytest.raises(bayesdrag.InputError, match="use default, none, auto or effects among"):
         FitOptions(with_effects="windd")
+
+
+def test_an_effect_the_user_names_is_not_reported_as_missing():
+    """``--with wind`` on a track with an undeclared wind: the model check's diagnosis of the
+    plain track names the wind, which the fit already carries. Before, the fit said "NOT a clean
+    answer ... `--with wind` fits the cause" with a 0 % shift; the check now leaves the carried
+    effect out of its model error and its advice."""
+    track, rnd, truth = hs.make(hs.case_by_id("pm-wind-155-01"))
+    res = bayesdrag.fit(track, rnd, mcmc=False, with_effects=("wind",))
+    q = res.to_dict()["ml"]["quality"]
+    assert q["model_error"]["effects_fitted"] == ["wind"]
+    assert "wind" not in q["model_error"]["effects"]
+    assert not any("--with wind" in p for p in q["problems"]), q["problems"]
+    assert q["ok"], q["problems"]
+    assert hs.judge(res.to_dict(), truth)["determined_wrong"] == 0
