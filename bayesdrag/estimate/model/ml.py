@@ -310,9 +310,10 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         new_cost = problem.cost(resid, sigma, theta, ar)
         history.append(new_cost)
         try:
-            # a near-singular information gives negative round-off variances: no step test there
+            # a near-singular information gives negative round-off variances: NaN, so the step
+            # test fails there as it did, without numpy's warning on the user's console
             var = np.diag(np.linalg.inv(M))
-            sd = np.where(var > 0, np.sqrt(np.abs(var)), np.inf)
+            sd = np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
         except np.linalg.LinAlgError:
             sd = np.full(idx.size, np.inf)
         small_step = np.all(np.abs(dtheta) < tol_step * sd)
