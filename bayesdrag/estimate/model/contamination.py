@@ -68,7 +68,7 @@ DOWN_WEIGHTED = 0.5
 #: fewer samples than this in a channel: no test (too few to tell a tail from the core)
 MIN_SAMPLES = 40
 #: EM iterations of the one-dimensional mixture and its relative log-likelihood tolerance
-EM_ITERATIONS, EM_TOL = 300, 1e-10
+EM_ITERATIONS, EM_TOL = 200, 1e-7
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
