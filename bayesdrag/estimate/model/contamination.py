@@ -39,11 +39,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Contamination", "fit_contamination", "one_sided_evidence", "contamination_refit", "TAIL_FORMS", "ASYMMETRY_LR", "running_median", "ONE_SIDED_LR",
-           "DETREND_WINDOW", "MIN_TAIL_SD", "MAX_FRACTION", "DOWN_WEIGHTED", "MIN_SAMPLES"]
+__all__ = ["Contamination", "fit_contamination", "one_sided_evidence", "contamination_refit", "running_median",
+           "TAIL_FORMS", "ONE_SIDED_LR", "ASYMMETRY_LR", "STRUCTURED_LAG1", "MAX_WEIGHT_LOST", "DETREND_WINDOW",
+           "MIN_TAIL_SD", "MAX_FRACTION", "DOWN_WEIGHTED", "MIN_SAMPLES"]
 
-#: likelihood-ratio threshold of the one-sided mixture against a Gaussian (its false-alarm rate,
-#: measured on Gaussian residuals and clean tracks: docs/fitting.md, "Noise")
+#: likelihood-ratio threshold of the mixture with a tail each side against a Gaussian (its false
+#: alarms, measured on Gaussian residuals and clean tracks: docs/fitting.md, "One-sided outliers")
 ONE_SIDED_LR = 25.0
 #: running-median window [samples] the residuals are detrended by before the test
 DETREND_WINDOW = 21
@@ -237,9 +238,10 @@ def one_sided_evidence(u, *, threshold=ONE_SIDED_LR, asymmetry=ASYMMETRY_LR, win
     Returns
     -------
     dict
-        ``lr``, ``lr_asymmetry``, ``lag1`` (of the residuals: above :data:`STRUCTURED_LAG1` no test is made, ``skipped`` says
-        why), ``threshold``, ``asymmetry_threshold``, ``engaged`` (bool), ``side`` (``"high"`` or
-        ``"low"``) and the test mixture's ``fraction`` and ``tail_sd`` (high, low).
+        ``lr``, ``lr_asymmetry``, ``lag1`` (of the residuals: above :data:`STRUCTURED_LAG1` no test
+        is made, ``skipped`` says why), ``threshold``, ``asymmetry_threshold``, ``engaged`` (bool),
+        ``side`` (``"high"`` or ``"low"``) and the test mixture's ``fraction`` and ``tail_sd``
+        (high, low).
     """
     u = np.asarray(u, float)
     u = u[np.isfinite(u)]
@@ -258,7 +260,8 @@ def one_sided_evidence(u, *, threshold=ONE_SIDED_LR, asymmetry=ASYMMETRY_LR, win
     skew, sym = fit_contamination(d, "skewed"), fit_contamination(d, "symmetric")
     asym = max(2.0 * (skew.loglik - sym.loglik), 0.0)
     mass = np.asarray(skew.fraction) * np.asarray(skew.tail_sd)
-    out.update(lr=round(skew.lr, 2), lr_asymmetry=round(asym, 2), engaged=bool(skew.lr > threshold and asym > asymmetry),
+    out.update(lr=round(skew.lr, 2), lr_asymmetry=round(asym, 2),
+               engaged=bool(skew.lr > threshold and asym > asymmetry),
                side="high" if mass[0] >= mass[1] else "low",
                fraction=[round(v, 4) for v in skew.fraction], tail_sd=[round(v, 3) for v in skew.tail_sd])
     return out
@@ -310,6 +313,7 @@ def contamination_refit(prob, res, *, threshold=ONE_SIDED_LR, asymmetry=ASYMMETR
             if c not in engaged:
                 continue
             r = np.asarray(res.residuals[c], float) / prob.noise_scale[:, j]
+            r = np.where(np.isfinite(r), r, 0.0)       # a sample without a residual: no evidence either way
             mixes[c] = fit_contamination(r, ev[c]["side"], sd=held.get(c), location=False)
             w[:, j] = mixes[c].weights
             fixed[c] = float(mixes[c].sd)
