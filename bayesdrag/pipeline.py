@@ -608,6 +608,10 @@ def summary_line(result):
     holes = [(a, b) for a, b in ml["quality"].get("undetermined", []) if det and det[0] < a and b < det[1]]
     if holes:
         head += " except " + ", ".join(f"{a:.2f}-{b:.2f}" for a, b in holes)
+    out = ml["quality"].get("outliers")
+    if out:         # the noise model took one-sided outliers (estimate.model.contamination)
+        head += "; one-sided outliers down-weighted: " + ", ".join(
+            f"{len(e.get('down_weighted', []))} {e['side']} {c} samples" for c, e in out["channels"].items())
     air = (ml["quality"].get("air") or {})
     return head + caveat + (f"\nair: {air['line']}" if air.get("line") else "")
 

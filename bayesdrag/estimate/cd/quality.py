@@ -364,6 +364,9 @@ def assess(fit1, rows, track, sigma_given=None):
         if not c.get("secondary"):
             problems.append(c["message"])
     undetermined = intervals(mach, ~det)
+    outliers = one_sided_outliers(fit1)
+    if outliers is not None:
+        notes.append(outliers["line"])
     quality = {
         "ok": not (misfit or structured or bound_names or ic_bound or origin),
         "channels": fit,
@@ -378,7 +381,29 @@ def assess(fit1, rows, track, sigma_given=None):
         "problems": problems,
         "notes": notes,
     }
+    if outliers is not None:
+        quality["outliers"] = outliers
     return quality
+
+
+def one_sided_outliers(fit1):
+    """``ml.quality.outliers`` of a fit whose noise model took one-sided outliers
+    (:mod:`bayesdrag.estimate.model.contamination`, engaged by the residuals' evidence): the model,
+    per channel the tail's side, fraction and mean offset [core sd], the samples down-weighted
+    (weight below one half) and the weight taken off, and a one-line note; None when it did not
+    engage."""
+    rec = (getattr(fit1, "noise", None) or {}).get("contamination") or {}
+    if not rec.get("engaged"):
+        return None
+    chans = {c: {k: e[k] for k in ("side", "fraction", "tail_sd", "down_weighted", "weight_lost", "lr",
+                                   "lr_asymmetry", "threshold", "asymmetry_threshold") if k in e}
+             for c, e in rec["channels"].items() if e.get("engaged")}
+    parts = [f"{c}: {len(e.get('down_weighted', []))} {e['side']} samples down-weighted "
+             f"({e.get('weight_lost', 0):.3g} samples' weight, tail {100 * max(e['fraction']):.2g} % of "
+             f"{max(e['tail_sd']):.2g} sd)" for c, e in chans.items()]
+    return {"model": rec["model"], "channels": chans,
+            "line": ("one-sided outliers (" + "; ".join(parts) + "): fitted as a skewed contamination of the "
+                     "noise (a Gaussian core and a one-sided tail), so they do not pull Cd")}
 
 
 def _largest_gap(sample_mach):

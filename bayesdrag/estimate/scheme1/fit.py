@@ -58,6 +58,7 @@ from .launch import checked_launch_priors, launch_state_priors, unseen_launch_pr
 from .model_size import check_determinable, default_knots, free_mask
 from ..model.ml import MLResult
 from ..model import colored
+from ..model.contamination import contamination_refit
 from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from ..model.layout import ParameterLayout
 from ..model.problem import OutputErrorProblem
@@ -420,9 +421,18 @@ def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, 
         noise = {"requested": noise_model, "model": dict(prob.noise_model),
                  "note": "a Student-t fit keeps white noise"} if noise_model != "white" else {}
     else:
+        # one-sided (skewed) outliers, where the residuals show them: reweighted by the
+        # contamination model, white noise kept (AR(1) needs unit weights)
+        prob, res, contamination = contamination_refit(prob, res)
         white = res
         say("the noise model")
-        prob, res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
+        if contamination["engaged"]:
+            noise = {"requested": noise_model, "model": dict(prob.noise_model)}
+            if noise_model != "white":
+                noise["note"] = "one-sided outliers reweighted (skewed contamination model): white noise kept"
+        else:
+            prob, res, smoothing, noise = colored_refit(prob, res, smoothing, noise_model)
+        noise["contamination"] = contamination
         if noise_model == "auto" and "ar1" in noise.get("model", {}).values():
             white_ml = white
     if not winds_first:
