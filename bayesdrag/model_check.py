@@ -15,8 +15,8 @@ from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "note_model_error", "air", "why_not_clean", "level_shift", "AIR_CONTRADICTION_SD",
-           "NOISE_FREE_SD", "LEVEL_EFFECTS"]
+__all__ = ["model_error", "note_model_error", "air", "why_not_clean", "level_shift", "gross_outliers",
+           "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
 def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None):
@@ -28,7 +28,6 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     takes as its answer (:func:`bayesdrag.pipeline.fit`). ``diagnose_effects=False`` makes the
     noise check only (the fit already carries the effects); ``plain`` is then the fit without
     them that ``f1`` was made from, whose stages its check shares (:func:`_from_plain`)."""
-    from .estimate.model.noise import noise_and_outliers
     from .estimate.scheme1.systematics import plan_effects
 
     ml = np.array([r["ml"] for r in rows], float)
@@ -85,8 +84,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     noisy = f1.white_ml is not None or opts.noise_model == "ar1"
     flagged = 0
     if opts.likelihood == "gaussian":
-        _, _, out = noise_and_outliers(track, f1.problem.channels, rnd.radar.sigma)
-        flagged = int(out.any(axis=1).sum())
+        flagged = gross_outliers(track, f1, rnd.radar.sigma)
     if opts.likelihood == "gaussian" and flagged:
         # gross outliers: a Student-t fit (white, outliers reweighted) is the check
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, likelihood="student-t", **_same_effects(f1))
@@ -119,6 +117,34 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         for r, v in zip(rows, me):
             r["model_error_sd"] = float(v)
     return rec, effects_fit
+
+
+#: running median [samples] the fit's residuals are taken about when a flagged sample is judged
+#: against the fit (:func:`gross_outliers`)
+SPIKE_WINDOW = 5
+
+
+def gross_outliers(track, f1, sigma=None):
+    """Samples that are gross outliers of the track: flagged by the track's own local scale
+    (:func:`bayesdrag.estimate.model.noise.noise_and_outliers`) *and* standing out of the fit's
+    residuals (more than ``OUTLIER_K`` robust sd from their :data:`SPIKE_WINDOW`-sample running
+    median). The track alone cannot tell a radar's fast-changing view of a shell near it (range
+    rate from 127 to 280 m/s in 50 ms, 10 m behind the gun) from a spike; the fit, which flies
+    that geometry, can. Returns their number (samples with any channel flagged)."""
+    from scipy.ndimage import median_filter
+
+    from .estimate.model.noise import OUTLIER_K, noise_and_outliers, robust_sd
+
+    chans = f1.problem.channels
+    _, _, out = noise_and_outliers(track, chans, sigma)
+    if not out.any():
+        return 0
+    for j, c in enumerate(chans):
+        r = np.asarray(f1.ml.residuals[c], float)
+        d = r - median_filter(r, SPIKE_WINDOW, mode="nearest")
+        s = robust_sd(d[np.isfinite(d)])
+        out[:, j] &= np.isfinite(d) & (np.abs(d) > OUTLIER_K * s) if s > 0 else out[:, j]
+    return int(out.any(axis=1).sum())
 
 
 #: effects whose fit with Cd free trades against Cd itself: the temperature's density part is a
