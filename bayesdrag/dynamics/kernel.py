@@ -357,12 +357,15 @@ class _NoAliasCompiler(CompilerBase):
 
 @njit(pipeline_class=_NoAliasCompiler, nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)
 def integrate_blocks(blk_lo, blk_hi, y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
-                     m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, yaw, out,
+                     m0, dm, atm_flat, n_z, atm_idx, z0, dz, wind_flat, n_w, wind_idx, w0, dw, nl, out,
                      mach_out, BL, LP, CDO, ATO, WTO, ST, AC, K2, K3, K4, ST1, AC1, OB, WD):
     """Integrate the blocks ``blk_lo <= blk < blk_hi`` of a batch (arguments as
-    :func:`integrate_batch`, ``yaw`` whether any trajectory has a yaw term, then the scratch
-    arrays of :func:`_scratch`). Releases the GIL: threads run disjoint block ranges."""
+    :func:`integrate_batch`, then the scratch arrays of :func:`_scratch`). Releases the GIL:
+    threads run disjoint block ranges."""
     B = y0.shape[0]
+    yaw = par[0, P_YAW_AMP] != 0.0   # any yaw term (never a literal: that compiled the helpers twice)
+    for b in range(1, B):
+        yaw |= par[b, P_YAW_AMP] != 0.0
     N = out_step.shape[0]
     tab = (m0, 1.0 / dm, dm, n_cells - 1e-9, z0, 1.0 / dz, n_z - 1.000001, w0, 1.0 / dw, n_w - 1.000001)
     h2 = 0.5 * h
@@ -396,23 +399,32 @@ def integrate_blocks(blk_lo, blk_hi, y0, t_start, h, n_steps, out_step, out_thet
                     AC[blk, c, l] = AC1[blk, c, l]
 
 
+def _aligned(shape, dtype=np.float64):
+    """A zeroed C-contiguous array whose data starts on a 64-byte boundary (a cache line, one
+    AVX-512 vector): each lane row of 8 doubles is then one line, no vector load spans two."""
+    n = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    buf = np.zeros(n + 64, dtype=np.uint8)
+    off = -buf.ctypes.data % 64
+    return buf[off:off + n].view(dtype).reshape(shape)
+
+
 def _scratch(n_blk, nl):
     """The kernel's scratch arrays for ``n_blk`` blocks of ``nl`` lanes, each its own allocation
-    (:class:`_NoAliasCompiler` promises LLVM that no two alias)."""
-    return (np.empty((n_blk, nl), dtype=np.int64),    # BL: trajectory of each lane
-            np.empty((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
-            np.empty((n_blk, nl), dtype=np.int64),    # CDO, ATO, WTO: table offsets
-            np.empty((n_blk, nl), dtype=np.int64),
-            np.empty((n_blk, nl), dtype=np.int64),
-            np.empty((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
-            np.empty((n_blk, 4, nl)),                 # AC: acceleration and dq/dt at t_s
-            np.empty((n_blk, 4, nl)),                 # K2, K3, K4: the other RK stages
-            np.empty((n_blk, 4, nl)),
-            np.empty((n_blk, 4, nl)),
-            np.empty((n_blk, 7, nl)),                 # ST1: state at t_s + h
-            np.empty((n_blk, 4, nl)),                 # AC1: acceleration there (next first stage)
-            np.empty((n_blk, 7, nl)),                 # OB: one output row (state, Mach) of every lane
-            np.zeros((n_blk, 5, nl)))                 # WD: last wind table read (wx, wy, slopes, s)
+    (:class:`_NoAliasCompiler` promises LLVM that no two alias), 64-byte aligned."""
+    return (_aligned((n_blk, nl), np.int64),    # BL: trajectory of each lane
+            _aligned((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
+            _aligned((n_blk, nl), np.int64),    # CDO, ATO, WTO: table offsets
+            _aligned((n_blk, nl), np.int64),
+            _aligned((n_blk, nl), np.int64),
+            _aligned((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
+            _aligned((n_blk, 4, nl)),                 # AC: acceleration and dq/dt at t_s
+            _aligned((n_blk, 4, nl)),                 # K2, K3, K4: the other RK stages
+            _aligned((n_blk, 4, nl)),
+            _aligned((n_blk, 4, nl)),
+            _aligned((n_blk, 7, nl)),                 # ST1: state at t_s + h
+            _aligned((n_blk, 4, nl)),                 # AC1: acceleration there (next first stage)
+            _aligned((n_blk, 7, nl)),                 # OB: one output row (state, Mach) of every lane
+            _aligned((n_blk, 5, nl)))                 # WD: last wind table read (wx, wy, slopes, s)
 
 
 def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
@@ -469,14 +481,16 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
         each a contiguous range of blocks; the results do not depend on it.
     """
     n_blk = (y0.shape[0] + nl - 1) // nl
-    yaw = bool(par[:, P_YAW_AMP].any())
     args = (y0, float(t_start), float(h), int(n_steps), out_step, out_theta, par, cd_flat, int(n_cells), cd_idx,
             float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
-            float(w0), float(dw), int(nl), yaw, out, mach_out) + _scratch(n_blk, nl)
+            float(w0), float(dw), int(nl), out, mach_out)
     n_run = max(1, min(int(n_threads), n_blk))
-    cuts = [n_blk * i // n_run for i in range(n_run + 1)]
     fn = integrate_blocks_scalar if nl < LANE_WIDTH else integrate_blocks
-    run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)])
+    if n_run == 1:
+        run_split(fn, [(0, n_blk) + args], ((n_blk, nl), _scratch))
+        return out
+    cuts = [n_blk * i // n_run for i in range(n_run + 1)]
+    run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)], ((n_blk, nl), _scratch))
     return out
 
 
