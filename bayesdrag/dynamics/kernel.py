@@ -146,11 +146,17 @@ def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
 
 
 @njit(**_HELPER)
-def _wind_near(x, z, blk, l, LP, WD):
+def _wind_near(x, z, blk, l, LP, WD, WTO, wtf):
     """The wind at (x, z) from the last table read of lane ``l`` (``WD``: wind, slopes and
     coordinate there) along that cell's line: exact for the table while the point stays in the
     cell. RK4's second and fourth stages lie within a few centimetres of its first and third
-    (h^2 a / 4), so each step reads the table twice instead of four times."""
+    (h^2 a / 4), so each step reads the table twice instead of four times.
+
+    ``WTO`` and ``wtf`` (the table offsets and tables) are not read: passing them makes the
+    step's last loop their last use, so numba releases them once at the step's end instead of
+    on each exit of the fourth stage's loop; otherwise LLVM's reference-count pruning fails for
+    the whole kernel and every RK4 step paid ~30 atomic reference-count calls (a third of a
+    wind-table batch's time, docs/measurements.md "The kernel against the parfor kernel")."""
     ds = x * LP[blk, _L_WAX, l] + z * LP[blk, _L_WAZ, l] - WD[blk, 4, l]
     return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
 
@@ -279,7 +285,7 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
         wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
         if wind_flat is not None:
             wx, wy = _wind_near(ST[blk, 0, l] + h2 * (ST[blk, 3, l] + h2 * AC[blk, 0, l]),
-                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD)
+                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD, WTO, wind_flat)
         K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
             ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
             ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
@@ -309,7 +315,7 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
                                                + 2.0 * K3[blk, 3, l] + K4[blk, 3, l])
         wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
         if wind_flat is not None:
-            wx, wy = _wind_near(ST1[blk, 0, l], ST1[blk, 2, l], blk, l, LP, WD)
+            wx, wy = _wind_near(ST1[blk, 0, l], ST1[blk, 2, l], blk, l, LP, WD, WTO, wind_flat)
         AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l], AC1[blk, 3, l] = _acc(
             ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l], wx, wy,
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
