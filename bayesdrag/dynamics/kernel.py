@@ -52,7 +52,10 @@ unrolled before the vectoriser runs), array arguments LLVM knows not to alias (w
 table gathers could alias the stores): :func:`integrate_blocks` is compiled with numba's
 ``noalias`` flag (:class:`_NoAliasCompiler`) and takes every scratch array as an argument of
 its own; and the helpers inlined (``forceinline``). Its threads each take a contiguous range of
-blocks. Fewer than 8 trajectories run as one block of B lanes in
+blocks; the scratch arrays are kept per thread slot by the threads' pool (``run_split``'s
+``scratch``: a call allocates nothing, and no two threads share one), 64-byte aligned. The
+compiled integrators hold no reference counting (numba's pruning must succeed: see
+:func:`_wind_near`). Fewer than 8 trajectories run as one block of B lanes in
 :data:`integrate_blocks_scalar`, the same code compiled without ``noalias`` (scalar lane loops:
 faster for 1-2 lanes than the vector loops' remainder). There is no ``prange``: numba's parfor
 compiled the whole body two more times (the outlined loop and its caller), which took half of
@@ -484,9 +487,13 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     n_threads : int
         Threads that integrate the blocks side by side (at most one per block): the calling
         thread and ``n_threads - 1`` helper threads (:func:`bayesdrag._threads.run_split`),
-        each a contiguous range of blocks; the results do not depend on it.
+        each a contiguous range of blocks; the results do not depend on it. Each thread uses
+        the scratch arrays its slot of the pool keeps for this batch shape (fresh ones when
+        another thread is using the pool).
     """
     n_blk = (y0.shape[0] + nl - 1) // nl
+    if n_blk == 0:
+        return out                      # the kernel reads the first trajectory's yaw term
     args = (y0, float(t_start), float(h), int(n_steps), out_step, out_theta, par, cd_flat, int(n_cells), cd_idx,
             float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
             float(w0), float(dw), int(nl), out, mach_out)

@@ -445,6 +445,8 @@ class PointMassModel:
                 z0, dz, tab = _atmosphere_table(a)
                 tabs.append(tab)
             atm_idx[i] = keys[a]
+        if not tabs:
+            raise ValueError("no trajectory: drag_params and state0 must hold at least one row")
         atm_tabs = np.array(tabs)              # one writable C-contiguous copy (the memo is read-only)
         return par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind
 
