@@ -42,7 +42,7 @@ def test_wind_table_kernel_has_no_reference_counting_left(noalias, m101):
     out, mach = np.full((B, t.size, 6), np.nan), np.full((B, t.size), np.nan)
     probe(0, n_blk, s0, 0.0, h, n_steps, out_step, out_theta, par, cd_tabs.reshape(-1), cd_tabs.shape[1], cd_idx,
           grid.m0, grid.dm, atm_tabs.reshape(-1), atm_tabs.shape[1], atm_idx, z0, dz, w_tabs.reshape(-1),
-          w_tabs.shape[1], w_idx, w0, dw, nl, out, mach, *K._scratch(n_blk, nl))
+          w_tabs.shape[1], w_idx, w0, dw, nl, False, out, mach, *K._scratch(n_blk, nl))
     assert np.all(np.isfinite(out))
     body = _kernel_function_ir(probe)
     calls = re.findall(r"call \w+ @(NRT_incref|NRT_decref)\(", body)
