@@ -159,7 +159,8 @@ def _wind_near(x, z, blk, l, LP, WD, WTO, wtf):
     step's last loop their last use, so numba releases them once at the step's end instead of
     on each exit of the fourth stage's loop; otherwise LLVM's reference-count pruning fails for
     the whole kernel and every RK4 step paid ~30 atomic reference-count calls (a third of a
-    wind-table batch's time, docs/measurements.md "The kernel against the parfor kernel")."""
+    wind-table batch's time: docs/measurements.md, "The block integrator against the parfor
+    kernel")."""
     ds = x * LP[blk, _L_WAX, l] + z * LP[blk, _L_WAZ, l] - WD[blk, 4, l]
     return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
 
@@ -288,7 +289,8 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
         wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
         if wind_flat is not None:
             wx, wy = _wind_near(ST[blk, 0, l] + h2 * (ST[blk, 3, l] + h2 * AC[blk, 0, l]),
-                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD, WTO, wind_flat)
+                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD, WTO,
+                                wind_flat)
         K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
             ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
             ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
@@ -417,9 +419,9 @@ def _aligned(shape, dtype=np.float64):
 def _scratch(n_blk, nl):
     """The kernel's scratch arrays for ``n_blk`` blocks of ``nl`` lanes, each its own allocation
     (:class:`_NoAliasCompiler` promises LLVM that no two alias), 64-byte aligned."""
-    return (_aligned((n_blk, nl), np.int64),    # BL: trajectory of each lane
+    return (_aligned((n_blk, nl), np.int64),        # BL: trajectory of each lane
             _aligned((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
-            _aligned((n_blk, nl), np.int64),    # CDO, ATO, WTO: table offsets
+            _aligned((n_blk, nl), np.int64),        # CDO, ATO, WTO: table offsets
             _aligned((n_blk, nl), np.int64),
             _aligned((n_blk, nl), np.int64),
             _aligned((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
