@@ -52,7 +52,10 @@ unrolled before the vectoriser runs), array arguments LLVM knows not to alias (w
 table gathers could alias the stores): :func:`integrate_blocks` is compiled with numba's
 ``noalias`` flag (:class:`_NoAliasCompiler`) and takes every scratch array as an argument of
 its own; and the helpers inlined (``forceinline``). Its threads each take a contiguous range of
-blocks. Fewer than 8 trajectories run as one block of B lanes in
+blocks; the scratch arrays are kept per thread slot by the threads' pool (``run_split``'s
+``scratch``: a call allocates nothing, and no two threads share one), 64-byte aligned. The
+compiled integrators hold no reference counting (numba's pruning must succeed: see
+:func:`_wind_near`). Fewer than 8 trajectories run as one block of B lanes in
 :data:`integrate_blocks_scalar`, the same code compiled without ``noalias`` (scalar lane loops:
 faster for 1-2 lanes than the vector loops' remainder). There is no ``prange``: numba's parfor
 compiled the whole body two more times (the outlined loop and its caller), which took half of
@@ -146,11 +149,18 @@ def _wind(x, z, blk, l, LP, WTO, wtf, w0, inv_dw, wmax):
 
 
 @njit(**_HELPER)
-def _wind_near(x, z, blk, l, LP, WD):
+def _wind_near(x, z, blk, l, LP, WD, WTO, wtf):
     """The wind at (x, z) from the last table read of lane ``l`` (``WD``: wind, slopes and
     coordinate there) along that cell's line: exact for the table while the point stays in the
     cell. RK4's second and fourth stages lie within a few centimetres of its first and third
-    (h^2 a / 4), so each step reads the table twice instead of four times."""
+    (h^2 a / 4), so each step reads the table twice instead of four times.
+
+    ``WTO`` and ``wtf`` (the table offsets and tables) are not read: passing them makes the
+    step's last loop their last use, so numba releases them once at the step's end instead of
+    on each exit of the fourth stage's loop; otherwise LLVM's reference-count pruning fails for
+    the whole kernel and every RK4 step paid ~30 atomic reference-count calls (a third of a
+    wind-table batch's time: docs/measurements.md, "The block integrator against the parfor
+    kernel")."""
     ds = x * LP[blk, _L_WAX, l] + z * LP[blk, _L_WAZ, l] - WD[blk, 4, l]
     return WD[blk, 0, l] + WD[blk, 2, l] * ds, WD[blk, 1, l] + WD[blk, 3, l] * ds
 
@@ -279,7 +289,8 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
         wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
         if wind_flat is not None:
             wx, wy = _wind_near(ST[blk, 0, l] + h2 * (ST[blk, 3, l] + h2 * AC[blk, 0, l]),
-                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD)
+                                ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]), blk, l, LP, WD, WTO,
+                                wind_flat)
         K3[blk, 0, l], K3[blk, 1, l], K3[blk, 2, l], K3[blk, 3, l] = _acc(
             ST[blk, 2, l] + h2 * (ST[blk, 5, l] + h2 * AC[blk, 2, l]),
             ST[blk, 3, l] + h2 * K2[blk, 0, l], ST[blk, 4, l] + h2 * K2[blk, 1, l],
@@ -309,7 +320,7 @@ def _rk4_step(blk, nl, s, h, h2, h6, yaw, LP, CDO, ATO, WTO, cd_flat, atm_flat, 
                                                + 2.0 * K3[blk, 3, l] + K4[blk, 3, l])
         wx, wy = LP[blk, _L_WX, l], LP[blk, _L_WY, l]
         if wind_flat is not None:
-            wx, wy = _wind_near(ST1[blk, 0, l], ST1[blk, 2, l], blk, l, LP, WD)
+            wx, wy = _wind_near(ST1[blk, 0, l], ST1[blk, 2, l], blk, l, LP, WD, WTO, wind_flat)
         AC1[blk, 0, l], AC1[blk, 1, l], AC1[blk, 2, l], AC1[blk, 3, l] = _acc(
             ST1[blk, 2, l], ST1[blk, 3, l], ST1[blk, 4, l], ST1[blk, 5, l], ST1[blk, 6, l], wx, wy,
             LP[blk, _L_FH, l], blk, l, LP, CDO, ATO, cd_flat, atm_flat, tab)
@@ -396,23 +407,32 @@ def integrate_blocks(blk_lo, blk_hi, y0, t_start, h, n_steps, out_step, out_thet
                     AC[blk, c, l] = AC1[blk, c, l]
 
 
+def _aligned(shape, dtype=np.float64):
+    """A zeroed C-contiguous array whose data starts on a 64-byte boundary (a cache line, one
+    AVX-512 vector): each lane row of 8 doubles is then one line, no vector load spans two."""
+    n = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    buf = np.zeros(n + 64, dtype=np.uint8)
+    off = -buf.ctypes.data % 64
+    return buf[off:off + n].view(dtype).reshape(shape)
+
+
 def _scratch(n_blk, nl):
     """The kernel's scratch arrays for ``n_blk`` blocks of ``nl`` lanes, each its own allocation
-    (:class:`_NoAliasCompiler` promises LLVM that no two alias)."""
-    return (np.empty((n_blk, nl), dtype=np.int64),    # BL: trajectory of each lane
-            np.empty((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
-            np.empty((n_blk, nl), dtype=np.int64),    # CDO, ATO, WTO: table offsets
-            np.empty((n_blk, nl), dtype=np.int64),
-            np.empty((n_blk, nl), dtype=np.int64),
-            np.empty((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
-            np.empty((n_blk, 4, nl)),                 # AC: acceleration and dq/dt at t_s
-            np.empty((n_blk, 4, nl)),                 # K2, K3, K4: the other RK stages
-            np.empty((n_blk, 4, nl)),
-            np.empty((n_blk, 4, nl)),
-            np.empty((n_blk, 7, nl)),                 # ST1: state at t_s + h
-            np.empty((n_blk, 4, nl)),                 # AC1: acceleration there (next first stage)
-            np.empty((n_blk, 7, nl)),                 # OB: one output row (state, Mach) of every lane
-            np.zeros((n_blk, 5, nl)))                 # WD: last wind table read (wx, wy, slopes, s)
+    (:class:`_NoAliasCompiler` promises LLVM that no two alias), 64-byte aligned."""
+    return (_aligned((n_blk, nl), np.int64),        # BL: trajectory of each lane
+            _aligned((n_blk, _N_L, nl)),              # LP: lane parameters (_L_*)
+            _aligned((n_blk, nl), np.int64),        # CDO, ATO, WTO: table offsets
+            _aligned((n_blk, nl), np.int64),
+            _aligned((n_blk, nl), np.int64),
+            _aligned((n_blk, 7, nl)),                 # ST: state at t_s (row 6: spin fraction q)
+            _aligned((n_blk, 4, nl)),                 # AC: acceleration and dq/dt at t_s
+            _aligned((n_blk, 4, nl)),                 # K2, K3, K4: the other RK stages
+            _aligned((n_blk, 4, nl)),
+            _aligned((n_blk, 4, nl)),
+            _aligned((n_blk, 7, nl)),                 # ST1: state at t_s + h
+            _aligned((n_blk, 4, nl)),                 # AC1: acceleration there (next first stage)
+            _aligned((n_blk, 7, nl)),                 # OB: one output row (state, Mach) of every lane
+            _aligned((n_blk, 5, nl)))                 # WD: last wind table read (wx, wy, slopes, s)
 
 
 def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, n_cells, cd_idx,
@@ -466,17 +486,25 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
     n_threads : int
         Threads that integrate the blocks side by side (at most one per block): the calling
         thread and ``n_threads - 1`` helper threads (:func:`bayesdrag._threads.run_split`),
-        each a contiguous range of blocks; the results do not depend on it.
+        each a contiguous range of blocks; the results do not depend on it. Each thread uses
+        the scratch arrays its slot of the pool keeps for this batch shape (fresh ones when
+        another thread is using the pool).
     """
     n_blk = (y0.shape[0] + nl - 1) // nl
-    yaw = bool(par[:, P_YAW_AMP].any())
+    if n_blk == 0:
+        return out                      # nothing to integrate
+    # any yaw term, found here: the same loop in the kernel added ~3 % to its first-run compile
+    yaw = bool(par[0, P_YAW_AMP] != 0.0) if y0.shape[0] == 1 else bool(par[:, P_YAW_AMP].any())
     args = (y0, float(t_start), float(h), int(n_steps), out_step, out_theta, par, cd_flat, int(n_cells), cd_idx,
             float(m0), float(dm), atm_flat, int(n_z), atm_idx, float(z0), float(dz), wind_flat, int(n_w), wind_idx,
-            float(w0), float(dw), int(nl), yaw, out, mach_out) + _scratch(n_blk, nl)
+            float(w0), float(dw), int(nl), yaw, out, mach_out)
     n_run = max(1, min(int(n_threads), n_blk))
-    cuts = [n_blk * i // n_run for i in range(n_run + 1)]
     fn = integrate_blocks_scalar if nl < LANE_WIDTH else integrate_blocks
-    run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)])
+    if n_run == 1:
+        run_split(fn, [(0, n_blk) + args], ((n_blk, nl), _scratch))
+        return out
+    cuts = [n_blk * i // n_run for i in range(n_run + 1)]
+    run_split(fn, [(cuts[i], cuts[i + 1]) + args for i in range(n_run)], ((n_blk, nl), _scratch))
     return out
 
 

@@ -400,7 +400,7 @@ class PointMassModel:
         """
         drag_params = np.atleast_2d(np.asarray(drag_params, dtype=float))
         B = drag_params.shape[0]
-        par = np.tile(self.par_row(), (B, 1))
+        par = np.repeat(self.par_row()[None], B, axis=0)
         if self.lift_factor != 0.0 and self.lift_v0 is None and K.P_LIFT not in (overrides or {}):
             if state0 is None:
                 raise ValueError("lift_factor needs the initial states (state0) or lift_v0 to set the spin")
@@ -445,7 +445,9 @@ class PointMassModel:
                 z0, dz, tab = _atmosphere_table(a)
                 tabs.append(tab)
             atm_idx[i] = keys[a]
-        atm_tabs = np.ascontiguousarray(np.stack(tabs))
+        if not tabs:
+            raise ValueError("no trajectory: drag_params and state0 must hold at least one row")
+        atm_tabs = np.array(tabs)              # one writable C-contiguous copy (the memo is read-only)
         return par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind
 
     def simulate_batch(self, drag_params, state0, t_out, *, t_start=0.0, overrides=None,
@@ -503,7 +505,7 @@ class PointMassModel:
                               w_flat, w_cols, w_idx[b0:b1], w0, dw,
                               K.lanes_per_block(nb, n_threads), out[b0:b1], mach[b0:b1], n_threads)
         # a NaN or inf propagates to the last sample, so checking that row is enough
-        ok = bool(np.all(np.isfinite(out[:, -1])))
+        ok = bool(np.isfinite(out[:, -1]).all())
         return Trajectory(t_out, out, mach, ok, "" if ok else "non-finite state: integration failed")
 
 

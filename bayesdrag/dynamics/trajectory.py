@@ -110,7 +110,7 @@ def check_times(t_out, t_start):
     t_out = np.asarray(t_out, dtype=float)
     if t_out.ndim != 1 or t_out.size == 0:
         raise ValueError("t_out must be a non-empty 1-D array of times")
-    if np.any(np.diff(t_out) <= 0):
+    if (np.subtract(t_out[1:], t_out[:-1]) <= 0).any():     # np.diff without its wrapper
         raise ValueError("t_out must increase strictly")
     if t_out[0] < t_start - 1e-12:
         raise ValueError(f"output times start at {t_out[0]} s, before the initial state at {t_start} s")

@@ -83,3 +83,48 @@ def test_a_forked_child_starts_its_own_helpers():
     if p.is_alive():
         p.kill()
     assert p.exitcode == 0 and q.get(timeout=5.0) == [0, 1, 2]
+
+
+def test_scratch_is_one_set_per_slot_reused_by_the_next_call():
+    """Each call slot gets its own scratch arrays (no two threads write the same array), and the
+    next call with the same key gets the same ones again (a call allocates nothing)."""
+    import numpy as np
+
+    made = []
+
+    def make(n, width):
+        made.append((n, width))
+        return (np.zeros((n, width)),)
+
+    seen = []
+    run_split(lambda i, a: seen.append((i, a)), [(0,), (1,)], (("probe", 3), lambda *_: make(3, 4)))
+    first = dict(seen)
+    assert len(made) == 2 and first[0] is not first[1]
+    seen.clear()
+    run_split(lambda i, a: seen.append((i, a)), [(0,), (1,)], (("probe", 3), lambda *_: make(3, 4)))
+    assert len(made) == 2 and dict(seen)[0] is first[0] and dict(seen)[1] is first[1]
+
+
+def test_a_second_caller_while_the_pool_is_busy_gets_fresh_scratch():
+    """The pool's scratch belongs to the thread that holds the pool: a caller that finds it busy
+    runs its calls itself with arrays of its own."""
+    import numpy as np
+
+    key = ("probe-busy", 1)
+    own, other = [], []
+    gate = threading.Event()
+
+    def inner():
+        run_split(lambda i, a: other.append(a), [(0,)], (key, lambda *_: (np.zeros(2),)))
+        gate.set()
+
+    t = threading.Thread(target=inner)
+
+    def first(i, a):
+        own.append(a)
+        if i == 0:
+            t.start()
+            t.join(5.0)
+
+    run_split(first, [(0,), (1,)], (key, lambda *_: (np.zeros(2),)))
+    assert gate.is_set() and len(other) == 1 and all(other[0] is not a for a in own)
