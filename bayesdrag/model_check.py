@@ -105,6 +105,11 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         # a fit carrying effects started from a white fit without them: the check is the same
         # effects fitted with white noise (one more fit)
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, plain=plain, noise_model="white", **_same_effects(f1))
+        near = _white_near(f1, track, rnd, grid)
+        if near is not None and (alt is None or _data_chi2(alt[2]) > _data_chi2(near[2]) + CHECK_CHI2_SLACK):
+            # the refit from the start stopped at a worse optimum than the white fit started at this
+            # fit's own estimate (a late clock on a Doppler track: Cd 12 times off): that one is the check
+            alt, rec["noise_check_from"] = near, "the white-noise fit started at this fit's estimate"
         if alt is not None:
             # its band's excess over the AR(1) fit's is kept too, not taken as the difference's
             # noise: near rho = 1 the AR(1) bound is too narrow (measured: a wind flight on
@@ -195,6 +200,38 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, plain=None, **change):
         return None
     if not alt.ml.success:
         return None
+    ra = cd_table(alt.ml, alt.drag_model, grid)
+    model_error_floor(alt, ra)
+    assess(alt, ra, track, rnd.radar.sigma)
+    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra]), alt
+
+
+#: a refit of the white-noise check counts as stuck when its data chi2 exceeds that of the white
+#: fit started at the checked fit's estimate by more than this (a few units: a real optimum of
+#: the same model is never worse than a point next to it)
+CHECK_CHI2_SLACK = 10.0
+
+
+def _data_chi2(fit):
+    """The data's chi2 of a Scheme 1 fit at its own noise sd (weighted; priors left out)."""
+    prob, res = fit.problem, fit.ml
+    w = np.asarray(prob.weights, float)
+    return float(sum(np.nansum(w[:, j] * (np.asarray(res.residuals[c], float) / res.sigma[c]) ** 2)
+                     for j, c in enumerate(prob.channels)))
+
+
+def _white_near(f1, track, rnd, grid):
+    """``(cd, band_sd, fit)`` of the fit's own problem with white noise, started at its estimate
+    (the same effects, priors and smoothing): the white-noise check where a refit from the start
+    does not reach the optimum. None when it fails."""
+    prob = f1.problem.replace(noise_model={c: "white" for c in f1.problem.channels}, theta0=f1.ml.theta)
+    try:
+        res = prob.fit(fallback=True)
+    except FitError:
+        return None
+    if not res.success:
+        return None
+    alt = replace(f1, ml=res, problem=prob, white_ml=None, noise={"requested": "white", "model": dict(prob.noise_model)})
     ra = cd_table(alt.ml, alt.drag_model, grid)
     model_error_floor(alt, ra)
     assess(alt, ra, track, rnd.radar.sigma)
