@@ -231,7 +231,8 @@ def _white_near(f1, track, rnd, grid):
         return None
     if not res.success:
         return None
-    alt = replace(f1, ml=res, problem=prob, white_ml=None, noise={"requested": "white", "model": dict(prob.noise_model)})
+    alt = replace(f1, ml=res, problem=prob, white_ml=None,
+                  noise={"requested": "white", "model": dict(prob.noise_model)})
     ra = cd_table(alt.ml, alt.drag_model, grid)
     model_error_floor(alt, ra)
     assess(alt, ra, track, rnd.radar.sigma)

@@ -319,20 +319,13 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     say = progress if progress is not None else (lambda step: None)
     say("the initial state and one scale of the drag read off the track")
     a_pri = launch_state_priors(L, 1, names=unseen) if unseen else ()
-    # no speed measured: positions alone (a radar's range and angles) start the fit, and a poor
-    # start curve lets the initial position wander; it is held at the track's own start until the
-    # whole curve has its shape (:func:`_better_start_shape`)
+    # no speed measured: a poor start curve lets the initial position wander, so it is held at the
+    # track's own start until the whole curve has its shape (:func:`_better_start_shape`)
     anchored = own_start and free_ic and "v" not in seen_as and any(c in seen_as for c in ("x", "y", "z"))
-    if anchored:
-        held = ic_free.copy()
-        held[:3] = False
-        start, shape, (state, scale, span_a, cost_a) = _better_start_shape(
-            start, rnd, lambda model: _stage_scale(model, track, s0, held, sig, chans, likelihood, a_pri, site=site),
-            base_model)
-    else:
-        shape = start.curve
-        state, scale, span_a, cost_a = _stage_scale(base_model, track, s0, ic_free, sig, chans, likelihood, a_pri,
-                                                    site=site)
+    held = ic_free & np.array([not anchored] * 3 + [True] * 3)
+    start, shape, (state, scale, span_a, _) = _better_start_shape(
+        start, rnd, lambda model: _stage_scale(model, track, s0, held, sig, chans, likelihood, a_pri, site=site),
+        base_model, others=anchored)
     span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
                                                    max(start.mach_span[1], span_a[1]))
     size = {}
@@ -344,13 +337,10 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
                                state if free_ic else s0, free_b, sig, chans, likelihood, fixed_pri, site)
     # stage B: the full curve without the checked launch priors, then check them against it
     say(f"the whole curve ({P} drag coefficients)")
-    if anchored:
-        held_b = free_b.copy()
-        held_b[ParameterLayout(P).position] = False
-        first = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m), state, held_b, sig,
-                               chans, likelihood, fixed_pri, site)[0].fit(fallback=True)
-        if np.all(np.isfinite(first.theta)):
-            prob = prob.replace(theta0=first.theta)
+    if anchored:    # the curve takes its shape with the initial position held, then all is free
+        first = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m), state,
+                               _position_held(free_b, P), sig, chans, likelihood, fixed_pri, site)[0].fit(fallback=True)
+        prob = prob.replace(theta0=first.theta) if np.all(np.isfinite(first.theta)) else prob
     res_b = prob.fit(fallback=True)
     if res_b.success or np.all(np.isfinite(res_b.theta)):
         prob = prob.replace(theta0=res_b.theta)
@@ -536,7 +526,14 @@ def _wider_span(dm, res, span):
     return min(span[0], lo), max(span[1], hi)
 
 
-def _better_start_shape(start, rnd, stage_a, base_model):
+def _position_held(free, P):
+    """``free`` with the initial position held (``P`` drag coefficients first)."""
+    out = np.array(free, bool, copy=True)
+    out[ParameterLayout(P).position] = False
+    return out
+
+
+def _better_start_shape(start, rnd, stage_a, base_model, others=True):
     """Stage A of a track without a measured speed: the start curve's shape, and the initial
     velocity and one scale with the initial position held at the track's own start.
 
@@ -557,6 +554,8 @@ def _better_start_shape(start, rnd, stage_a, base_model):
         :func:`_stage_scale` with a model flying another drag (the position held).
     base_model : PointMassModel
         Flies the start curve (as a :class:`ReferenceScale`).
+    others : bool
+        Compare the other shapes (False: stage A of the start curve alone, as with a speed).
 
     Returns
     -------
@@ -567,6 +566,8 @@ def _better_start_shape(start, rnd, stage_a, base_model):
     """
     fitted = stage_a(base_model)
     shapes = []
+    if not others:
+        return start, start.curve, fitted
     if rnd.reference_drag is not None:
         shapes.append(("the round's reference drag", np.asarray(rnd.reference_drag.value(start.mach), float)))
     shapes.append(("a flat Cd at the read curve's median", np.full(start.cd.shape, float(np.median(start.cd)))))
