@@ -268,10 +268,14 @@ def _add_model_error(rows, sd):
 
 def _trades_with_cd(f1, rnd):
     """Whether a fit with effects carries one that trades against Cd itself (an undeclared
-    temperature offset, yaw drag): the default does not take such a fit as its answer, the plain
-    fit stands with the shift as model error (and the Cd conditional on the stated air)."""
+    temperature offset, yaw drag), or the radar's site seen along some coordinates only (the
+    others held: a chronograph's sideways offset, which the fitted coordinates then absorb for
+    the wrong reason): the default does not take such a fit as its answer, the plain fit stands
+    with the shift as model error (and the Cd conditional on the stated air or site)."""
     declared = rnd.systematics.declared()
-    return any(e in LEVEL_EFFECTS and e not in declared for e in f1.effects)
+    partial = "radar_position" in f1.effects and "radar_position" not in _wholly_fitted(f1)
+    return partial or any(e in LEVEL_EFFECTS and e not in declared for e in f1.effects)
+
 
 def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
     """A rigid model's band holds no shape error: check its curve against the flexible fit of
@@ -364,6 +368,14 @@ def _layers_wind_sd(f1):
     return float(sds[0]) if sds else None
 
 
+def _wholly_fitted(f1):
+    """The effects of a fit whose parameters are all estimated: an effect with some held (the
+    radar's site seen along one coordinate only) leaves the Cd conditional on the rest."""
+    res = f1.ml
+    free = {n: bool(f) for n, f in zip(res.names, res.free)}
+    return {e for e in f1.effects if all(f for n, f in free.items() if n.split(".")[0] == e)}
+
+
 def _budget(f1, grid, rows):
     """result.json ``uncertainty_budget`` (linearised, GUM) of the Scheme 1 fit; each ``cd`` row
     gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
@@ -389,7 +401,7 @@ def _budget(f1, grid, rows):
     out = budget_rows(b, grid)
     declared = {s[0] for s in f1.sources}
     out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared] + \
-        radar_conditional(f1.problem.channels, declared | set(f1.effects))   # a radar's own: its native channels
+        radar_conditional(f1.problem.channels, declared | _wholly_fitted(f1))   # a radar's own: its native channels
     if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
     return out
