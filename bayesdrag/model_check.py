@@ -200,10 +200,7 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, plain=None, **change):
         return None
     if not alt.ml.success:
         return None
-    ra = cd_table(alt.ml, alt.drag_model, grid)
-    model_error_floor(alt, ra)
-    assess(alt, ra, track, rnd.radar.sigma)
-    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra]), alt
+    return _rows_of(alt, grid, track, rnd)
 
 
 #: a refit of the white-noise check counts as stuck when its data chi2 exceeds that of the white
@@ -220,6 +217,15 @@ def _data_chi2(fit):
                      for j, c in enumerate(prob.channels)))
 
 
+def _rows_of(alt, grid, track, rnd):
+    """``(cd, band_sd, fit)`` on ``grid`` of a check's fit, its band as the answer's is made
+    (model-error floor, quality assessment)."""
+    ra = cd_table(alt.ml, alt.drag_model, grid)
+    model_error_floor(alt, ra)
+    assess(alt, ra, track, rnd.radar.sigma)
+    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra]), alt
+
+
 def _white_near(f1, track, rnd, grid):
     """``(cd, band_sd, fit)`` of the fit's own problem with white noise, started at its estimate
     (the same effects, priors and smoothing): the white-noise check where a refit from the start
@@ -233,10 +239,7 @@ def _white_near(f1, track, rnd, grid):
         return None
     alt = replace(f1, ml=res, problem=prob, white_ml=None,
                   noise={"requested": "white", "model": dict(prob.noise_model)})
-    ra = cd_table(alt.ml, alt.drag_model, grid)
-    model_error_floor(alt, ra)
-    assess(alt, ra, track, rnd.radar.sigma)
-    return np.array([r["ml"] for r in ra]), np.array([r["band_sd"] for r in ra]), alt
+    return _rows_of(alt, grid, track, rnd)
 
 
 def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_layers=None, **other):
