@@ -9,12 +9,13 @@ diagnosis from here.
 """
 from __future__ import annotations
 
+import functools
 import time
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
+from ._beside import computed_beside
 from ._threads import single_blas
 from .errors import FitError, InputError
 from .estimate.cd.headline import headline
@@ -27,6 +28,7 @@ from .model_check import LEVEL_EFFECTS, air, model_error, note_model_error, why_
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
 from .round import Round
+from .sampling import mcmc_json, posterior_json, run_sampler, sampled_rows
 from .track import RadarTrack, thin_for_fit
 
 __all__ = ["fit", "diagnose", "summary_line"]
@@ -109,14 +111,27 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     gap = effects_fit = None
     default = opts.with_effects == "default"
     timing["ml"] = round(time.perf_counter() - t_start, 3)
+    sampled = None
     # effects the user names are fitted, and the misfit they leave is checked like any other: a
     # warm day under `--with wind_profile` otherwise gave rows 50 sd off marked determined
     if opts.model_check and opts.with_effects != "auto":
         if ml_progress is not None:
             ml_progress("checking the Cd against the misfit that remains")
         t0 = time.perf_counter()
-        gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
-        timing["model_check"] = round(time.perf_counter() - t0, 3)
+        if opts.mcmc and not default:
+            # the check cannot change what is sampled (only the default takes its fit as the
+            # answer): it runs in a forked process beside the sampling when a core is free
+            with computed_beside(functools.partial(_check_record, track, rnd, opts, chans, f1, grid, rows)) as box:
+                sampled = run_sampler(f1, opts, chain_path, resume, log, progress)
+            gap = box.value["gap"]
+            for r, v in zip(rows, box.value["model_error_sd"]):
+                if v is not None:
+                    r["model_error_sd"] = v
+            timing["model_check"] = round(box.value["seconds"], 3)
+            timing["model_check_beside_sampling"] = box.forked
+        else:
+            gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
+            timing["model_check"] = round(time.perf_counter() - t0, 3)
     if default and effects_fit is not None and effects_fit.effects and not _trades_with_cd(effects_fit, rnd):
         # the default fit fits the cause: the check's fit with the undeclared material effects
         # (already made, from the plain fit's start) is the answer; the plain Cd stays beside it
@@ -175,10 +190,11 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
     bayes = post = cd = None
     if opts.mcmc:
-        bayes, post, rows, cd = _sample(f1, rows, grid, opts, chain_path, resume, log, progress)
+        bayes, post = sampled if sampled is not None else run_sampler(f1, opts, chain_path, resume, log, progress)
+        rows, cd = sampled_rows(bayes, f1, rows, grid)
         summary["cd"] = rows
-        summary["posterior"] = _posterior_json(bayes)
-        summary["mcmc"] = _mcmc_json(bayes, post)
+        summary["posterior"] = posterior_json(bayes)
+        summary["mcmc"] = mcmc_json(bayes, post)
         warnings += list(bayes.warnings)
         info = [r for r in rows if r["crb_sd"] > 0 and r["ml"] > 0 and r["crb_sd"] / r["ml"] < 0.01]
         ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
@@ -432,41 +448,16 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
     }
 
 
-def _sample(f1, rows, grid, opts, chain_path, resume, log, progress):
-    from .estimate.bayes.posterior import LogPosterior
-    from .estimate.bayes.draws import cd_draws, cd_posterior_rows, needs_widening, widen_to_floor
-    from .estimate.bayes.sampler import default_walkers, sample_posterior
-
-    post = LogPosterior(f1.problem, f1.ml, likelihood=opts.likelihood, nu=opts.nu, sample_ar=opts.sample_ar)
-    walkers = opts.walkers if opts.walkers is not None else default_walkers(post, opts.moves)
-    bayes = sample_posterior(post, nwalkers=walkers, moves=opts.moves, max_steps=opts.max_steps, seed=opts.seed,
-                             backend_path=chain_path, resume=bool(resume and chain_path and Path(chain_path).exists()),
-                             progress=progress, log=log)
-    sampled = cd_draws(bayes, f1.drag_model, grid, f1.problem.P)
-    cd = widen_to_floor(sampled, rows) if needs_widening(rows) else sampled
-    return bayes, post, cd_posterior_rows(rows, cd, sampled), cd
-
-
-
-def _posterior_json(b):
-    s = b.summary
-    col = lambda k: {n: float(v) for n, v in zip(s.index, s[k])}  # noqa: E731
-    return {"mean": col("mean"), "sd": col("sd"), "r_hat": col("r_hat"), "ess_bulk": col("ess_bulk"),
-            "ess_tail": col("ess_tail"), "q05": col("q05"), "q95": col("q95")}
-
-
-def _mcmc_json(b, post):
-    def sig(c):
-        x = b.draws[..., b.names.index(f"log_sigma_{c}")]
-        return {"median": float(np.exp(np.median(x))), "q05": float(np.exp(np.quantile(x, 0.05))),
-                "q95": float(np.exp(np.quantile(x, 0.95)))}
-
-    return {"converged": b.converged, "message": b.message, "steps": b.steps, "burn": b.burn,
-            "thin": b.thin, "walkers": b.nwalkers, "draws": int(b.draws.shape[0] * b.draws.shape[1]),
-            "tau_max": float(np.max(b.tau)), "tau_mean": float(np.mean(b.tau)),
-            "acceptance": b.acceptance, "moves": b.moves, "likelihood": b.likelihood,
-            "nu": post.nu, "resumed_from": b.resumed_from, "seconds": round(b.elapsed, 3),
-            "sigma": {c: sig(c) for c in post.channels}}
+def _check_record(track, rnd, opts, chans, f1, grid, rows):
+    """The model check (:func:`~bayesdrag.model_check.model_error`) as JSON-ready values, for
+    :func:`~bayesdrag._beside.computed_beside`: its record (``gap``), each row's
+    ``model_error_sd`` (None where it sets none; ``rows`` are left as they are) and its
+    ``seconds``."""
+    t0 = time.perf_counter()
+    mine = [dict(r) for r in rows]
+    gap, _ = model_error(track, rnd, opts, chans, f1, grid, mine)
+    return {"gap": gap, "model_error_sd": [r.get("model_error_sd") for r in mine],
+            "seconds": time.perf_counter() - t0}
 
 
 def _fit_scheme2(track, rnd, opts, chans, log, t_start):

@@ -9,11 +9,11 @@ import io
 import os
 import platform
 import signal
-import sys
 import warnings
 from importlib.resources import files
 from pathlib import Path
 
+from .._beside import free_core
 from .._gc import paused_gc
 from ..io.outputs import atomic_write, write_bytes
 
@@ -38,12 +38,12 @@ def rendered_elsewhere(jobs, out):
     nothing to draw). The ``with`` yields a dict that holds, once the body has finished,
     ``{file name: PNG bytes or None}``, each also written to ``out/<file name>``. The process
     is forked (it inherits the computed arrays: nothing is pickled or computed twice) only on
-    Linux when a core is free (:func:`_free_core`), and the child only draws with matplotlib
+    Linux when a core is free (:func:`bayesdrag._beside.free_core`), and the child only draws with matplotlib
     (no compiled kernel, no threads). Without a fork, or when the child fails, the figures are
     drawn here after the body: the same files either way.
     """
     out = Path(out)
-    pid = _fork_renderer(jobs, out) if jobs and _free_core() else None
+    pid = _fork_renderer(jobs, out) if jobs and free_core() else None
     pngs = {}
     try:
         yield pngs
@@ -93,19 +93,6 @@ def _wait(pid, seconds):
             os.waitpid(pid, 0)
             return False
         time.sleep(0.005)
-
-
-def _free_core():
-    """A forked renderer can run beside this process: Linux with fork, this process's only
-    Python thread (a thread holding a lock at the fork would leave it held in the child: a Dask
-    worker's), and a second core idle (1-minute load below the cores minus one half; on a busy
-    machine the two would only take turns)."""
-    import threading
-
-    if not sys.platform.startswith("linux") or not hasattr(os, "fork") or threading.active_count() != 1:
-        return False
-    cpus = os.cpu_count() or 1
-    return cpus >= 2 and os.getloadavg()[0] < cpus - 0.5
 
 
 def _fork_renderer(jobs, out):

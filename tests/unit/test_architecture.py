@@ -13,7 +13,7 @@ MAX_FUNCTION_LINES = 150
 
 #: the layers, lowest first: a module may import only from its own layer or lower ones
 LAYERS = [
-    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads", "bayesdrag._signals", "bayesdrag._gc", "bayesdrag._numba_cache",
+    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads", "bayesdrag._signals", "bayesdrag._beside", "bayesdrag._gc", "bayesdrag._numba_cache",
      "bayesdrag._numba_setup", "bayesdrag._user_cache"],
     ["bayesdrag.wind", "bayesdrag.atmosphere", "bayesdrag.drag"],
     ["bayesdrag.track", "bayesdrag.round"],
@@ -26,7 +26,7 @@ LAYERS = [
     ["bayesdrag.planning"],
     ["bayesdrag.results"],
     ["bayesdrag.diagnosis"],
-    ["bayesdrag.options", "bayesdrag.model_check", "bayesdrag.pipeline"],
+    ["bayesdrag.options", "bayesdrag.model_check", "bayesdrag.sampling", "bayesdrag.pipeline"],
     ["bayesdrag.campaign"],
     ["bayesdrag.plots"],
     ["bayesdrag.report"],

@@ -39,7 +39,7 @@ def _line_figure():
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
 def test_forked_rendering_writes_the_same_png_as_rendering_here(tmp_path, monkeypatch):
-    monkeypatch.setattr(render, "_free_core", lambda: True)
+    monkeypatch.setattr(render, "free_core", lambda: True)
     with render.rendered_elsewhere([("a.png", _line_figure, None), ("none.png", lambda: None, None)],
                                    tmp_path) as pngs:
         pass
@@ -58,14 +58,14 @@ def test_a_figure_the_child_cannot_draw_is_drawn_here(tmp_path, monkeypatch):
             raise RuntimeError("the forked renderer fails")
         return _line_figure()
 
-    monkeypatch.setattr(render, "_free_core", lambda: True)
+    monkeypatch.setattr(render, "free_core", lambda: True)
     with render.rendered_elsewhere([("b.png", only_here, None)], tmp_path) as pngs:
         pass
     assert pngs["b.png"] == (tmp_path / "b.png").read_bytes() == render.figure_png(_line_figure())
 
 
 def test_without_a_free_core_the_figures_are_drawn_after_the_body(tmp_path, monkeypatch):
-    monkeypatch.setattr(render, "_free_core", lambda: False)
+    monkeypatch.setattr(render, "free_core", lambda: False)
     order = []
 
     def make():
@@ -79,7 +79,7 @@ def test_without_a_free_core_the_figures_are_drawn_after_the_body(tmp_path, monk
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
 def test_an_error_in_the_body_stops_the_renderer_and_propagates(tmp_path, monkeypatch):
-    monkeypatch.setattr(render, "_free_core", lambda: True)
+    monkeypatch.setattr(render, "free_core", lambda: True)
     with pytest.raises(KeyError, match="body"):
         with render.rendered_elsewhere([("d.png", _line_figure, None)], tmp_path):
             raise KeyError("body")
@@ -96,7 +96,7 @@ def test_a_hung_renderer_is_killed_and_its_figures_drawn_here(tmp_path, monkeypa
             time.sleep(60)
         return _line_figure()
 
-    monkeypatch.setattr(render, "_free_core", lambda: True)
+    monkeypatch.setattr(render, "free_core", lambda: True)
     monkeypatch.setattr(render, "FORK_WAIT_SECONDS", 0.5)
     t0 = time.monotonic()
     with render.rendered_elsewhere([("e.png", hangs_in_child, None)], tmp_path) as pngs:
@@ -110,12 +110,12 @@ def test_no_fork_beside_other_python_threads(monkeypatch):
 
     monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
     monkeypatch.setattr(os, "cpu_count", lambda: 2)
-    alone = render._free_core()
+    alone = render.free_core()
     stop = threading.Event()
     t = threading.Thread(target=stop.wait)
     t.start()
     try:
-        assert render._free_core() is False
+        assert render.free_core() is False
     finally:
         stop.set()
         t.join()

@@ -1,0 +1,151 @@
+"""Work done in a forked process beside this one, its answer handed back as JSON.
+
+A fit's model check (a few dozen nonlinear fits of the diagnosis) and its posterior sampling
+do not depend on each other when the check cannot change what is sampled: on a machine with a
+free core the check runs in a forked child while this process samples (:func:`computed_beside`).
+The child inherits the fit's arrays (nothing is pickled); its answer comes back through a pipe as
+JSON text, which only this package's own child writes, and is read with ``json.loads`` (no
+pickle: the rule for anything read). Without a free core, on a platform without ``fork``, or
+when the child fails, the work is done here after the body: the same answer either way.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import sys
+import threading
+import warnings
+from typing import Any, Callable, Iterator
+
+__all__ = ["free_core", "computed_beside", "Beside", "plain_json"]
+
+
+def free_core() -> bool:
+    """A forked process can run beside this one: Linux with fork, this process's only Python
+    thread (a thread holding a lock at the fork would leave it held in the child: a Dask
+    worker's), and a second core idle (1-minute load below the cores minus one half; on a busy
+    machine the two would only take turns)."""
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork") or threading.active_count() != 1:
+        return False
+    cpus = os.cpu_count() or 1
+    return cpus >= 2 and os.getloadavg()[0] < cpus - 0.5
+
+
+def plain_json(obj: Any) -> Any:
+    """``json.dumps``'s ``default``: numpy arrays as lists, numpy scalars as Python numbers."""
+    tolist = getattr(obj, "tolist", None)
+    if tolist is not None:
+        return tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
+class Beside:
+    """The answer of :func:`computed_beside`, set when the ``with`` body has finished.
+
+    Attributes
+    ----------
+    value : object
+        ``fn()``'s value after a JSON round trip (lists for arrays, as ``result.json`` holds
+        them), or ``fn()`` itself when it ran here.
+    forked : bool
+        Whether the child's answer was used.
+    """
+
+    def __init__(self) -> None:
+        self.value: Any = None
+        self.forked = False
+
+
+@contextlib.contextmanager
+def computed_beside(fn: Callable[[], Any], *, fork: bool = True) -> Iterator[Beside]:
+    """Compute ``fn()`` in a forked child while the body of the ``with`` runs.
+
+    ``fn`` must be deterministic, must not write files, and its value must survive a JSON round
+    trip (numbers, strings, lists, dicts; numpy arrays become lists). The body must not change
+    what ``fn`` reads. The yielded :class:`Beside` holds the value once the body has finished;
+    the child is waited for then (its work is the caller's: no time limit) and killed when the
+    body raises. ``fork=False``, no free core (:func:`free_core`), a failed fork or a child that
+    fails: ``fn()`` runs here after the body (its exceptions are the caller's).
+    """
+    out = Beside()
+    child = _fork(fn) if fork and free_core() else None
+    try:
+        yield out
+    except BaseException:
+        if child is not None:
+            _kill(child[0])
+            os.close(child[1])
+        raise
+    text = None
+    if child is not None:
+        pid, fd = child
+        try:
+            text = _read_all(fd)
+            _, status = os.waitpid(pid, 0)
+        except BaseException:
+            _kill(pid)
+            raise
+        finally:
+            os.close(fd)
+        if os.waitstatus_to_exitcode(status) != 0:
+            text = None
+    if text is not None:
+        try:
+            out.value, out.forked = json.loads(text), True
+            return
+        except ValueError:
+            pass
+    out.value = fn()
+
+
+def _fork(fn):
+    """Fork a child that writes ``json.dumps(fn())`` to a pipe and exits (0: written); returns
+    ``(pid, read end)``, or None when the pipe or the fork fails."""
+    try:
+        r, w = os.pipe()
+    except OSError:
+        return None
+    with warnings.catch_warnings():           # Python >= 3.12 warns about forking with threads alive
+        warnings.simplefilter("ignore", DeprecationWarning)
+        try:
+            pid = os.fork()
+        except OSError:
+            os.close(r)
+            os.close(w)
+            return None
+    if pid:
+        os.close(w)
+        return pid, r
+    code = 1
+    try:                                       # the child: compute, write, leave without cleanup handlers
+        os.close(r)
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        with warnings.catch_warnings():        # the parent says what the work warns about when it reruns it
+            warnings.simplefilter("ignore")
+            data = json.dumps(fn(), default=plain_json).encode()
+        view = memoryview(data)
+        while view:
+            view = view[os.write(w, view):]
+        code = 0
+    finally:
+        os._exit(code)
+
+
+def _read_all(fd):
+    """Everything written to pipe ``fd`` until its write end closes, as text."""
+    parts = []
+    while True:
+        b = os.read(fd, 1 << 20)
+        if not b:
+            return b"".join(parts).decode()
+        parts.append(b)
+
+
+def _kill(pid):
+    """Kill child ``pid`` and reap it (it may have exited already)."""
+    with contextlib.suppress(OSError):
+        os.kill(pid, signal.SIGKILL)
+    with contextlib.suppress(OSError):
+        os.waitpid(pid, 0)

@@ -1,0 +1,55 @@
+"""The model check runs in a forked process beside the sampling when its answer cannot change
+what is sampled (``with_effects="none"`` or named effects): the result is the same as when it
+runs before the sampling, to the last bit, and ``timing`` says where it ran."""
+import json
+import os
+import sys
+
+import pytest
+
+import bayesdrag
+from bayesdrag import _beside
+from bayesdrag.options import FitOptions
+
+#: a forked process can run the check on this platform
+FORKS = hasattr(os, "fork") and sys.platform.startswith("linux")
+#: a short chain: the comparison is of two runs of one seed, not of a converged posterior
+STEPS = 300
+
+
+@pytest.fixture(scope="module")
+def demo():
+    from bayesdrag.commands.demo import demo_inputs
+    from bayesdrag.io.rounds import read_round
+    from bayesdrag.io.tracks import read_track
+
+    track_path, round_path = demo_inputs()
+    return read_track(track_path), read_round(round_path)
+
+
+def _without_clock(d):
+    d = dict(d)
+    timing = d.pop("timing")
+    d["mcmc"] = {k: v for k, v in d["mcmc"].items() if k != "seconds"}
+    return json.dumps(d, sort_keys=True, default=str), timing
+
+
+def test_the_check_beside_the_sampling_gives_the_same_result(demo, monkeypatch):
+    track, rnd = demo
+    opts = FitOptions(seed=3, with_effects="none", max_steps=STEPS)
+    monkeypatch.setattr(_beside, "free_core", lambda: True)
+    beside, t_beside = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
+    monkeypatch.setattr(_beside, "free_core", lambda: False)
+    after, t_after = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
+    assert beside == after
+    assert t_after["model_check_beside_sampling"] is False
+    assert t_beside["model_check_beside_sampling"] is FORKS
+    assert json.loads(beside)["ml"]["quality"]["model_error"]["verdict"] == ["lift"]   # the check did run
+
+
+def test_the_default_check_decides_what_is_sampled_and_runs_first(demo, monkeypatch):
+    track, rnd = demo
+    monkeypatch.setattr(_beside, "free_core", lambda: True)
+    d = bayesdrag.fit(track, rnd, FitOptions(seed=3, max_steps=STEPS)).to_dict()
+    assert "model_check_beside_sampling" not in d["timing"]
+    assert d["ml"]["with_effects"]["added_by"] == "default"
