@@ -36,6 +36,10 @@ The user's loop around that fit (issue 31), measured in the same run (``--no-out
   (``NUMBA_CACHE_DIR`` an empty temporary folder; from its ``summary.json``), with the functions
   compiled and the demo's wall time.
 
+With ``with_effects="none"`` the fit's model check runs in a forked process beside the sampling
+when a core is free (``timing.model_check_beside_sampling``, reported with the key): the
+trajectories it simulates are then not in ``trajectories_simulated`` (counted in this process).
+
 The fit is pinned to no added effects: ``with_effects="none"`` where the option takes that
 value, else the default (which adds none); ``effects_option`` says which.
 
@@ -246,7 +250,7 @@ def time_demo_bayes(seed=DEMO_SEED, outputs=True):
            "parameters": post.ndim, "steps": b.steps, "walkers": b.nwalkers, "tau_max": float(np.max(b.tau)),
            "acceptance": round(b.acceptance, 3), "converged": b.converged,
            "r_hat_max": float(b.summary["r_hat"].max()), "samples": track.n, "seed": seed,
-           "effects_option": which}
+           "effects_option": which, "timing": res.to_dict().get("timing")}
     if write_seconds is not None:
         out["write_seconds"] = round(write_seconds, 3)
         out["write_ratio"] = round(write_seconds / seconds, 2)
