@@ -162,6 +162,8 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
         with_note["fitted"] = list(f1.effects)
         with_note.setdefault("effects", list(f1.effects))
+        from .estimate.scheme1.effect_sizes import effect_sizes
+        with_note["sizes"] = effect_sizes(track, rnd, opts, chans, f1)   # each size's sd (issue 30)
         lay = _fitted_layers(f1)
         if lay is not None:
             if placement is not None:
