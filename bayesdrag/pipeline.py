@@ -177,6 +177,8 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
         with_note["fitted"] = list(f1.effects)
         with_note.setdefault("effects", list(f1.effects))
+        from .estimate.scheme1.effect_sizes import effect_sizes
+        with_note["sizes"] = effect_sizes(track, rnd, opts, chans, f1)   # each size's sd (issue 30)
         lay = _fitted_layers(f1)
         if lay is not None:
             if placement is not None:
@@ -358,21 +360,16 @@ def _diagnosis_layers(summary, track, rnd):
 
 def _fitted_layers(f1):
     """``ml.with_effects.wind_layers`` of a fit with ``wind_profile``: the axis, the edges and
-    each layer's fitted wind (the round's own wind not included) with its sd [m/s]."""
+    each layer's fitted wind (the round's own wind not included) with its sd [m/s]: the noise's
+    bound and what the wind can do inside the layer
+    (:func:`~bayesdrag.estimate.scheme1.winds.layer_sizes`)."""
+    from .estimate.scheme1.winds import layer_sizes
+
     lay = getattr(f1.problem.model, "layers", None)
     if "wind_profile" not in f1.effects or lay is None:
         return None
     res = f1.ml
-    names = list(res.names)
-    rows = []
-    for k in range(1, lay.n + 1):
-        row = {"layer": k, "from": lay.edges[k - 1], "to": lay.edges[k]}
-        for c in ("wx", "wy"):
-            key = f"wind_profile.{c}_{k if not (c == 'wy' and lay.constant_cross) else 1}"
-            j = names.index(key)
-            row[c] = float(res.theta[j]) if res.free[j] else 0.0
-            row[f"{c}_sd"] = float(res.crb[j]) if res.free[j] else None
-        rows.append(row)
+    rows = layer_sizes(lay, res.names, res.theta, res.free, res.crb, res.crb_colored)
     return {"axis": lay.axis, "edges": list(lay.edges),
             "edges_unit": "m above sea level" if lay.axis == "altitude" else "m downrange from the gun",
             "wind_sd": _layers_wind_sd(f1), "layers": rows}

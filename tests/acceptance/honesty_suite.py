@@ -354,7 +354,8 @@ def _effect_truth(case, track, with_effects):
 def judge_effects(result_dict, case, track):
     """Each added effect parameter with a truth: value, sd, truth and ``z`` (in its sd); ``ok``
     is whether every one lies within :data:`EFFECT_TOL_SD` sd of the truth (None with none to
-    judge). A wind layer's sd is its Cramér-Rao sd. A parameter whose sd exceeds
+    judge). The sd is the one the fit states: a wind layer's ``wx_sd``, another parameter's
+    ``ml.with_effects.sizes`` sd (``ml.crb`` where a result has none). A parameter whose sd exceeds
     :data:`UNSIZED_RATIO` times its true size is listed in ``unsized`` and fails: the fit did not
     size it (a radar clock traded with a free initial state)."""
     ml = result_dict["ml"]
@@ -370,6 +371,8 @@ def judge_effects(result_dict, case, track):
     for name, t in truth.items():
         if name in lay:
             v, sd = lay[name]
+        elif name in (we.get("sizes") or {}):        # the sd the fit states for the size
+            v, sd = we["sizes"][name]["value"], we["sizes"][name]["sd"]
         elif name in ml["params"]:
             v, sd = ml["params"][name], ml["crb"].get(name)
         else:

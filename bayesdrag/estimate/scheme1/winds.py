@@ -19,6 +19,10 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   a wind step is put), and the track supports each by its likelihood. The edges are nuisance
   parameters: their Cd spread about the kept fit's, weighted by the likelihood ratios
   (:func:`equivalent_placements`), is added to each row's model error (:func:`placement_sd`).
+* **A layer's size.** A layer's constant is the track's sensitivity-weighted mean of a wind that
+  may change inside it; the Cramér-Rao sd holds the noise only. The wind read through the layer
+  middles (:func:`within_layer_sd`) says how much it changes inside each layer, and that change,
+  spread uniformly, is the layer's representation sd, added to its bound in squares.
 * **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
@@ -35,7 +39,7 @@ from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edge
 from ..model.problem import Prior
 
 __all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "equivalent_placements", "placement_sd",
-           "edge_penalty", "deviance", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
+           "edge_penalty", "deviance", "within_layer_sd", "layer_sizes", "layers_over", "at_fit_resolution", "layer_free", "WIND_AXES",
            "PLACED_AXES", "FIT_LAYERS"]
 
 #: layers of a fitted wind profile (the diagnosis lays fewer: it only has to name the wind)
@@ -335,3 +339,82 @@ def layer_free(layers, name, channels):
     if not wind_profile_free(EffectContext(wind_layers=layers), name):
         return False
     return not (".wy_" in name and "y" not in channels)
+
+
+def within_layer_sd(lower, upper, values):
+    """What a layer's constant cannot say [m/s]: the sd of the wind inside each layer about any
+    weighted mean of it.
+
+    The track sees each layer only through a weighted mean of the wind flown inside it (the
+    weights are the track's sensitivities, not the samples' count); a wind that changes inside
+    the layer makes every weighting give another mean. The simplest wind the layers describe runs
+    linearly through their middles (extrapolated over the outer half-layers); over layer ``k`` it
+    spans a range ``R_k`` (its values at the two edges and at the middle), and a mean with weights
+    the track cannot state lies anywhere in that range: uniformly, sd ``R_k / sqrt(12)``.
+
+    Parameters
+    ----------
+    lower, upper : (K,) arrays, m
+        Each layer's edges on its axis (height or downrange distance), the layers in order.
+    values : (K,) array, m/s
+        Each layer's fitted wind (one component).
+
+    Returns
+    -------
+    (K,) ndarray, m/s
+        Zeros for a single layer or a constant profile.
+    """
+    a, b = np.asarray(lower, float), np.asarray(upper, float)
+    v = np.asarray(values, float)
+    if v.size < 2:
+        return np.zeros(v.size)
+    mid = 0.5 * (a + b)
+
+    def at(p):      # the line through the middles, extended over the outer half-layers
+        k = np.clip(np.searchsorted(mid, p) - 1, 0, v.size - 2)
+        return v[k] + (v[k + 1] - v[k]) * (p - mid[k]) / (mid[k + 1] - mid[k])
+    lo, hi = at(a), at(b)
+    span = np.max([lo, v, hi], axis=0) - np.min([lo, v, hi], axis=0)
+    return span / np.sqrt(12.0)
+
+
+def layer_sizes(layers, names, theta, free, crb, crb_colored):
+    """Each layer's fitted wind and its sd [m/s] as ``ml.with_effects.wind_layers.layers`` reports
+    them: ``wx``, ``wy`` (0 for a held component), ``wx_sd`` = the larger of the Cramér-Rao sd
+    and its colored form (correlated residuals) with :func:`within_layer_sd` added in squares,
+    ``wx_crb_sd`` the plain Cramér-Rao sd and ``wx_within_sd`` the representation part (None for
+    a held component).
+
+    Parameters
+    ----------
+    layers : WindLayers
+    names : sequence of str
+        The fit's parameter names (``wind_profile.wx_1``, ...).
+    theta, free, crb, crb_colored : (n,) arrays
+        The fit's estimate, which parameters are free, and their sd.
+
+    Returns
+    -------
+    list of dict
+        One per layer: ``layer``, ``from``, ``to`` and the keys above.
+    """
+    names = list(names)
+    rows = [{"layer": k, "from": layers.edges[k - 1], "to": layers.edges[k]} for k in range(1, layers.n + 1)]
+    for c in ("wx", "wy"):
+        js = [names.index(f"wind_profile.{c}_{k if not (c == 'wy' and layers.constant_cross) else 1}")
+              for k in range(1, layers.n + 1)]
+        held = [not free[j] for j in js]
+        vals = np.array([0.0 if h else float(theta[j]) for j, h in zip(js, held)])
+        within = np.zeros(layers.n)
+        fk = np.flatnonzero(~np.array(held))
+        if len(set(js)) > 1 and fk.size > 1:      # over the free layers only (a held one is no wind)
+            e = np.asarray(layers.edges, float)
+            within[fk] = within_layer_sd(e[fk], e[fk + 1], vals[fk])
+        for row, j, h, w in zip(rows, js, held, within):
+            row[c] = float(vals[row["layer"] - 1])
+            sds = [float(v) for v in (crb[j], crb_colored[j]) if np.isfinite(v)]
+            base = max(sds) if sds else float("nan")
+            row[f"{c}_sd"] = None if h else float(np.hypot(base, w))
+            row[f"{c}_crb_sd"] = None if h else float(crb[j])
+            row[f"{c}_within_sd"] = None if h else float(w)
+    return rows
