@@ -22,6 +22,7 @@ from .estimate.cd.headline import headline
 from .estimate.cd.model_error import fold_into_budget
 from .estimate.cd.quality import assess, check_against_flexible, intervals
 from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
+from .estimate.scheme1.effect_sizes import effect_sizes
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
 from .model_check import LEVEL_EFFECTS, air, model_error, note_model_error, why_not_clean
@@ -111,27 +112,18 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     gap = effects_fit = None
     default = opts.with_effects == "default"
     timing["ml"] = round(time.perf_counter() - t_start, 3)
-    sampled = None
     # effects the user names are fitted, and the misfit they leave is checked like any other: a
     # warm day under `--with wind_profile` otherwise gave rows 50 sd off marked determined
-    if opts.model_check and opts.with_effects != "auto":
+    check = opts.model_check and opts.with_effects != "auto"
+    # only the default takes the check's fit as its answer; otherwise the check cannot change what
+    # is sampled and it runs beside the sampling (:func:`_beside_sampling`)
+    deferred = check and opts.mcmc and not default
+    if check and not deferred:
         if ml_progress is not None:
             ml_progress("checking the Cd against the misfit that remains")
         t0 = time.perf_counter()
-        if opts.mcmc and not default:
-            # the check cannot change what is sampled (only the default takes its fit as the
-            # answer): it runs in a forked process beside the sampling when a core is free
-            with computed_beside(functools.partial(_check_record, track, rnd, opts, chans, f1, grid, rows)) as box:
-                sampled = run_sampler(f1, opts, chain_path, resume, log, progress)
-            gap = box.value["gap"]
-            for r, v in zip(rows, box.value["model_error_sd"]):
-                if v is not None:
-                    r["model_error_sd"] = v
-            timing["model_check"] = round(box.value["seconds"], 3)
-            timing["model_check_beside_sampling"] = box.forked
-        else:
-            gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
-            timing["model_check"] = round(time.perf_counter() - t0, 3)
+        gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
+        timing["model_check"] = round(time.perf_counter() - t0, 3)
     if default and effects_fit is not None and effects_fit.effects and not _trades_with_cd(effects_fit, rnd):
         # the default fit fits the cause: the check's fit with the undeclared material effects
         # (already made, from the plain fit's start) is the answer; the plain Cd stays beside it
@@ -157,6 +149,24 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                                 f"parameters (ml_without_effects: the plain fit; --with none keeps the plain fit "
                                 f"with the shift as model error)")}
         timing["refit"] = round(time.perf_counter() - t0, 3)
+    bayes = post = cd = sizes = None
+    if opts.mcmc:
+        if deferred and ml_progress is not None:
+            ml_progress("checking the Cd against the misfit that remains, beside the sampling")
+        work = functools.partial(_beside_sampling, track, rnd, opts, chans, f1, grid, rows, deferred)
+        with computed_beside(work, fork=deferred or bool(f1.effects)) as box:
+            bayes, post = run_sampler(f1, opts, chain_path, resume, log, progress)
+        done = box.value
+        timing["beside_sampling"] = sorted(done) if box.forked else []
+        if "model_check" in done:
+            gap = done["model_check"]["gap"]
+            for r, v in zip(rows, done["model_check"]["model_error_sd"]):
+                if v is not None:
+                    r["model_error_sd"] = v
+            timing["model_check"] = round(done["model_check"]["seconds"], 3)
+        if "effect_sizes" in done:
+            sizes = done["effect_sizes"]["sizes"]
+            timing["effect_sizes"] = round(done["effect_sizes"]["seconds"], 3)
     placement = _placement_error(f1, grid, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if gap is not None:
@@ -177,8 +187,11 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
             "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
         with_note["fitted"] = list(f1.effects)
         with_note.setdefault("effects", list(f1.effects))
-        from .estimate.scheme1.effect_sizes import effect_sizes
-        with_note["sizes"] = effect_sizes(track, rnd, opts, chans, f1)   # each size's sd (issue 30)
+        if sizes is None:
+            t0 = time.perf_counter()
+            sizes = effect_sizes(track, rnd, opts, chans, f1)
+            timing["effect_sizes"] = round(time.perf_counter() - t0, 3)
+        with_note["sizes"] = sizes          # each added parameter's size with the sd the fit stands by
         lay = _fitted_layers(f1)
         if lay is not None:
             if placement is not None:
@@ -190,9 +203,7 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
-    bayes = post = cd = None
     if opts.mcmc:
-        bayes, post = sampled if sampled is not None else run_sampler(f1, opts, chain_path, resume, log, progress)
         rows, cd = sampled_rows(bayes, f1, rows, grid)
         summary["cd"] = rows
         summary["posterior"] = posterior_json(bayes)
@@ -445,16 +456,25 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
     }
 
 
-def _check_record(track, rnd, opts, chans, f1, grid, rows):
-    """The model check (:func:`~bayesdrag.model_check.model_error`) as JSON-ready values, for
-    :func:`~bayesdrag._beside.computed_beside`: its record (``gap``), each row's
-    ``model_error_sd`` (None where it sets none; ``rows`` are left as they are) and its
-    ``seconds``."""
-    t0 = time.perf_counter()
-    mine = [dict(r) for r in rows]
-    gap, _ = model_error(track, rnd, opts, chans, f1, grid, mine)
-    return {"gap": gap, "model_error_sd": [r.get("model_error_sd") for r in mine],
-            "seconds": time.perf_counter() - t0}
+def _beside_sampling(track, rnd, opts, chans, f1, grid, rows, check):
+    """What a Scheme 1 fit computes while its posterior is sampled, none of which changes what is
+    sampled, as JSON-ready values for :func:`~bayesdrag._beside.computed_beside`:
+    ``model_check`` (with ``check``: :func:`~bayesdrag.model_check.model_error`'s record
+    ``gap``, each row's ``model_error_sd``, None where it sets none, and its ``seconds``; ``rows``
+    are left as they are) and ``effect_sizes`` (a fit with effects:
+    :func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes` and its ``seconds``)."""
+    out = {}
+    if check:
+        t0 = time.perf_counter()
+        mine = [dict(r) for r in rows]
+        gap, _ = model_error(track, rnd, opts, chans, f1, grid, mine)
+        out["model_check"] = {"gap": gap, "model_error_sd": [r.get("model_error_sd") for r in mine],
+                              "seconds": time.perf_counter() - t0}
+    if f1.effects:
+        t0 = time.perf_counter()
+        out["effect_sizes"] = {"sizes": effect_sizes(track, rnd, opts, chans, f1),
+                               "seconds": time.perf_counter() - t0}
+    return out
 
 
 def _fit_scheme2(track, rnd, opts, chans, log, t_start):

@@ -37,7 +37,7 @@ The user's loop around that fit (issue 31), measured in the same run (``--no-out
   compiled and the demo's wall time.
 
 With ``with_effects="none"`` the fit's model check runs in a forked process beside the sampling
-when a core is free (``timing.model_check_beside_sampling``, reported with the key): the
+when a core is free (``timing.beside_sampling``, reported with the key): the
 trajectories it simulates are then not in ``trajectories_simulated`` (counted in this process).
 
 The fit is pinned to no added effects: ``with_effects="none"`` where the option takes that

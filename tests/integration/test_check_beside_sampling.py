@@ -1,6 +1,7 @@
-"""The model check runs in a forked process beside the sampling when its answer cannot change
-what is sampled (``with_effects="none"`` or named effects): the result is the same as when it
-runs before the sampling, to the last bit, and ``timing`` says where it ran."""
+"""What a fit computes that cannot change what is sampled runs in a forked process beside the
+sampling: the model check with ``with_effects="none"`` or named effects, the added effects'
+sizes. The result is the same as when it runs here, to the last bit, and ``timing.beside_sampling``
+says what ran beside."""
 import json
 import os
 import sys
@@ -42,14 +43,18 @@ def test_the_check_beside_the_sampling_gives_the_same_result(demo, monkeypatch):
     monkeypatch.setattr(_beside, "free_core", lambda: False)
     after, t_after = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
     assert beside == after
-    assert t_after["model_check_beside_sampling"] is False
-    assert t_beside["model_check_beside_sampling"] is FORKS
+    assert t_after["beside_sampling"] == []
+    assert t_beside["beside_sampling"] == (["model_check"] if FORKS else [])
     assert json.loads(beside)["ml"]["quality"]["model_error"]["verdict"] == ["lift"]   # the check did run
 
 
-def test_the_default_check_decides_what_is_sampled_and_runs_first(demo, monkeypatch):
+def test_the_default_check_decides_what_is_sampled_and_the_sizes_go_beside(demo, monkeypatch):
     track, rnd = demo
+    opts = FitOptions(seed=3, max_steps=STEPS)
     monkeypatch.setattr(_beside, "free_core", lambda: True)
-    d = bayesdrag.fit(track, rnd, FitOptions(seed=3, max_steps=STEPS)).to_dict()
-    assert "model_check_beside_sampling" not in d["timing"]
-    assert d["ml"]["with_effects"]["added_by"] == "default"
+    beside, t_beside = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
+    monkeypatch.setattr(_beside, "free_core", lambda: False)
+    after, t_after = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
+    assert beside == after
+    assert json.loads(beside)["ml"]["with_effects"]["added_by"] == "default"   # the check ran first
+    assert t_beside["beside_sampling"] == (["effect_sizes"] if FORKS else []) and t_after["beside_sampling"] == []
