@@ -68,3 +68,17 @@ def test_a_refit_from_a_replaced_start_reaches_the_same_optimum(problem):
     free = ml.free
     dz = np.abs(again.theta - ml.theta)[free] / ml.crb[free]
     assert float(np.max(dz)) < 1e-2
+
+
+def test_prior_jacobian_follows_a_replaced_set_of_priors(problem):
+    # the linear priors' rows are made once per set of priors: a copy with other priors must
+    # not reuse the first set's
+    prob, ml = problem
+    J_before = prob.prior_terms(ml.theta)[1]
+    assert prob.replace(priors=()).prior_terms(ml.theta)[1].shape[0] == 0
+    linear = tuple(p for p in prob.priors if p.row is not None)
+    assert linear, "the fixture's spline fit has its smoothness priors"
+    half = linear[: max(1, len(linear) // 2)]
+    r, J = prob.replace(priors=half).prior_terms(ml.theta)
+    assert J.shape == (len(half), int(prob.free.sum())) and r.shape == (len(half),)
+    np.testing.assert_array_equal(prob.prior_terms(ml.theta)[1], J_before)

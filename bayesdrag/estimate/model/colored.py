@@ -299,11 +299,17 @@ def fit_noise(e, dt_ratio, start=None):
     e = np.asarray(e, float)
     N = e.size
     white = -0.5 * N * math.log(max(float(e @ e) / N, 1e-300))
+    # profile_loglik's kernel called directly on arrays made once: the optimiser evaluates this
+    # ~100 times per call, and the wrapper's conversions cost more than the filter
+    rows = np.ascontiguousarray(e[None])
+    dtr = np.ascontiguousarray(dt_ratio, dtype=float)
+    rho_a, q_a = np.empty(1), np.empty(1)
 
     def nll(x):
-        rho = 1.0 - math.exp(min(max(x[0], LOG_1M_RHO_RANGE[0]), 0.0))
-        q = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
-        return -profile_loglik(e, rho, q, dt_ratio)
+        rho_a[0] = 1.0 - math.exp(min(max(x[0], LOG_1M_RHO_RANGE[0]), 0.0))
+        q_a[0] = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
+        ss, ld = _whitened_ss(rows, rho_a, q_a, dtr)
+        return -float(-0.5 * ld[0] - 0.5 * N * math.log(max(ss[0], 1e-300) / N))
 
     if start is not None:
         # warm start (the relaxation's previous optimum, which moves little): that one only
