@@ -477,7 +477,12 @@ class PointMassModel:
         if state0.shape[0] != drag_params.shape[0] or state0.shape[1] != 6:
             raise ValueError(f"state0 (B, 6) and drag_params (B, P) disagree: {state0.shape} vs {drag_params.shape}")
         t_out = np.asarray(t_out, dtype=float)
-        h, n_steps, out_step, out_theta = output_schedule(t_out, t_start, max_step or self.kernel_step)
+        if t_out.ndim == 1:
+            h, n_steps, out_step, out_theta = _schedule(t_out.tobytes(), float(t_start),
+                                                        float(max_step or self.kernel_step))
+            out_step, out_theta = out_step.copy(), out_theta.copy()      # the kernel's own (writable) arrays
+        else:
+            h, n_steps, out_step, out_theta = output_schedule(t_out, t_start, max_step or self.kernel_step)
         par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind = self.kernel_inputs(
             drag_params, overrides, atmospheres, state0, winds)
         w_tabs, w_idx, w0, dw = wind
@@ -547,6 +552,16 @@ CHUNK_LANE_STEPS = 2_000_000
 #: most RK4 steps one trajectory may need: a plausible projectile over the longest flight needs
 #: a few hundred thousand (a 4 mm, 1.3 g ball over a minute); beyond, a mass or diameter is wrong
 MAX_KERNEL_STEPS = 20_000_000
+
+
+@lru_cache(maxsize=32)
+def _schedule(t_out, t_start, max_step):
+    """:func:`output_schedule` of the times ``t_out`` (the bytes of a float array), memoised: a
+    fit asks for the schedule of the same track times on every batch (arrays read-only)."""
+    out = output_schedule(np.frombuffer(t_out, dtype=float), t_start, max_step)
+    for a in out[2:]:
+        a.setflags(write=False)
+    return out
 
 
 @lru_cache(maxsize=128)
