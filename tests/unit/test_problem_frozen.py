@@ -82,3 +82,23 @@ def test_prior_jacobian_follows_a_replaced_set_of_priors(problem):
     r, J = prob.replace(priors=half).prior_terms(ml.theta)
     assert J.shape == (len(half), int(prob.free.sum())) and r.shape == (len(half),)
     np.testing.assert_array_equal(prob.prior_terms(ml.theta)[1], J_before)
+
+
+def test_a_priors_declared_dependencies_leave_its_jacobian_unchanged(problem):
+    # the finite differences of a nonlinear prior skip the parameters it does not read: their
+    # columns were exactly zero, so the Jacobian is the same to the bit
+    import dataclasses
+
+    from bayesdrag.estimate.scheme1.launch import launch_state_priors
+    from bayesdrag.round import Launch
+
+    prob, ml = problem
+    pri = launch_state_priors(Launch(velocity=800.0, velocity_sd=5.0, elevation_deg=30.0, elevation_sd_deg=0.5,
+                                     position_sd=1.0), prob.P, heading=True)
+    assert all(p.depends for p in pri)
+    plain = tuple(dataclasses.replace(p, depends=None) for p in pri)
+    r1, J1 = prob.replace(priors=pri).prior_terms(ml.theta)
+    r2, J2 = prob.replace(priors=plain).prior_terms(ml.theta)
+    np.testing.assert_array_equal(r1, r2)
+    np.testing.assert_array_equal(J1, J2)
+    assert np.count_nonzero(J1) >= 6          # position, speed, elevation and heading rows

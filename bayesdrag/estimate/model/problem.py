@@ -65,7 +65,9 @@ class Prior:
     ``fn`` maps the full parameter vector (P + 6,) to a float; ``name`` labels it. ``row``, when
     given, says the prior is linear: ``fn(theta) = row @ theta`` with ``row`` of the full
     parameter length, so its Jacobian needs no finite differences (the spline smoothness penalty
-    has ~45 such priors).
+    has ~45 such priors). ``depends``, when given, names the indices of theta that ``fn`` reads:
+    the finite-difference Jacobian of a nonlinear prior then perturbs those alone (the others'
+    columns are exactly zero).
     """
 
     name: str
@@ -73,6 +75,7 @@ class Prior:
     mean: float
     sd: float
     row: object = None
+    depends: tuple = None
 
 
 def outputs(traj_state, channels, site=None, measured=None, offset=None, site_shift=None):
@@ -491,12 +494,15 @@ class OutputErrorProblem:
         J, other = self._linear_prior_jacobian(theta.size)
         if other:
             J = J.copy()
-            pri = [self.priors[i] for i in other]
             tp, tm = theta.copy(), theta.copy()
             for k, j in enumerate(idx):
+                rows = [i for i in other if self.priors[i].depends is None or j in self.priors[i].depends]
+                if not rows:
+                    continue
                 tp[j] += self.steps[j]
                 tm[j] -= self.steps[j]
-                J[other, k] = [(p.fn(tp) - p.fn(tm)) / (2 * self.steps[j] * p.sd) for p in pri]
+                J[rows, k] = [(self.priors[i].fn(tp) - self.priors[i].fn(tm)) / (2 * self.steps[j] * self.priors[i].sd)
+                              for i in rows]
                 tp[j] = tm[j] = theta[j]
         return r, J
 
