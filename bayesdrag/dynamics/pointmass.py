@@ -592,7 +592,7 @@ CHUNK_LANE_STEPS = 2_000_000
 MAX_KERNEL_STEPS = 20_000_000
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=16)
 def _schedule(t_out, t_start, max_step):
     """:func:`output_schedule` of the times ``t_out`` (the bytes of a float array), memoised: a
     fit asks for the schedule of the same track times on every batch (arrays read-only)."""
