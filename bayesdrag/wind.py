@@ -134,7 +134,22 @@ class WindProfile:
             raise ValueError(f"layers need K + 1 strictly increasing edges and K winds; got {e.size} edges, "
                              f"{wx.size} wind_x, {wy.size} wind_y")
         lv = np.repeat(e, 2)[1:-1]               # e0, e1, e1, e2, e2, ..., eK
-        return cls(axis, tuple(lv), tuple(np.repeat(wx, 2)), tuple(np.repeat(wy, 2)))
+        w = np.column_stack([wx, wy])            # (K, 2): each layer's wind
+        if (axis not in WIND_AXES or not np.isfinite(e).all() or not np.isfinite(w).all()
+                or np.abs(w).max() > PROFILE_WIND_MAX):
+            return cls(axis, tuple(lv), tuple(np.repeat(wx, 2)), tuple(np.repeat(wy, 2)))  # names what is wrong
+        # valid by construction: the checks of __post_init__ are skipped and what depends on the
+        # edges alone is memoised (a fit builds a profile per trajectory). Its step rows are those
+        # __post_init__ computes: inside a layer the wind is constant, so both slopes are 0.0
+        levels, v, hw, zero = _layer_steps(e.tobytes())
+        prof = object.__new__(cls)
+        for name, value in (("axis", axis), ("levels", levels), ("wind_x", tuple(np.repeat(wx, 2).tolist())),
+                            ("wind_y", tuple(np.repeat(wy, 2).tolist()))):
+            object.__setattr__(prof, name, value)
+        rows = (w[:-1], zero, w[1:], zero)
+        object.__setattr__(prof, "_steps", tuple(zip(v, hw, *rows)))
+        object.__setattr__(prof, "_step_rows", rows)
+        return prof
 
     @property
     def n_layers(self):
@@ -260,6 +275,21 @@ def _placement(levels, steps, shape, data):
     for a in (k, k1, f):
         a.setflags(write=False)
     return k, k1, f, tuple(near), joint
+
+
+@lru_cache(maxsize=64)
+def _layer_steps(edges):
+    """What the steps of layers with ``edges`` (the bytes of a float array) depend on: the
+    levels (a tuple), each step's level and half width (lists of floats, computed as
+    :meth:`WindProfile.__post_init__` computes them) and a (K - 1, 2) array of zeros (the slopes
+    inside the layers). Memoised; the array is read-only."""
+    L = np.repeat(np.frombuffer(edges, dtype=float), 2)[1:-1]
+    rep = np.flatnonzero(np.diff(L) == 0)
+    v = L[rep]
+    hw = np.minimum(np.minimum(0.5 * WIND_STEP_WIDTH, 0.5 * (v - L[rep - 1])), 0.5 * (L[rep + 2] - v))
+    zero = np.zeros((rep.size, 2))
+    zero.setflags(write=False)
+    return tuple(L.tolist()), v.tolist(), hw.tolist(), zero
 
 
 def _side_value(p, v, upper):

@@ -113,11 +113,13 @@ class WindProfileModel:
         B = max(np.atleast_2d(np.asarray(state0, float)).shape[0], np.atleast_2d(drag_params).shape[0])
         vals = np.zeros((B, 2 * WIND_LAYERS_MAX))
         for k in keys:
-            vals[:, k[1]] = np.broadcast_to(np.asarray(ov.pop(k), float), (B,))
-        rows, inverse = np.unique(vals, axis=0, return_inverse=True)
-        winds = [self.layers.profile(r) for r in rows]
-        return self.model.simulate_batch(drag_params, state0, t_out, overrides=ov or None,
-                                         winds=[winds[i] for i in np.ravel(inverse)], **kw)
+            vals[:, k[1]] = ov.pop(k)          # one value per trajectory, or one for all
+        # one profile per distinct row (bytewise: a dictionary, where np.unique's sort of rows
+        # cost as much as building the profiles)
+        made = {}
+        winds = [made[key] if key in made else made.setdefault(key, self.layers.profile(r))
+                 for key, r in ((r.tobytes(), r) for r in vals)]
+        return self.model.simulate_batch(drag_params, state0, t_out, overrides=ov or None, winds=winds, **kw)
 
 
 def wind_profile_free(ctx, name):

@@ -53,7 +53,7 @@ from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT
                      SPIN_DECAY, coriolis_matrix, lift_parameter)
 from .trajectory import DEFAULT_MAX_STEP, STEP_DRAG_FRACTION, Trajectory, output_schedule
 
-__all__ = ["PointMassModel", "atmosphere_table", "wind_tables"]
+__all__ = ["PointMassModel", "atmosphere_table", "wind_tables", "positions_and_speed"]
 
 
 
@@ -477,7 +477,12 @@ class PointMassModel:
         if state0.shape[0] != drag_params.shape[0] or state0.shape[1] != 6:
             raise ValueError(f"state0 (B, 6) and drag_params (B, P) disagree: {state0.shape} vs {drag_params.shape}")
         t_out = np.asarray(t_out, dtype=float)
-        h, n_steps, out_step, out_theta = output_schedule(t_out, t_start, max_step or self.kernel_step)
+        if t_out.ndim == 1:
+            h, n_steps, out_step, out_theta = _schedule(t_out.tobytes(), float(t_start),
+                                                        float(max_step or self.kernel_step))
+            out_step, out_theta = out_step.copy(), out_theta.copy()      # the kernel's own (writable) arrays
+        else:
+            h, n_steps, out_step, out_theta = output_schedule(t_out, t_start, max_step or self.kernel_step)
         par, cd_tabs, cd_idx, grid, atm_tabs, atm_idx, z0, dz, wind = self.kernel_inputs(
             drag_params, overrides, atmospheres, state0, winds)
         w_tabs, w_idx, w0, dw = wind
@@ -533,6 +538,44 @@ def distinct_rows(a):
     return first, inverse
 
 
+def positions_and_speed(state, columns):
+    """Position coordinates and speeds of a batch of trajectories in one compiled pass (the
+    gun-frame channels :func:`bayesdrag.measure.channel_values` reads off every trial batch:
+    numpy's strided passes over the (B, N, 6) states cost ~3 times as long).
+
+    Parameters
+    ----------
+    state : (B, N, 6) float64 ndarray
+        Positions [m] and velocities [m/s].
+    columns : sequence of int
+        Per output column: 0, 1, 2 the position coordinate x, y, z; 3 the speed
+        ``sqrt(ux^2 + uy^2 + uz^2)`` (summed in that order, as numpy does).
+
+    Returns
+    -------
+    (B, N, len(columns)) ndarray
+    """
+    state = np.ascontiguousarray(state, dtype=float)
+    cols = np.asarray(columns, dtype=np.int64)
+    out = np.empty(state.shape[:-1] + (cols.size,))
+    _positions_and_speed(state, cols, out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+def _positions_and_speed(state, cols, out):
+    B, N, _ = state.shape
+    for b in range(B):
+        for i in range(N):
+            for j in range(cols.size):
+                c = cols[j]
+                if c < 3:
+                    out[b, i, j] = state[b, i, c]
+                else:
+                    ux, uy, uz = state[b, i, 3], state[b, i, 4], state[b, i, 5]
+                    out[b, i, j] = np.sqrt(ux * ux + uy * uy + uz * uz)
+
+
 def atmosphere_table(atm):
     """The kernel's table of an atmosphere: ``(z0, dz, values)`` with heights above the gun
     ``z0 + dz * i`` [m] and columns density [kg/m^3] and 1 / speed of sound [s/m] (read-only,
@@ -547,6 +590,16 @@ CHUNK_LANE_STEPS = 2_000_000
 #: most RK4 steps one trajectory may need: a plausible projectile over the longest flight needs
 #: a few hundred thousand (a 4 mm, 1.3 g ball over a minute); beyond, a mass or diameter is wrong
 MAX_KERNEL_STEPS = 20_000_000
+
+
+@lru_cache(maxsize=16)
+def _schedule(t_out, t_start, max_step):
+    """:func:`output_schedule` of the times ``t_out`` (the bytes of a float array), memoised: a
+    fit asks for the schedule of the same track times on every batch (arrays read-only)."""
+    out = output_schedule(np.frombuffer(t_out, dtype=float), t_start, max_step)
+    for a in out[2:]:
+        a.setflags(write=False)
+    return out
 
 
 @lru_cache(maxsize=128)

@@ -208,6 +208,10 @@ def _dot(a, b):
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
+#: the gun-frame channels as columns of :func:`bayesdrag.dynamics.pointmass.positions_and_speed`
+_GUN_COLUMN = {"x": 0, "y": 1, "z": 2, "v": 3}
+
+
 def channel_values(state, channels, site=RadarSite()):
     """Channels measured from the states.
 
@@ -232,6 +236,11 @@ def channel_values(state, channels, site=RadarSite()):
     else:                                # the gun-frame channels need no line of sight
         if state.shape[-1] != 6:
             raise ValueError(f"state must have 6 entries (x, y, z, ux, uy, uz) on its last axis, got {state.shape}")
+        if state.ndim == 3 and all(c in _GUN_COLUMN for c in channels):
+            # a batch of trajectories (every trial step of a fit): one compiled pass, same numbers
+            from ..dynamics.pointmass import positions_and_speed
+
+            return positions_and_speed(state, [_GUN_COLUMN[c] for c in channels])
         d, u, R2 = None, state[..., 3:], None
     out = np.empty(state.shape[:-1] + (len(channels),))
     R = None

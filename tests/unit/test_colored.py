@@ -1,5 +1,7 @@
 """White + AR(1) model-error noise (bayesdrag.estimate.model.colored): the Kalman whitening is the exact
 Gaussian likelihood, and the noise fit tells white from model-error residuals."""
+import math
+
 import numpy as np
 import pytest
 from scipy.linalg import cholesky, solve_triangular
@@ -73,3 +75,57 @@ def test_shared_noise_parameters_give_the_per_walker_numbers(irregular):
         ss_w, ld_w = colored.whitened_ss(r, np.full(W, rho), np.full(W, q), dt_ratio)
         np.testing.assert_array_equal(ss_s, ss_w)
         np.testing.assert_array_equal(ld_s, ld_w)
+
+
+def _scipy_and_ours(f, x0, **tol):
+    from scipy.optimize import minimize
+
+    calls = {"scipy": [], "ours": []}
+
+    def rec(key):
+        def g(x):
+            calls[key].append((float(x[0]), float(x[1])))
+            return f(x)
+        return g
+
+    o = minimize(rec("scipy"), x0, method="Nelder-Mead", options={**tol, "maxiter": 400})
+    x, fun = colored.nelder_mead_2d(rec("ours"), x0, maxiter=400, **tol)
+    return o, x, fun, calls
+
+
+def _plateau(x):
+    # clamped like the noise likelihood's parameters: equal values on a whole region (ties)
+    a, b = min(max(x[0], -3.0), 0.0), min(max(x[1], -2.0), 4.0)
+    return (a + 1.3) ** 2 + 3.0 * (b - 0.7) ** 2 + 0.5 * a * b
+
+
+@pytest.mark.parametrize("f, x0", [
+    (lambda x: (x[0] - 1.0) ** 2 + 10.0 * (x[1] + 2.0) ** 2 + x[0] * x[1], (0.0, 0.0)),
+    (lambda x: 100.0 * (x[1] - x[0] ** 2) ** 2 + (1.0 - x[0]) ** 2, (-1.2, 1.0)),
+    (_plateau, (-5.0, 9.0)),
+    (_plateau, (math.log(0.01), 0.0)),
+    (lambda x: math.nan if x[0] > 0.3 else (x[0] - 1.0) ** 2 + x[1] ** 2, (0.2, 0.5)),
+])
+def test_nelder_mead_2d_is_scipys_step_for_step(f, x0):
+    """The noise fit's own 2-D Nelder-Mead evaluates the same points in the same order as
+    scipy's and ends on the same vertex and value, bit for bit (it only drops the array work)."""
+    o, x, fun, calls = _scipy_and_ours(f, x0, xatol=1e-3, fatol=1e-4)
+    assert calls["ours"] == calls["scipy"]
+    assert x == (float(o.x[0]), float(o.x[1]))
+    assert fun == float(o.fun) or (math.isnan(fun) and math.isnan(o.fun))
+
+
+def test_nelder_mead_2d_follows_scipy_on_the_noise_likelihood():
+    rng = np.random.default_rng(7)
+    for rho, q in ((0.99, 4.0), (0.5, 0.01), (0.0, 0.0)):
+        e = _ar_white(rng, 600, rho, q) if q else rng.standard_normal(600)
+        dt = np.ones(599)
+
+        def nll(x):
+            r = 1.0 - math.exp(min(max(x[0], colored.LOG_1M_RHO_RANGE[0]), 0.0))
+            qq = math.exp(min(max(x[1], colored.LOG_Q_RANGE[0]), colored.LOG_Q_RANGE[1]))
+            return -colored.profile_loglik(e, r, qq, dt)
+
+        for x0 in ((math.log(0.01), 0.0), (math.log(1e-4), 5.0), (-20.0, -20.0)):
+            o, x, fun, calls = _scipy_and_ours(nll, x0, xatol=1e-3, fatol=1e-4)
+            assert calls["ours"] == calls["scipy"] and fun == float(o.fun)

@@ -38,3 +38,18 @@ def test_convolve_same_matches_fftconvolve(N, kmax):
     ker = rng.normal(size=2 * kmax + 1)
     want = signal.fftconvolve(s, ker[:, None], mode="same", axes=0)
     assert np.allclose(convolve_same(s, ker), want, rtol=0, atol=ROUNDOFF * np.abs(want).max())
+
+
+def test_fast_length_is_the_least_5_smooth_length_not_below_n():
+    from bayesdrag.estimate.model.filters import fast_length
+
+    def smooth(m):
+        for p in (2, 3, 5):
+            while m % p == 0:
+                m //= p
+        return m == 1
+
+    for n in (1, 2, 7, 1229, 1811, 4097, 12289):
+        m = fast_length(n)
+        assert m >= n and smooth(m)
+        assert not any(smooth(k) for k in range(n, m))

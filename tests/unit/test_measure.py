@@ -140,3 +140,17 @@ def test_problem_outputs_put_the_azimuth_on_the_measured_branch():
     assert np.all(np.abs(r) < math.radians(2.0))
     plain = channel_values(st, ("azimuth",), site)
     assert np.allclose(wrap_angle(y - plain), 0.0, atol=1e-12)
+
+
+def test_a_batch_of_gun_frame_channels_is_each_trajectorys_own_to_the_bit():
+    # a batch (B, N, 6) takes the compiled pass; one trajectory (N, 6) the numpy expressions:
+    # the same numbers, a diverged trial state's inf and NaN included
+    rng = np.random.default_rng(11)
+    state = rng.normal(0.0, 400.0, (5, 300, 6))
+    state[1, 7, 4] = np.inf
+    state[2, 9, 0] = np.nan
+    chans = ("v", "z", "x", "y")
+    batch = channel_values(state, chans)
+    one = np.stack([channel_values(s, chans) for s in state])
+    assert batch.shape == (5, 300, 4)
+    np.testing.assert_array_equal(batch, one)

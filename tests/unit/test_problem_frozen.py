@@ -68,3 +68,37 @@ def test_a_refit_from_a_replaced_start_reaches_the_same_optimum(problem):
     free = ml.free
     dz = np.abs(again.theta - ml.theta)[free] / ml.crb[free]
     assert float(np.max(dz)) < 1e-2
+
+
+def test_prior_jacobian_follows_a_replaced_set_of_priors(problem):
+    # the linear priors' rows are made once per set of priors: a copy with other priors must
+    # not reuse the first set's
+    prob, ml = problem
+    J_before = prob.prior_terms(ml.theta)[1]
+    assert prob.replace(priors=()).prior_terms(ml.theta)[1].shape[0] == 0
+    linear = tuple(p for p in prob.priors if p.row is not None)
+    assert linear, "the fixture's spline fit has its smoothness priors"
+    half = linear[: max(1, len(linear) // 2)]
+    r, J = prob.replace(priors=half).prior_terms(ml.theta)
+    assert J.shape == (len(half), int(prob.free.sum())) and r.shape == (len(half),)
+    np.testing.assert_array_equal(prob.prior_terms(ml.theta)[1], J_before)
+
+
+def test_a_priors_declared_dependencies_leave_its_jacobian_unchanged(problem):
+    # the finite differences of a nonlinear prior skip the parameters it does not read: their
+    # columns were exactly zero, so the Jacobian is the same to the bit
+    import dataclasses
+
+    from bayesdrag.estimate.scheme1.launch import launch_state_priors
+    from bayesdrag.round import Launch
+
+    prob, ml = problem
+    pri = launch_state_priors(Launch(velocity=800.0, velocity_sd=5.0, elevation_deg=30.0, elevation_sd_deg=0.5,
+                                     position_sd=1.0), prob.P, heading=True)
+    assert all(p.depends for p in pri)
+    plain = tuple(dataclasses.replace(p, depends=None) for p in pri)
+    r1, J1 = prob.replace(priors=pri).prior_terms(ml.theta)
+    r2, J2 = prob.replace(priors=plain).prior_terms(ml.theta)
+    np.testing.assert_array_equal(r1, r2)
+    np.testing.assert_array_equal(J1, J2)
+    assert np.count_nonzero(J1) >= 6          # position, speed, elevation and heading rows

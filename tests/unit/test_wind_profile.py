@@ -127,3 +127,26 @@ def test_the_6dof_flies_the_atmospheres_wind_profile():
     layered = sixdof.simulate_6dof(sh, 818.0, 30.0, t_out=t, atmosphere=Atmosphere(wind=LAYERS))
     still = sixdof.simulate_6dof(sh, 818.0, 30.0, t_out=t)
     assert abs(layered.position[-1, 1] - still.position[-1, 1]) > 5.0
+
+
+@pytest.mark.parametrize("k", [1, 2, 4, 7])
+def test_layered_profiles_equal_the_ones_the_constructor_checks(k):
+    # the layered constructor skips the checks it cannot fail and memoises the steps' geometry:
+    # the profile must be the constructor's, to the last bit, winds and smoothed steps alike
+    rng = np.random.default_rng(k)
+    edges = np.cumsum(rng.uniform(20.0, 3000.0, k + 1))
+    wx, wy = rng.normal(0.0, 8.0, k), rng.normal(0.0, 8.0, k)
+    wy[0] = -0.0
+    fast = WindProfile.layered("downrange", edges, wx, wy)
+    slow = WindProfile("downrange", tuple(np.repeat(edges, 2)[1:-1]), tuple(np.repeat(wx, 2)), tuple(np.repeat(wy, 2)))
+    assert fast == slow and hash(fast) == hash(slow)
+    s = np.linspace(edges[0] - 200.0, edges[-1] + 200.0, 2001)
+    np.testing.assert_array_equal(fast.at(s), slow.at(s))
+    assert [fast.at_scalar(v) for v in s[::50]] == [slow.at_scalar(v) for v in s[::50]]
+
+
+@pytest.mark.parametrize("wx, match", [((200.0, 1.0), "wind_x = 200 m/s .* exceeds"),
+                                       ((float("nan"), 1.0), "wind_x")])
+def test_layered_profiles_refuse_implausible_winds_as_the_constructor_does(wx, match):
+    with pytest.raises(ValueError, match=match):
+        WindProfile.layered("altitude", (0.0, 1000.0, 2000.0), wx, (0.0, 0.0))

@@ -294,16 +294,20 @@ def fit_noise(e, dt_ratio, start=None):
     lr : float
         ``2 (log L - log L_white)``: the evidence for a model-error component.
     """
-    from scipy.optimize import minimize
-
     e = np.asarray(e, float)
     N = e.size
     white = -0.5 * N * math.log(max(float(e @ e) / N, 1e-300))
+    # profile_loglik's kernel called directly on arrays made once: the optimiser evaluates this
+    # ~100 times per call, and the wrapper's conversions cost more than the filter
+    rows = np.ascontiguousarray(e[None])
+    dtr = np.ascontiguousarray(dt_ratio, dtype=float)
+    rho_a, q_a = np.empty(1), np.empty(1)
 
     def nll(x):
-        rho = 1.0 - math.exp(min(max(x[0], LOG_1M_RHO_RANGE[0]), 0.0))
-        q = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
-        return -profile_loglik(e, rho, q, dt_ratio)
+        rho_a[0] = 1.0 - math.exp(min(max(x[0], LOG_1M_RHO_RANGE[0]), 0.0))
+        q_a[0] = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
+        ss, ld = _whitened_ss(rows, rho_a, q_a, dtr)
+        return -float(-0.5 * ld[0] - 0.5 * N * math.log(max(ss[0], 1e-300) / N))
 
     if start is not None:
         # warm start (the relaxation's previous optimum, which moves little): that one only
@@ -312,15 +316,90 @@ def fit_noise(e, dt_ratio, start=None):
         starts = [(math.log(0.01), 0.0), (math.log(1e-3), 2.0), (math.log(1e-4), 5.0)]
     best = None
     for x0 in starts:
-        o = minimize(nll, x0, method="Nelder-Mead",
-                     options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400})
-        if best is None or o.fun < best.fun:
-            best = o
-    rho = 1.0 - math.exp(min(max(best.x[0], LOG_1M_RHO_RANGE[0]), 0.0))
-    q = math.exp(min(max(best.x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
-    lr = 2.0 * (-best.fun - white)
+        x, fun = nelder_mead_2d(nll, x0, xatol=1e-3, fatol=1e-4, maxiter=400)
+        if best is None or fun < best[1]:
+            best = (x, fun)
+    rho = 1.0 - math.exp(min(max(best[0][0], LOG_1M_RHO_RANGE[0]), 0.0))
+    q = math.exp(min(max(best[0][1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
+    lr = 2.0 * (-best[1] - white)
     if lr <= 0.0:
         rho, q, lr = 0.0, 0.0, 0.0
     u, _ = standardize(e, rho, q, dt_ratio)
     sigma = max(math.sqrt(float(u @ u) / N), 1e-9)
     return sigma, rho, q, lr
+
+
+def _nan_max(values):
+    """The largest of floats, NaN when any is NaN (as ``np.max``)."""
+    return math.nan if any(v != v for v in values) else max(values)
+
+
+def nelder_mead_2d(f, x0, xatol=1e-4, fatol=1e-4, maxiter=400):
+    """Minimise ``f((a, b))`` by Nelder-Mead from ``x0``: scipy's ``minimize(method="Nelder-Mead")``
+    (standard coefficients, its initial simplex and stopping rules, no bounds) step for step and
+    bit for bit on two floats, without its per-step array work (the noise ML above calls it a
+    hundred times per fit; tests/unit/test_colored.py compares the two).
+
+    Parameters
+    ----------
+    f : callable
+        ``f((a, b)) -> float``.
+    x0 : (2,) sequence of float
+    xatol, fatol : float
+        Stop when every vertex is within ``xatol`` of the best in each coordinate and every
+        value within ``fatol`` of the best.
+    maxiter : int
+
+    Returns
+    -------
+    x : (float, float)
+        The best vertex.
+    fun : float
+        Its value (NaN when a vertex's value is NaN).
+    """
+    a, b = float(x0[0]), float(x0[1])
+    sim = [(a, b), ((1 + 0.05) * a if a != 0 else 0.00025, b), (a, (1 + 0.05) * b if b != 0 else 0.00025)]
+    fsim = [f(v) for v in sim]
+
+    def order():
+        # numpy's own sort, as scipy's (its order of equal values is the sort's to choose)
+        idx = np.argsort(np.array(fsim)).tolist()
+        return [sim[i] for i in idx], [fsim[i] for i in idx]
+
+    sim, fsim = order()
+    sim, fsim = order()      # scipy sorts the first simplex twice
+    it = 1
+    while it < maxiter:
+        (x0a, x0b), (x1a, x1b), (x2a, x2b) = sim
+        if (_nan_max([abs(x1a - x0a), abs(x1b - x0b), abs(x2a - x0a), abs(x2b - x0b)]) <= xatol
+                and _nan_max([abs(fsim[0] - fsim[1]), abs(fsim[0] - fsim[2])]) <= fatol):
+            break
+        xa, xb = (x0a + x1a) / 2, (x0b + x1b) / 2
+        xr = (2 * xa - x2a, 2 * xb - x2b)
+        fxr = f(xr)
+        if fxr < fsim[0]:
+            xe = (3 * xa - 2 * x2a, 3 * xb - 2 * x2b)
+            fxe = f(xe)
+            sim[2], fsim[2] = (xe, fxe) if fxe < fxr else (xr, fxr)
+        elif fxr < fsim[1]:
+            sim[2], fsim[2] = xr, fxr
+        else:
+            if fxr < fsim[2]:
+                xc = (1.5 * xa - 0.5 * x2a, 1.5 * xb - 0.5 * x2b)
+                fxc = f(xc)
+                shrink = not fxc <= fxr
+                if not shrink:
+                    sim[2], fsim[2] = xc, fxc
+            else:
+                xcc = (0.5 * xa + 0.5 * x2a, 0.5 * xb + 0.5 * x2b)
+                fxcc = f(xcc)
+                shrink = not fxcc < fsim[2]
+                if not shrink:
+                    sim[2], fsim[2] = xcc, fxcc
+            if shrink:
+                for j in (1, 2):
+                    sim[j] = (x0a + 0.5 * (sim[j][0] - x0a), x0b + 0.5 * (sim[j][1] - x0b))
+                    fsim[j] = f(sim[j])
+        it += 1
+        sim, fsim = order()
+    return sim[0], (math.nan if any(v != v for v in fsim) else fsim[0])

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-__all__ = ["savgol_coeffs", "savgol_smooth", "convolve_same"]
+__all__ = ["savgol_coeffs", "savgol_smooth", "convolve_same", "fast_length"]
 
 
 def savgol_coeffs(window, order, deriv=0, delta=1.0, pos=None, use="conv"):
@@ -90,7 +90,25 @@ def convolve_same(s, kernel):
     (N, p) ndarray
     """
     N, K = s.shape[0], kernel.size
-    n = N + K - 1
+    n = fast_length(N + K - 1)           # zero padding beyond the full length changes nothing
     full = np.fft.irfft(np.fft.rfft(s, n, axis=0) * np.fft.rfft(kernel, n)[:, None], n, axis=0)
     start = (K - 1) // 2
     return full[start:start + N]
+
+
+def fast_length(n):
+    """The least length >= ``n`` whose only prime factors are 2, 3 and 5 (as
+    ``scipy.fft.next_fast_len`` for real transforms): a transform of a length with a large prime
+    factor (a track's sample count plus a lag window often is one) takes several times longer."""
+    best = 1 << max(0, (int(n) - 1).bit_length())     # a power of two >= n
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            m = p35
+            while m < n:
+                m *= 2
+            best = min(best, m)
+            p35 *= 3
+        p5 *= 5
+    return best

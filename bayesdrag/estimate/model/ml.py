@@ -402,8 +402,8 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
             warnings.append(f"parameter {name}: Cramér-Rao sd {crb[j]:.3g} exceeds its value {theta[j]:.3g}")
     corr = cov / np.where(np.outer(crb, crb) > 0, np.outer(crb, crb), 1.0)
     iu = np.triu_indices(n, 1)
-    strong = [(problem.names[a], problem.names[b], corr[a, b]) for a, b in zip(*iu)
-              if abs(corr[a, b]) > 0.98]
+    hit = np.flatnonzero(np.abs(corr[iu]) > 0.98)[:5]      # in the order of the pairs, as listed below
+    strong = [(problem.names[a], problem.names[b], corr[a, b]) for a, b in zip(iu[0][hit], iu[1][hit])]
     for a, b, c in strong[:5]:
         warnings.append(f"parameters {a} and {b} are strongly correlated (rho = {c:+.3f})")
     success = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(crb)) and converged)

@@ -65,7 +65,9 @@ class Prior:
     ``fn`` maps the full parameter vector (P + 6,) to a float; ``name`` labels it. ``row``, when
     given, says the prior is linear: ``fn(theta) = row @ theta`` with ``row`` of the full
     parameter length, so its Jacobian needs no finite differences (the spline smoothness penalty
-    has ~45 such priors).
+    has ~45 such priors). ``depends``, when given, names the indices of theta that ``fn`` reads:
+    the finite-difference Jacobian of a nonlinear prior then perturbs those alone (the others'
+    columns are exactly zero).
     """
 
     name: str
@@ -73,6 +75,7 @@ class Prior:
     mean: float
     sd: float
     row: object = None
+    depends: tuple = None
 
 
 def outputs(traj_state, channels, site=None, measured=None, offset=None, site_shift=None):
@@ -488,23 +491,40 @@ class OutputErrorProblem:
             return np.zeros(0), np.zeros((0, int(self.free.sum())))
         idx = np.flatnonzero(self.free)
         r = np.array([(p.mean - p.fn(theta)) / p.sd for p in self.priors])
+        J, other = self._linear_prior_jacobian(theta.size)
+        if other:
+            J = J.copy()
+            tp, tm = theta.copy(), theta.copy()
+            for k, j in enumerate(idx):
+                rows = [i for i in other if self.priors[i].depends is None or j in self.priors[i].depends]
+                if not rows:
+                    continue
+                tp[j] += self.steps[j]
+                tm[j] -= self.steps[j]
+                J[rows, k] = [(self.priors[i].fn(tp) - self.priors[i].fn(tm)) / (2 * self.steps[j] * self.priors[i].sd)
+                              for i in rows]
+                tp[j] = tm[j] = theta[j]
+        return r, J
+
+    def _linear_prior_jacobian(self, n):
+        """The Jacobian (K, n_free) of the priors with the rows of the linear ones filled (the
+        others zero) and the indices of the others: made once per set of priors (a fit asks on
+        every step; the problem's priors and free parameters never change)."""
+        memo = self.__dict__.get("_prior_jacobian_memo")
+        if memo is not None and memo[0] is self.priors and memo[1] == n:
+            return memo[2], memo[3]
+        idx = np.flatnonzero(self.free)
         J = np.zeros((len(self.priors), idx.size))
         lin = np.array([p.row is not None for p in self.priors])
         if lin.any():
-            n = theta.size
             rows = np.array([np.pad(np.asarray(p.row, float), (0, n - len(p.row))) for p in self.priors
                              if p.row is not None])
             sds = np.array([p.sd for p in self.priors if p.row is not None])
             J[lin] = rows[:, idx] / sds[:, None]
+        J.flags.writeable = False
         other = [k for k, p in enumerate(self.priors) if p.row is None]
-        if other:
-            for k, j in enumerate(idx):
-                tp, tm = theta.copy(), theta.copy()
-                tp[j] += self.steps[j]
-                tm[j] -= self.steps[j]
-                J[other, k] = [(self.priors[i].fn(tp) - self.priors[i].fn(tm)) / (2 * self.steps[j] * self.priors[i].sd)
-                               for i in other]
-        return r, J
+        object.__setattr__(self, "_prior_jacobian_memo", (self.priors, n, J, other))
+        return J, other
 
     # ----------------------------------------------------------------------------------------
 

@@ -43,15 +43,16 @@ def launch_state_priors(L, P, heading=False, names=None):
     """
     lay = ParameterLayout(P)
     x, y, z, vx, vy, vz = (lay.index(c) for c in ("x", "y", "z", "vx", "vy", "vz"))
-    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., k]), 0.0, L.position_sd)
+    vel = (vx, vy, vz)
+    pri = [Prior(f"{n}_muzzle", (lambda th, k=k: th[..., k]), 0.0, L.position_sd, depends=(k,))
            for k, n in zip((x, y, z), ("X0", "Y0", "Z0"))]
     pri.append(Prior("launch_speed", lambda th: np.sqrt(th[..., vx] ** 2 + th[..., vy] ** 2 + th[..., vz] ** 2),
-                     L.velocity, L.velocity_sd))
+                     L.velocity, L.velocity_sd, depends=vel))
     pri.append(Prior("elevation", lambda th: np.degrees(np.arctan2(th[..., vz], np.hypot(th[..., vx], th[..., vy]))),
-                     L.elevation_deg, L.elevation_sd_deg))
+                     L.elevation_deg, L.elevation_sd_deg, depends=vel))
     if heading:
         pri.append(Prior("heading", lambda th: np.degrees(np.arctan2(th[..., vy], th[..., vx])),
-                         0.0, L.elevation_sd_deg))
+                         0.0, L.elevation_sd_deg, depends=(vx, vy)))
     if names is not None:
         pri = [p for p in pri if p.name in names]
     return tuple(pri)
