@@ -19,7 +19,7 @@ import threading
 import warnings
 from typing import Any, Callable, Iterator
 
-__all__ = ["free_core", "computed_beside", "Beside", "plain_json"]
+__all__ = ["free_core", "started_beside", "BesideJob", "computed_beside", "Beside", "plain_json"]
 
 
 def free_core() -> bool:
@@ -41,6 +41,79 @@ def plain_json(obj: Any) -> Any:
     raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
 
+class BesideJob:
+    """``fn()`` started in a forked child (or to be run here), collected by :meth:`result`.
+
+    Attributes
+    ----------
+    forked : bool
+        Whether the child's answer was used (known once :meth:`result` has returned).
+    """
+
+    def __init__(self, fn: Callable[[], Any], fork: bool) -> None:
+        self.fn = fn
+        self.forked = False
+        self._child = _fork(fn) if fork and free_core() else None
+        self._done = False
+        self._value: Any = None
+
+    def result(self) -> Any:
+        """``fn()``'s value: the child's after a JSON round trip (waited for: its work is the
+        caller's, no time limit), or ``fn()`` run here when no child was started or it failed
+        (its exceptions are the caller's). The second call returns the first's value."""
+        if self._done:
+            return self._value
+        text = None
+        if self._child is not None:
+            pid, fd = self._child
+            self._child = None
+            try:
+                text = _read_all(fd)
+                _, status = os.waitpid(pid, 0)
+            except BaseException:
+                _kill(pid)
+                raise
+            finally:
+                os.close(fd)
+            if os.waitstatus_to_exitcode(status) != 0:
+                text = None
+        value = None
+        if text is not None:
+            try:
+                value, self.forked = json.loads(text), True
+            except ValueError:
+                text = None
+        if text is None:
+            value = self.fn()
+        self._value, self._done = value, True
+        return value
+
+    def cancel(self) -> None:
+        """Kill the child, if one runs (its answer is not wanted)."""
+        if self._child is not None:
+            pid, fd = self._child
+            self._child = None
+            _kill(pid)
+            os.close(fd)
+
+
+@contextlib.contextmanager
+def started_beside(fn: Callable[[], Any], *, fork: bool = True) -> Iterator[BesideJob]:
+    """Start ``fn()`` in a forked child and yield its :class:`BesideJob`; leaving the ``with``
+    kills a child whose answer was not collected (the body raised, or did not need it).
+
+    ``fn`` must be deterministic, must not write files, and its value must survive a JSON round
+    trip (numbers, strings, lists, dicts; numpy arrays become lists). The body must not change
+    what ``fn`` reads. ``fork=False``, no free core (:func:`free_core`), a failed fork or a child
+    that fails: :meth:`BesideJob.result` runs ``fn()`` here.
+    """
+    job = BesideJob(fn, fork)
+    try:
+        yield job
+    finally:
+        job.cancel()
+
+
 class Beside:
     """The answer of :func:`computed_beside`, set when the ``with`` body has finished.
 
@@ -60,44 +133,14 @@ class Beside:
 
 @contextlib.contextmanager
 def computed_beside(fn: Callable[[], Any], *, fork: bool = True) -> Iterator[Beside]:
-    """Compute ``fn()`` in a forked child while the body of the ``with`` runs.
-
-    ``fn`` must be deterministic, must not write files, and its value must survive a JSON round
-    trip (numbers, strings, lists, dicts; numpy arrays become lists). The body must not change
-    what ``fn`` reads. The yielded :class:`Beside` holds the value once the body has finished;
-    the child is waited for then (its work is the caller's: no time limit) and killed when the
-    body raises. ``fork=False``, no free core (:func:`free_core`), a failed fork or a child that
-    fails: ``fn()`` runs here after the body (its exceptions are the caller's).
-    """
+    """Compute ``fn()`` in a forked child while the body of the ``with`` runs: the yielded
+    :class:`Beside` holds its value once the body has finished (:func:`started_beside` with the
+    answer collected at the end of the body; the child is killed when the body raises)."""
     out = Beside()
-    child = _fork(fn) if fork and free_core() else None
-    try:
+    with started_beside(fn, fork=fork) as job:
         yield out
-    except BaseException:
-        if child is not None:
-            _kill(child[0])
-            os.close(child[1])
-        raise
-    text = None
-    if child is not None:
-        pid, fd = child
-        try:
-            text = _read_all(fd)
-            _, status = os.waitpid(pid, 0)
-        except BaseException:
-            _kill(pid)
-            raise
-        finally:
-            os.close(fd)
-        if os.waitstatus_to_exitcode(status) != 0:
-            text = None
-    if text is not None:
-        try:
-            out.value, out.forked = json.loads(text), True
-            return
-        except ValueError:
-            pass
-    out.value = fn()
+        out.value = job.result()
+        out.forked = job.forked
 
 
 def _fork(fn):

@@ -15,11 +15,11 @@ from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "note_model_error", "air", "why_not_clean", "level_shift", "gross_outliers",
+__all__ = ["model_error", "diagnosis_record", "note_model_error", "air", "why_not_clean", "level_shift", "gross_outliers",
            "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
-def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None):
+def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None, diagnosis=None):
     """The model-error term of each row (:mod:`bayesdrag.estimate.cd.model_error`): the Cd shift
     of the material effects the diagnosis finds and the round does not declare (fitted), and of
     a robust fit where the noise is not white or has gross outliers. Sets each row's
@@ -27,30 +27,28 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     effects (a ``Scheme1Fit``, or None when none is found or it fails), which the default fit
     takes as its answer (:func:`bayesdrag.pipeline.fit`). ``diagnose_effects=False`` makes the
     noise check only (the fit already carries the effects); ``plain`` is then the fit without
-    them that ``f1`` was made from, whose stages its check shares (:func:`_from_plain`)."""
+    them that ``f1`` was made from, whose stages its check shares (:func:`_from_plain`).
+    ``diagnosis``: the :func:`diagnosis_record` of the track, when it was made already (it reads
+    the track and the round only: the pipeline makes it beside the ML fit)."""
     from .estimate.scheme1.systematics import plan_effects
 
     ml = np.array([r["ml"] for r in rows], float)
     band = np.array([max(r["crb_sd"], r.get("crb_sd_colored", r["crb_sd"])) for r in rows], float)
     rec = {"effects": [], "skipped": {}, "conditional_air": [], "noise_check": None}
     parts = {}
-    from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
-
     verdict, shifts, profiles, effects_fit = [], {}, {}, None
-    if not diagnose_effects:
-        pass                          # the fit carries the effects: the caller records them
-    elif track.n < MIN_DIAGNOSIS_SAMPLES:
-        rec["diagnosis_skipped"] = f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"
-    else:
-        try:
-            dsum = diagnose(track, rnd, channels=chans).summary
+    if diagnose_effects:              # else the fit carries the effects: the caller records them
+        d = diagnosis if diagnosis is not None else diagnosis_record(track, rnd, chans)
+        if "summary" in d:
+            dsum = d["summary"]
             verdict = list(dsum["verdict"])
             shifts = {e["name"]: e.get("cd_shift_max") for e in dsum.get("effects", [])}
             profiles = {e["name"]: e["cd_shift"] for e in dsum.get("effects", [])
                         if isinstance(e.get("cd_shift"), dict) and e["cd_shift"].get("mach")}
-        except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
-            # the check never costs the fit its answer: the record says it could not be made
-            rec["diagnosis_failed"] = f"{type(exc).__name__}: {exc}"
+        elif "skipped" in d:
+            rec["diagnosis_skipped"] = d["skipped"]
+        else:
+            rec["diagnosis_failed"] = d["failed"]
     keep, skipped = plan_effects(verdict, rnd)
     rec["verdict"], rec["skipped"] = verdict, skipped
     rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density")]
@@ -122,6 +120,27 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         for r, v in zip(rows, me):
             r["model_error_sd"] = float(v)
     return rec, effects_fit
+
+
+def diagnosis_record(track, rnd, chans):
+    """The diagnosis the model check reads (:func:`bayesdrag.diagnosis.diagnose`), as JSON-ready
+    values: ``{"summary": ...}``, ``{"skipped": why}`` (a track too short for it) or
+    ``{"failed": why}`` (the check never costs the fit its answer: the record says it could not
+    be made), with its ``seconds``. It reads the track, the round and the channels only."""
+    import time
+
+    from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
+
+    t0 = time.perf_counter()
+    if track.n < MIN_DIAGNOSIS_SAMPLES:
+        out = {"skipped": f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"}
+    else:
+        try:
+            out = {"summary": diagnose(track, rnd, channels=chans).summary}
+        except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
+            out = {"failed": f"{type(exc).__name__}: {exc}"}
+    out["seconds"] = time.perf_counter() - t0
+    return out
 
 
 #: running median [samples] the fit's residuals are taken about when a flagged sample is judged

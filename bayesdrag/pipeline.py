@@ -15,7 +15,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._beside import computed_beside
+from ._beside import computed_beside, started_beside
 from ._threads import single_blas
 from .errors import FitError, InputError
 from .estimate.cd.headline import headline
@@ -25,7 +25,7 @@ from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_
 from .estimate.scheme1.effect_sizes import effect_sizes
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
-from .model_check import LEVEL_EFFECTS, air, model_error, note_model_error, why_not_clean
+from .model_check import LEVEL_EFFECTS, air, diagnosis_record, model_error, note_model_error, why_not_clean
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
 from .round import Round
@@ -92,7 +92,16 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
-    timing = {}
+    check = opts.model_check and opts.with_effects != "auto"
+    # the model check's diagnosis reads the track and the round only: it runs in a forked process
+    # beside the ML fit, and beside the sampling too where the check cannot change what is sampled
+    with started_beside(functools.partial(diagnosis_record, track, rnd, chans), fork=check) as diag:
+        return _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
+                        diag if check else None)
+
+
+def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress, diag):
+    timing = {"beside": []}
     with_effects, with_note, layers = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
                      likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
@@ -113,17 +122,12 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     default = opts.with_effects == "default"
     timing["ml"] = round(time.perf_counter() - t_start, 3)
     # effects the user names are fitted, and the misfit they leave is checked like any other: a
-    # warm day under `--with wind_profile` otherwise gave rows 50 sd off marked determined
-    check = opts.model_check and opts.with_effects != "auto"
-    # only the default takes the check's fit as its answer; otherwise the check cannot change what
-    # is sampled and it runs beside the sampling (:func:`_beside_sampling`)
-    deferred = check and opts.mcmc and not default
-    if check and not deferred:
-        if ml_progress is not None:
-            ml_progress("checking the Cd against the misfit that remains")
-        t0 = time.perf_counter()
-        gap, effects_fit = model_error(track, rnd, opts, chans, f1, grid, rows)
-        timing["model_check"] = round(time.perf_counter() - t0, 3)
+    # warm day under `--with wind_profile` otherwise gave rows 50 sd off marked determined. Only
+    # the default takes the check's fit as its answer: otherwise the check cannot change what is
+    # sampled, and it is made once the sampling (beside which its diagnosis runs on) is done
+    deferred = diag is not None and opts.mcmc and not default
+    if diag is not None and not deferred:
+        gap, effects_fit = _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)
     if default and effects_fit is not None and effects_fit.effects and not _trades_with_cd(effects_fit, rnd):
         # the default fit fits the cause: the check's fit with the undeclared material effects
         # (already made, from the plain fit's start) is the answer; the plain Cd stays beside it
@@ -151,22 +155,16 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
         timing["refit"] = round(time.perf_counter() - t0, 3)
     bayes = post = cd = sizes = None
     if opts.mcmc:
-        if deferred and ml_progress is not None:
-            ml_progress("checking the Cd against the misfit that remains, beside the sampling")
-        work = functools.partial(_beside_sampling, track, rnd, opts, chans, f1, grid, rows, deferred)
-        with computed_beside(work, fork=deferred or bool(f1.effects)) as box:
+        # the added effects' sizes (their split fits) cannot change what is sampled either
+        with computed_beside(functools.partial(_effect_sizes_record, track, rnd, opts, chans, f1),
+                             fork=bool(f1.effects)) as box:
             bayes, post = run_sampler(f1, opts, chain_path, resume, log, progress)
-        done = box.value
-        timing["beside_sampling"] = sorted(done) if box.forked else []
-        if "model_check" in done:
-            gap = done["model_check"]["gap"]
-            for r, v in zip(rows, done["model_check"]["model_error_sd"]):
-                if v is not None:
-                    r["model_error_sd"] = v
-            timing["model_check"] = round(done["model_check"]["seconds"], 3)
-        if "effect_sizes" in done:
-            sizes = done["effect_sizes"]["sizes"]
-            timing["effect_sizes"] = round(done["effect_sizes"]["seconds"], 3)
+        if f1.effects:
+            sizes = box.value["sizes"]
+            timing["effect_sizes"] = round(box.value["seconds"], 3)
+            timing["beside"] += ["effect_sizes"] if box.forked else []
+        if deferred:
+            gap, _ = _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)
     placement = _placement_error(f1, grid, rows)
     quality = assess(f1, rows, track, rnd.radar.sigma)
     if gap is not None:
@@ -181,23 +179,11 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
     if with_note is not None or "wind_profile" in f1.effects:
-        with_note = with_note if with_note is not None else {
-            "added_by": "round", "requested": [], "candidates": [], "skipped": {},
-            "added": {"wind_profile": "[atmosphere] wind_sd is declared: the layers' prior"},
-            "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
-        with_note["fitted"] = list(f1.effects)
-        with_note.setdefault("effects", list(f1.effects))
         if sizes is None:
             t0 = time.perf_counter()
             sizes = effect_sizes(track, rnd, opts, chans, f1)
             timing["effect_sizes"] = round(time.perf_counter() - t0, 3)
-        with_note["sizes"] = sizes          # each added parameter's size with the sd the fit stands by
-        lay = _fitted_layers(f1)
-        if lay is not None:
-            if placement is not None:
-                lay["placement_sd_max"] = placement
-            with_note["wind_layers"] = lay
-        summary["ml"]["with_effects"] = with_note
+        summary["ml"]["with_effects"] = _with_effects_record(f1, with_note, sizes, placement)
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
     fold_into_budget(budget, rows)
@@ -223,6 +209,47 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
                      seconds=time.perf_counter() - t_start, cd_draws=cd)
 
 
+def _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress):
+    """The model check of ``f1`` (:func:`~bayesdrag.model_check.model_error`) with the diagnosis
+    of job ``diag`` (waited for, or made here); its times in ``timing`` (``diagnosis``: its own,
+    wherever it ran; ``model_check``: the check's here, the wait included). Returns what
+    ``model_error`` returns."""
+    if ml_progress is not None:
+        ml_progress("checking the Cd against the misfit that remains")
+    t0 = time.perf_counter()
+    diagnosis = diag.result()
+    timing["diagnosis"] = round(diagnosis["seconds"], 3)
+    timing["beside"] = (["diagnosis"] if diag.forked else []) + timing["beside"]
+    out = model_error(track, rnd, opts, chans, f1, grid, rows, diagnosis=diagnosis)
+    timing["model_check"] = round(time.perf_counter() - t0, 3)
+    return out
+
+
+def _effect_sizes_record(track, rnd, opts, chans, f1):
+    """The added effects' sizes (:func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes`)
+    and their ``seconds``, JSON-ready (for :func:`~bayesdrag._beside.computed_beside`)."""
+    t0 = time.perf_counter()
+    return {"sizes": effect_sizes(track, rnd, opts, chans, f1), "seconds": time.perf_counter() - t0}
+
+
+def _with_effects_record(f1, with_note, sizes, placement):
+    """``ml.with_effects`` of a fit with effects: who added them and why (``with_note``; a round
+    that declares ``wind_sd`` adds the wind layers itself), each added parameter's size with the
+    sd the fit stands by (``sizes``), and the wind layers (with the largest spread of their
+    equivalent placements, ``placement``)."""
+    note = with_note if with_note is not None else {
+        "added_by": "round", "requested": [], "candidates": [], "skipped": {},
+        "added": {"wind_profile": "[atmosphere] wind_sd is declared: the layers' prior"},
+        "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
+    note["fitted"] = list(f1.effects)
+    note.setdefault("effects", list(f1.effects))
+    note["sizes"] = sizes
+    lay = _fitted_layers(f1)
+    if lay is not None:
+        if placement is not None:
+            lay["placement_sd_max"] = placement
+        note["wind_layers"] = lay
+    return note
 
 
 #: largest share of the Cd shift an effect's fit corrected that is kept as model error of the
@@ -454,27 +481,6 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
                "model_size": dict(f1.model_size) or None, "noise": f1.noise, "quality": quality},
         "cd": rows,
     }
-
-
-def _beside_sampling(track, rnd, opts, chans, f1, grid, rows, check):
-    """What a Scheme 1 fit computes while its posterior is sampled, none of which changes what is
-    sampled, as JSON-ready values for :func:`~bayesdrag._beside.computed_beside`:
-    ``model_check`` (with ``check``: :func:`~bayesdrag.model_check.model_error`'s record
-    ``gap``, each row's ``model_error_sd``, None where it sets none, and its ``seconds``; ``rows``
-    are left as they are) and ``effect_sizes`` (a fit with effects:
-    :func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes` and its ``seconds``)."""
-    out = {}
-    if check:
-        t0 = time.perf_counter()
-        mine = [dict(r) for r in rows]
-        gap, _ = model_error(track, rnd, opts, chans, f1, grid, mine)
-        out["model_check"] = {"gap": gap, "model_error_sd": [r.get("model_error_sd") for r in mine],
-                              "seconds": time.perf_counter() - t0}
-    if f1.effects:
-        t0 = time.perf_counter()
-        out["effect_sizes"] = {"sizes": effect_sizes(track, rnd, opts, chans, f1),
-                               "seconds": time.perf_counter() - t0}
-    return out
 
 
 def _fit_scheme2(track, rnd, opts, chans, log, t_start):

@@ -1,7 +1,8 @@
-"""What a fit computes that cannot change what is sampled runs in a forked process beside the
-sampling: the model check with ``with_effects="none"`` or named effects, the added effects'
-sizes. The result is the same as when it runs here, to the last bit, and ``timing.beside_sampling``
-says what ran beside."""
+"""What a fit computes that does not change what it runs beside goes to a forked process: the
+model check's diagnosis beside the ML fit (and beside the sampling when the check cannot change
+what is sampled: ``with_effects="none"`` or named effects), the added effects' sizes beside the
+sampling. The result is the same as when all runs here, to the last bit, and ``timing.beside``
+says what ran in a forked process."""
 import json
 import os
 import sys
@@ -35,7 +36,7 @@ def _without_clock(d):
     return json.dumps(d, sort_keys=True, default=str), timing
 
 
-def test_the_check_beside_the_sampling_gives_the_same_result(demo, monkeypatch):
+def test_the_diagnosis_beside_the_fit_gives_the_same_result(demo, monkeypatch):
     track, rnd = demo
     opts = FitOptions(seed=3, with_effects="none", max_steps=STEPS)
     monkeypatch.setattr(_beside, "free_core", lambda: True)
@@ -43,8 +44,8 @@ def test_the_check_beside_the_sampling_gives_the_same_result(demo, monkeypatch):
     monkeypatch.setattr(_beside, "free_core", lambda: False)
     after, t_after = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
     assert beside == after
-    assert t_after["beside_sampling"] == []
-    assert t_beside["beside_sampling"] == (["model_check"] if FORKS else [])
+    assert t_after["beside"] == []
+    assert t_beside["beside"] == (["diagnosis"] if FORKS else [])
     assert json.loads(beside)["ml"]["quality"]["model_error"]["verdict"] == ["lift"]   # the check did run
 
 
@@ -57,4 +58,4 @@ def test_the_default_check_decides_what_is_sampled_and_the_sizes_go_beside(demo,
     after, t_after = _without_clock(bayesdrag.fit(track, rnd, opts).to_dict())
     assert beside == after
     assert json.loads(beside)["ml"]["with_effects"]["added_by"] == "default"   # the check ran first
-    assert t_beside["beside_sampling"] == (["effect_sizes"] if FORKS else []) and t_after["beside_sampling"] == []
+    assert t_beside["beside"] == (["diagnosis", "effect_sizes"] if FORKS else []) and t_after["beside"] == []
