@@ -36,9 +36,9 @@ The user's loop around that fit (issue 31), measured in the same run (``--no-out
   (``NUMBA_CACHE_DIR`` an empty temporary folder; from its ``summary.json``), with the functions
   compiled and the demo's wall time.
 
-With ``with_effects="none"`` the fit's model check runs in a forked process beside the sampling
-when a core is free (``timing.beside_sampling``, reported with the key): the
-trajectories it simulates are then not in ``trajectories_simulated`` (counted in this process).
+When a core is free the fit's model check diagnosis runs in a forked process beside the ML fit
+and the sampling (``timing.beside``, reported with the key): the trajectories it simulates are
+then not in ``trajectories_simulated`` (counted in this process).
 
 The fit is pinned to no added effects: ``with_effects="none"`` where the option takes that
 value, else the default (which adds none); ``effects_option`` says which.
