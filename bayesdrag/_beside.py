@@ -63,6 +63,11 @@ class BesideJob:
         self._done = False
         self._value: Any = None
 
+    @property
+    def pid(self) -> int | None:
+        """The child's process id while it runs uncollected (None: no child, or collected)."""
+        return None if self._child is None else self._child[0]
+
     def result(self) -> Any:
         """``fn()``'s value: the child's after a JSON round trip (waited for: its work is the
         caller's, no time limit), or ``fn()`` run here when no child was started or it failed

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from bayesdrag import _beside
-from bayesdrag._beside import computed_beside, plain_json
+from bayesdrag._beside import computed_beside, plain_json, started_beside
 
 forks = pytest.mark.skipif(not hasattr(os, "fork") or not os.sys.platform.startswith("linux"),
                            reason="fork on Linux only")
@@ -99,12 +99,24 @@ def test_when_the_body_fails_the_child_is_killed_and_reaped(monkeypatch, tmp_pat
         marker.write_text("finished")
         return 1
 
+    pid = None
     with pytest.raises(KeyboardInterrupt):
-        with computed_beside(slow):
+        with started_beside(slow) as job:
+            pid = job.pid
             raise KeyboardInterrupt
+    assert pid is not None
     assert not marker.exists()                  # killed, not waited for
-    with pytest.raises(ChildProcessError):      # reaped: no child left behind
-        os.waitpid(-1, os.WNOHANG)
+    with pytest.raises(ChildProcessError):      # reaped: no zombie left behind
+        os.waitpid(pid, os.WNOHANG)
+
+
+@forks
+def test_a_started_job_is_collected_once(monkeypatch):
+    monkeypatch.setattr(_beside, "free_core", lambda: True)
+    with started_beside(lambda: [1, 2]) as job:
+        assert job.pid is not None
+        assert job.result() == [1, 2] and job.forked
+        assert job.pid is None and job.result() == [1, 2]
 
 
 def test_plain_json_refuses_what_it_cannot_write():
