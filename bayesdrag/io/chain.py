@@ -438,9 +438,16 @@ class ChainBackend(emcee.backends.Backend):
                     continue
                 g[name].resize(n1, axis=0)
                 g[name][n0:n1] = np.asarray(arr[n0:n1], float).reshape((n1 - n0,) + g[name].shape[1:])
-            if "accepted" in g:
-                del g["accepted"]
-            g.create_dataset("accepted", data=np.asarray(self.accepted, float))
+            acc = np.asarray(self.accepted, float)
+            if "accepted" in g and g["accepted"].shape == acc.shape:
+                # overwritten in place: deleting and creating it again left, when a kill landed
+                # between the two, a dataset of whatever bytes its new space held (a resume then
+                # refused the chain: "'accepted' holds values that are not counts")
+                g["accepted"][...] = acc
+            else:
+                if "accepted" in g:
+                    del g["accepted"]
+                g.create_dataset("accepted", data=acc)
             _write_random_state(g, self.random_state, n1)
             g.attrs["iteration"] = n1
 
