@@ -478,7 +478,8 @@ class OutputErrorProblem:
         as much as integrating them."""
         lay = self.layout
         tr = self.model.simulate_batch(batch[:, lay.drag], batch[:, lay.state], self.track.t, t_start=self.t_ic)
-        dstate = (tr.state[0::2] - tr.state[1::2]) / (2 * h[:, None, None])     # (n_free, N, 6)
+        dstate = tr.state[0::2] - tr.state[1::2]                                # (n_free, N, 6)
+        dstate /= (2 * h)[:, None, None]         # in place: a second temporary of this size took half the time
         one = self.model.simulate_batch(theta[None, lay.drag], theta[None, lay.state], self.track.t,
                                         t_start=self.t_ic)
         J = channel_jacobian(one.state[0], self.channels, self.site)             # (N, C, 6)
