@@ -68,15 +68,6 @@ class BesideJob:
         """The child's process id while it runs uncollected (None: no child, or collected)."""
         return None if self._child is None else self._child[0]
 
-    def running(self) -> bool:
-        """Whether the child is still at work (its answer not yet in the pipe): the caller would
-        wait if it collected now."""
-        if self._child is None:
-            return False
-        import select
-
-        return not select.select([self._child[1]], [], [], 0)[0]
-
     def result(self) -> Any:
         """``fn()``'s value: the child's after a JSON round trip (waited for: its work is the
         caller's, no time limit), or ``fn()`` run here when no child was started or it failed
@@ -144,14 +135,11 @@ class Beside:
         them), or ``fn()`` itself when it ran here.
     forked : bool
         Whether the child's answer was used.
-    job : BesideJob
-        The work (:meth:`BesideJob.running` tells whether collecting it now would wait).
     """
 
-    def __init__(self, job: BesideJob | None = None) -> None:
+    def __init__(self) -> None:
         self.value: Any = None
         self.forked = False
-        self.job = job
 
 
 @contextlib.contextmanager
@@ -159,8 +147,8 @@ def computed_beside(fn: Callable[[], Any], *, fork: bool = True) -> Iterator[Bes
     """Compute ``fn()`` in a forked child while the body of the ``with`` runs: the yielded
     :class:`Beside` holds its value once the body has finished (:func:`started_beside` with the
     answer collected at the end of the body; the child is killed when the body raises)."""
+    out = Beside()
     with started_beside(fn, fork=fork) as job:
-        out = Beside(job)
         yield out
         out.value = job.result()
         out.forked = job.forked

@@ -122,15 +122,3 @@ def test_a_started_job_is_collected_once(monkeypatch):
 def test_plain_json_refuses_what_it_cannot_write():
     with pytest.raises(TypeError, match="set is not JSON serialisable"):
         plain_json({1})
-
-
-@forks
-def test_running_says_whether_collecting_would_wait(monkeypatch):
-    monkeypatch.setattr(_beside, "free_core", lambda: True)
-    with computed_beside(lambda: time.sleep(2.0) or 1) as box:
-        assert box.job.running()
-        deadline = time.monotonic() + 60.0  # a bound on a loaded machine, not a timing
-        while box.job.running() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert not box.job.running()        # the answer is in the pipe
-    assert box.value == 1 and not box.job.running()
