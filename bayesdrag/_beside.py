@@ -1,12 +1,13 @@
 """Work done in a forked process beside this one, its answer handed back as JSON.
 
-A fit's model check (a few dozen nonlinear fits of the diagnosis) and its posterior sampling
-do not depend on each other when the check cannot change what is sampled: on a machine with a
-free core the check runs in a forked child while this process samples (:func:`computed_beside`).
-The child inherits the fit's arrays (nothing is pickled); its answer comes back through a pipe as
-JSON text, which only this package's own child writes, and is read with ``json.loads`` (no
-pickle: the rule for anything read). Without a free core, on a platform without ``fork``, or
-when the child fails, the work is done here after the body: the same answer either way.
+Some of a fit's work does not depend on what runs meanwhile: the model check's diagnosis reads
+the track and the round only, and the added effects' sizes cannot change what is sampled. On a
+machine with a free core such work runs in a forked child (:func:`started_beside`,
+:func:`computed_beside`) while this process fits and samples. The child inherits the fit's
+arrays (nothing is pickled); its answer comes back through a pipe as JSON text, which only this
+package's own child writes, and is read with ``json.loads`` (no pickle: the rule for anything
+read). Without a free core, on a platform without ``fork``, or when the child fails, the work is
+done here when its answer is asked for: the same answer either way.
 """
 from __future__ import annotations
 

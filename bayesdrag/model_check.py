@@ -5,6 +5,7 @@ the reason and next step a not-clean answer's summary gives."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -15,8 +16,8 @@ from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "diagnosis_record", "note_model_error", "air", "why_not_clean", "level_shift", "gross_outliers",
-           "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
+__all__ = ["model_error", "diagnosis_record", "note_model_error", "air", "why_not_clean", "level_shift",
+           "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
 def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None, diagnosis=None):
@@ -127,8 +128,6 @@ def diagnosis_record(track, rnd, chans):
     values: ``{"summary": ...}``, ``{"skipped": why}`` (a track too short for it) or
     ``{"failed": why}`` (the check never costs the fit its answer: the record says it could not
     be made), with its ``seconds``. It reads the track, the round and the channels only."""
-    import time
-
     from .diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 
     t0 = time.perf_counter()

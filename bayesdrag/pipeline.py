@@ -180,9 +180,8 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
     summary["uncertainty_budget"] = budget
     if with_note is not None or "wind_profile" in f1.effects:
         if sizes is None:
-            t0 = time.perf_counter()
-            sizes = effect_sizes(track, rnd, opts, chans, f1)
-            timing["effect_sizes"] = round(time.perf_counter() - t0, 3)
+            made = _effect_sizes_record(track, rnd, opts, chans, f1)
+            sizes, timing["effect_sizes"] = made["sizes"], round(made["seconds"], 3)
         summary["ml"]["with_effects"] = _with_effects_record(f1, with_note, sizes, placement)
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
