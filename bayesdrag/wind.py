@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -151,6 +151,45 @@ class WindProfile:
         object.__setattr__(prof, "_step_rows", rows)
         return prof
 
+    @classmethod
+    def layered_many(cls, axis, edges, wind_x, wind_y):
+        """``[layered(axis, edges, wind_x[p], wind_y[p]) for p in range(P)]``, the same profiles
+        made at once (a fit's perturbed trajectories each fly their own).
+
+        Parameters
+        ----------
+        axis : {"altitude", "downrange"}
+        edges : (K + 1,) strictly increasing, m
+        wind_x, wind_y : (P, K) m/s
+        """
+        e = np.asarray(edges, float)
+        wx, wy = np.asarray(wind_x, float), np.asarray(wind_y, float)
+        K = e.size - 1
+        w = np.stack([wx, wy], axis=-1) if wx.ndim == 2 and wx.shape == wy.shape else None
+        if (w is None or w.shape[1] != K or K < 1 or axis not in WIND_AXES or np.any(np.diff(e) <= 0)
+                or not np.isfinite(e).all() or not np.isfinite(w).all() or np.abs(w).max(initial=0.0) > PROFILE_WIND_MAX):
+            return [cls.layered(axis, e, a, b) for a, b in zip(wx, wy)]   # names what is wrong
+        levels, v, hw, zero = _layer_steps(e.tobytes())
+        rx, ry = np.repeat(wx, 2, axis=1).tolist(), np.repeat(wy, 2, axis=1).tolist()
+        out = []
+        for p in range(w.shape[0]):
+            prof = object.__new__(cls)
+            for name, value in (("axis", axis), ("levels", levels), ("wind_x", tuple(rx[p])),
+                                ("wind_y", tuple(ry[p]))):
+                object.__setattr__(prof, name, value)
+            wp = w[p]
+            object.__setattr__(prof, "_step_places", (v, hw))      # _steps made when first read
+            object.__setattr__(prof, "_step_rows", (wp[:-1], zero, wp[1:], zero))
+            out.append(prof)
+        return out
+
+    @cached_property
+    def _steps(self):
+        """Each step's ``(level, half width, left value, left slope, right value, right slope)``
+        (set by ``__post_init__`` and :meth:`layered`; made here for :meth:`layered_many`'s
+        profiles, which the kernel tabulates without reading them)."""
+        return tuple(zip(*self._step_places, *self._step_rows))
+
     @property
     def n_layers(self):
         """Number of steps plus one when the profile is layered (every other level repeats)."""
@@ -219,6 +258,45 @@ class WindProfile:
         if other.axis != self.axis:
             raise ValueError(f"cannot add a wind by {other.axis} to a wind by {self.axis}")
         return _sum_profiles(self, other)
+
+
+def tables_at(profiles, s):
+    """``np.stack([p.at(s) for p in profiles])`` for profiles that share their axis, levels and
+    steps (:func:`same_shape`), computed at once by the same operations: (P, n, 2) [m/s].
+
+    Parameters
+    ----------
+    profiles : sequence of WindProfile, length P >= 1
+    s : (n,) ndarray
+        Coordinates [m] (1-D).
+    """
+    p0 = profiles[0]
+    s = np.asarray(s, dtype=float)
+    w = np.stack([np.array([p.wind_x for p in profiles]), np.array([p.wind_y for p in profiles])], axis=-1)
+    if len(p0.levels) == 1:
+        return np.broadcast_to(w[:, :1], (w.shape[0],) + s.shape + (2,)).copy()
+    k, k1, f, near, joint = _placement(p0.levels, _places(p0), s.shape, s.tobytes())
+    wk = w.take(k, axis=1)
+    out = wk + f[..., None] * (w.take(k1, axis=1) - wk)
+    at, which, d, g = joint
+    if which.size:
+        wl, sl, wr, sr = (np.stack([p._step_rows[j] for p in profiles]).take(which, axis=1) for j in range(4))
+        lo, hi = wl + d[:, None] * sl, wr + d[:, None] * sr
+        out[(slice(None),) + at] = lo + g * (hi - lo)
+    return out
+
+
+def same_shape(a, b):
+    """Do profiles ``a`` and ``b`` share their axis and levels, and so their steps (where and
+    how wide: the levels alone set them), so that :func:`tables_at` can tabulate them together?"""
+    return a.axis == b.axis and a.levels == b.levels
+
+
+def _places(p):
+    """Each step's ``(level, half width)`` of profile ``p``, as :meth:`WindProfile.at` keys
+    :func:`_placement` by them."""
+    vh = p.__dict__.get("_step_places")
+    return tuple(zip(*vh)) if vh is not None else tuple(st[:2] for st in p._steps)
 
 
 def _checked_values(levels, wind_x, wind_y):

@@ -81,6 +81,14 @@ class WindLayers:
         w = WindProfile.layered(self.axis, self.edges, v[0:2 * self.n:2], wy)
         return w if self.base is None else w.plus(self.base)
 
+    def profiles(self, values):
+        """``[self.profile(v) for v in values]`` for rows ``values`` (P, >= 2 K), made at once."""
+        v = np.asarray(values, float)
+        if self.base is not None or v.shape[0] < 2:
+            return [self.profile(r) for r in v]
+        wy = np.repeat(v[:, 1:2], self.n, axis=1) if self.constant_cross else v[:, 1:2 * self.n:2]
+        return WindProfile.layered_many(self.axis, self.edges, v[:, 0:2 * self.n:2], wy)
+
 
 class WindProfileModel:
     """A point-mass model flying ``layers`` (:class:`WindLayers`) with the layer winds read per
@@ -116,9 +124,11 @@ class WindProfileModel:
             vals[:, k[1]] = ov.pop(k)          # one value per trajectory, or one for all
         # one profile per distinct row (bytewise: a dictionary, where np.unique's sort of rows
         # cost as much as building the profiles)
-        made = {}
-        winds = [made[key] if key in made else made.setdefault(key, self.layers.profile(r))
-                 for key, r in ((r.tobytes(), r) for r in vals)]
+        first = {}
+        for b, r in enumerate(vals):
+            first.setdefault(r.tobytes(), b)
+        made = dict(zip(first, self.layers.profiles(vals[list(first.values())])))
+        winds = [made[r.tobytes()] for r in vals]
         return self.model.simulate_batch(drag_params, state0, t_out, overrides=ov or None, winds=winds, **kw)
 
 

@@ -48,6 +48,7 @@ from scipy.integrate import solve_ivp
 from ..atmosphere import G0, Atmosphere
 from ..drag import DragModel, MachGrid
 from ..errors import FitError
+from ..wind import same_shape, tables_at
 from . import kernel as K
 from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT_VERTICAL_MACH_SAT,
                      SPIN_DECAY, coriolis_matrix, lift_parameter)
@@ -671,17 +672,22 @@ def wind_tables(winds, gun_altitude, par):
     hi = max(w.levels[-1] for w in present) - off
     dw = max(WIND_GRID_STEP, (hi - lo) / (WIND_GRID_MAX_ROWS - 1))
     n = max(int(np.ceil((hi - lo) / dw)) + 1, 2)
-    keys, tabs = {}, [np.zeros((n, 2))]
+    keys = {}
     for b, w in enumerate(winds):
         if w is None:
             continue
-        if w not in keys:
-            keys[w] = len(tabs)
-            tabs.append(_wind_table(w, lo + off, dw, n))
-        idx[b] = keys[w]
+        idx[b] = keys.setdefault(w, len(keys) + 1)
         par[b, K.P_WIND_AX_X] = 1.0 if axis == "downrange" else 0.0
         par[b, K.P_WIND_AX_Z] = 0.0 if axis == "downrange" else 1.0
-    return np.ascontiguousarray(np.stack(tabs)), idx, float(lo), float(dw)
+    distinct = list(keys)
+    tabs = np.zeros((len(distinct) + 1, n, 2))
+    if len(distinct) > 1 and all(same_shape(distinct[0], w) for w in distinct[1:]):
+        # a fit's perturbed trajectories: one profile shape, tabulated at once (the same numbers)
+        tabs[1:] = tables_at(distinct, lo + off + dw * np.arange(n))
+    else:
+        for i, w in enumerate(distinct):
+            tabs[i + 1] = _wind_table(w, lo + off, dw, n)
+    return tabs, idx, float(lo), float(dw)
 
 
 @lru_cache(maxsize=256)
