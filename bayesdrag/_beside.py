@@ -32,12 +32,33 @@ CHILD_NICE = 10
 def free_core() -> bool:
     """A forked process can run beside this one: Linux with fork, this process's only Python
     thread (a thread holding a lock at the fork would leave it held in the child: a Dask
-    worker's), and a second core idle (1-minute load below the cores minus one half; on a busy
-    machine the two would only take turns)."""
+    worker's), and a second core idle: the 1-minute load below the cores minus one half, or,
+    above it, no more threads runnable now than this one on all but one of the cores this
+    process may use (on a busy machine the two would only take turns).
+
+    The load average alone counts this process's own children of the last minute: fits run one
+    after another (a campaign, a benchmark) stopped forking after the first few (load 1.5-1.9
+    on 2 cores from them alone; benchmarks/fit.py's fit then took 1.6 s instead of 1.15 s).
+    The count of runnable threads alone refuses on any passing process."""
     if not sys.platform.startswith("linux") or not hasattr(os, "fork") or threading.active_count() != 1:
         return False
-    cpus = os.cpu_count() or 1
-    return cpus >= 2 and os.getloadavg()[0] < cpus - 0.5
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if cpus < 2:
+        return False
+    if os.getloadavg()[0] < cpus - 0.5:
+        return True
+    others = _others_running()
+    return others is not None and others <= cpus - 2
+
+
+def _others_running() -> int | None:
+    """Threads runnable now on this machine besides the caller (``/proc/loadavg``'s fourth
+    field counts them, the caller included), or None when it cannot be read."""
+    try:
+        with open("/proc/loadavg", encoding="ascii") as f:
+            return int(f.read().split()[3].split("/")[0]) - 1
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def plain_json(obj: Any) -> Any:
