@@ -283,13 +283,11 @@ class FitResult:
         return self._cache[key]
 
     def _inference_data(self, log_likelihood_draws: int | None) -> arviz.InferenceData | None:
-        if self.posterior is not None and self.scheme1 is not None and self.log_posterior is not None:
-            from ..estimate.bayes.inference import to_inference_data
+        arrays = self._posterior_arrays(log_likelihood_draws)
+        if arrays is not None:
+            from ..estimate.bayes.inference import as_inference_data
 
-            ref = self.round.reference_drag if self.round is not None else None
-            return to_inference_data(self.posterior, self.log_posterior, self.grid, self.cd_draws(), ref,
-                                     seed=getattr(self.options, "seed", None),
-                                     log_likelihood_draws=log_likelihood_draws)
+            return as_inference_data(arrays)
         if self.window_draws and self.track is not None:
             from ..estimate.bayes.inference import windows_inference_data
 
@@ -297,6 +295,22 @@ class FitResult:
             return windows_inference_data(self.record["windows"], self.windows_ok, self.window_draws, self.track,
                                           chans)
         return None
+
+    def _posterior_arrays(self, log_likelihood_draws: int | None = LOG_LIKELIHOOD_DRAWS):
+        """The arrays of the Scheme 1 posterior (:func:`~bayesdrag.estimate.bayes.posterior_groups.fit_arrays`,
+        computed once: InferenceData and ``posterior.nc`` are made from them), or None (no
+        sampled fit in this process)."""
+        if self.posterior is None or self.scheme1 is None or self.log_posterior is None:
+            return None
+        key = ("arrays", log_likelihood_draws)
+        if key not in self._cache:
+            from ..estimate.bayes.posterior_groups import fit_arrays
+
+            ref = self.round.reference_drag if self.round is not None else None
+            self._cache[key] = fit_arrays(self.posterior, self.log_posterior, self.grid, self.cd_draws(), ref,
+                                          seed=getattr(self.options, "seed", None),
+                                          log_likelihood_draws=log_likelihood_draws)
+        return self._cache[key]
 
     def cd_draws(self) -> np.ndarray:
         """Posterior Cd draws on the grid, (chains, draws, M), widened to the model-error floor
