@@ -31,7 +31,7 @@ def figure_png(fig, dpi=DPI):
 
 
 @contextlib.contextmanager
-def rendered_elsewhere(jobs, out):
+def rendered_elsewhere(jobs, out, *, meanwhile=None):
     """Draw and save figures in a forked process while the body of the ``with`` runs.
 
     ``jobs`` is a list of ``(file name, make, dpi)``: ``make()`` returns a Figure (or None:
@@ -40,7 +40,8 @@ def rendered_elsewhere(jobs, out):
     is forked (it inherits the computed arrays: nothing is pickled or computed twice) only on
     Linux when a core is free (:func:`bayesdrag._beside.free_core`), and the child only draws with matplotlib
     (no compiled kernel, no threads). Without a fork, or when the child fails, the figures are
-    drawn here after the body: the same files either way.
+    drawn here after the body: the same files either way. ``meanwhile()``, when given, is
+    called after the body if the child still draws (time this process would wait anyway).
     """
     out = Path(out)
     pid = _fork_renderer(jobs, out) if jobs and free_core() else None
@@ -52,7 +53,14 @@ def rendered_elsewhere(jobs, out):
             os.kill(pid, signal.SIGKILL)
             os.waitpid(pid, 0)
         raise
-    ok = pid is not None and _wait(pid, FORK_WAIT_SECONDS)
+    code = None
+    if pid is not None and meanwhile is not None:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            code = os.waitstatus_to_exitcode(status)
+        else:
+            meanwhile()
+    ok = pid is not None and (code == 0 if code is not None else _wait(pid, FORK_WAIT_SECONDS))
     for name, make, dpi in jobs:
         path = out / name
         if ok:
