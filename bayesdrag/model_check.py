@@ -16,7 +16,7 @@ from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "diagnosis_record", "note_model_error", "air", "why_not_clean", "level_shift",
+__all__ = ["model_error", "diagnosis_record", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
            "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
@@ -385,6 +385,28 @@ def air(f1, gap):
 #: an estimated noise sd below this [m or m/s] is no radar's: the track is (nearly) noise-free,
 #: and residuals above it are the simulator's or the integrator's, not a missed effect
 NOISE_FREE_SD = 1e-3
+
+
+#: a fitted radar clock offset this many of its sd from zero is said in words (:func:`clock_note`)
+CLOCK_NOTE_SD = 3.0
+
+
+def clock_note(ml):
+    """A radar clock offset the fit carries (``radar_time``, added by the default or named) and
+    the data determine, in words: ``[warning]`` or ``[]``. The launch check says of a late time
+    origin that the track conflicts with the launch values; a fit carrying the offset no longer
+    conflicts, so the offset itself is what tells the user (``ml``: the record's ``ml``)."""
+    dt = (ml.get("params") or {}).get("radar_time.dt")
+    if dt is None:
+        return []
+    size = ((ml.get("with_effects") or {}).get("sizes") or {}).get("radar_time.dt") or {}
+    sd = size.get("sd", (ml.get("crb") or {}).get("radar_time.dt"))
+    if sd is None or not abs(dt) > CLOCK_NOTE_SD * sd:
+        return []
+    when, how = ("after", "late") if dt > 0 else ("before", "early")
+    return [f"radar_time.dt = {dt:.4g} +- {sd:.2g} s: the track's time origin is {abs(dt):.3g} s {when} the launch, "
+            f"or the radar clock is that {how}; Cd is fitted with the offset (shift t so that t = 0 is the "
+            f"launch, or declare time_offset_sd in the round)"]
 
 
 def why_not_clean(quality):

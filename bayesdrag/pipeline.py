@@ -25,7 +25,8 @@ from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_
 from .estimate.scheme1.effect_sizes import effect_sizes
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
-from .model_check import LEVEL_EFFECTS, air, diagnosis_record, model_error, note_model_error, why_not_clean
+from .model_check import (LEVEL_EFFECTS, air, clock_note, diagnosis_record, model_error, note_model_error,
+                          why_not_clean)
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
 from .round import Round
@@ -188,6 +189,7 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
     fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
+    warnings += clock_note(summary["ml"])
     if opts.mcmc:
         rows, cd = sampled_rows(bayes, f1, rows, grid)
         summary["cd"] = rows
