@@ -154,6 +154,10 @@ def test_poly2_split_follows_or_reports_misfit(suite_dir, name):
 def test_diagnose_blames_the_right_thing(suite_dir, name):
     c = S.case_by_name(name)
     d = S.run_diagnose_case(c, S.generate(c, suite_dir), Path(suite_dir) / name / "diag")
+    if c.samples is not None and d["diag_exit"] == 2:
+        # a track shorter than the diagnosis needs: one clear line naming it is the answer (issue 26)
+        assert d["diag_pass"] and "too few for a diagnosis" in d["diag_stderr_tail"], d
+        return
     assert d["diag_exit"] == 0, f"{name}: diagnose exit {d['diag_exit']}: {d['diag_stderr_tail']}"
     want = {"nothing": "nothing material (verdict [])",
             "drag": "the drag (drag_scale / density confounded with it / a drag-shape finding), not the weather",
