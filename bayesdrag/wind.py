@@ -167,7 +167,8 @@ class WindProfile:
         K = e.size - 1
         w = np.stack([wx, wy], axis=-1) if wx.ndim == 2 and wx.shape == wy.shape else None
         if (w is None or w.shape[1] != K or K < 1 or axis not in WIND_AXES or np.any(np.diff(e) <= 0)
-                or not np.isfinite(e).all() or not np.isfinite(w).all() or np.abs(w).max(initial=0.0) > PROFILE_WIND_MAX):
+                or not np.isfinite(e).all() or not np.isfinite(w).all()
+                or np.abs(w).max(initial=0.0) > PROFILE_WIND_MAX):
             return [cls.layered(axis, e, a, b) for a, b in zip(wx, wy)]   # names what is wrong
         levels, v, hw, zero = _layer_steps(e.tobytes())
         rx, ry = np.repeat(wx, 2, axis=1).tolist(), np.repeat(wy, 2, axis=1).tolist()

@@ -5,9 +5,10 @@
 the posterior predictive tracks, the thinned log-likelihood, the constants); :func:`fit_groups`
 arranges them as ``arviz.from_dict`` would (``chain`` and ``draw`` coordinates, each group's
 attributes) for :func:`bayesdrag.io.netcdf.write_groups`, which writes the file
-``arviz.from_netcdf`` reads. (Scheme 2's small file is still written through ArviZ.) Writing through ArviZ and xarray cost a fit's
-folder ~1 s more on the demo (their imports and xarray's probe for dask), most of what the
-folder took beside its figures (docs/measurements.md, "posterior.nc without ArviZ").
+``arviz.from_netcdf`` reads (Scheme 2's small file is still written through ArviZ). Writing
+through ArviZ and xarray cost a fit's folder ~1 s more on the demo (their imports and xarray's
+probe for dask), most of what the folder took beside its figures (docs/measurements.md,
+"posterior.nc without ArviZ").
 """
 from __future__ import annotations
 
