@@ -59,7 +59,12 @@ def rendered_elsewhere(jobs, out, *, meanwhile=None):
         if done:
             code = os.waitstatus_to_exitcode(status)
         else:
-            meanwhile()
+            try:
+                meanwhile()
+            except BaseException:            # a Ctrl-C (or a failure) here: no child left drawing
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+                raise
     ok = pid is not None and (code == 0 if code is not None else _wait(pid, FORK_WAIT_SECONDS))
     for name, make, dpi in jobs:
         path = out / name

@@ -120,3 +120,27 @@ def test_no_fork_beside_other_python_threads(monkeypatch):
         stop.set()
         t.join()
     assert alone is (hasattr(os, "fork") and os.sys.platform.startswith("linux") and threading.active_count() == 1)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork") or not os.sys.platform.startswith("linux"), reason="fork on Linux only")
+def test_work_done_meanwhile_that_fails_leaves_no_child_drawing(tmp_path, monkeypatch):
+    import time as _time
+
+    monkeypatch.setattr(render, "free_core", lambda: True)
+    forked = []
+    fork = render._fork_renderer
+    monkeypatch.setattr(render, "_fork_renderer", lambda jobs, out: forked.append(fork(jobs, out)) or forked[-1])
+
+    def slow_figure():
+        _time.sleep(30)                     # the child is still drawing when meanwhile runs
+
+    def meanwhile():
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        with render.rendered_elsewhere([("m.png", slow_figure, None)], tmp_path, meanwhile=meanwhile):
+            pass
+    assert forked and forked[0]
+    with pytest.raises(ChildProcessError):   # the child was killed and reaped
+        os.waitpid(forked[0], os.WNOHANG)
+    assert not (tmp_path / "m.png").exists()
