@@ -39,10 +39,24 @@ name                    type, shape          content
 attributes of ``mcmc``  str, int             ``format``, ``iteration``, ``bayesdrag_fingerprint``
 attributes of           str, int, int,       ``bit_generator`` ("MT19937"), ``pos`` (0 .. 624),
 ``random_state``        int, float, int      ``has_gauss`` (0/1), ``cached_gaussian``, ``step``
+``pending``             group                ``key``, ``accepted`` and the attributes above, as
+                                             a flush fills them before it commits its block
 ======================  ===================  ===================================================
 
 The five random-state fields are those of ``numpy.random.RandomState.get_state()``; ``step`` is
 the chain step they belong to (equal to ``iteration`` in a consistent file).
+
+A flush commits its block so that a kill (``kill -9``, the machine stopping the process) at any
+point leaves a chain that resumes exactly: the block's rows, then ``pending`` (key, counts, the
+state's fields, and its ``step`` last) are flushed to the file; then ``iteration`` is set (the
+commit); then ``random_state`` and ``accepted`` are rewritten the same way and ``pending``'s
+``step`` set to -1. Each flush writes what came before it, and each single attribute is one
+header write, so the file always holds a complete state for its ``iteration``: in
+``random_state`` when its ``step`` equals ``iteration``, else in ``pending`` (a kill between the
+commit and the rewrite). Rewriting the one state in place could leave, under a kill, a new key
+with an old ``step``, or counts of bytes never written (a resume refused "'accepted' holds
+values that are not counts"). The file is not synced to disk: a power cut may still leave a
+chain that is refused, never one that is silently wrong (the checks above).
 
 The fingerprint stored is the sampler's (problem, walkers, moves, seed) combined with the digest of
 the input files' bytes when the command gives one (``ChainFile(path, inputs=...)``): a chain made
@@ -77,6 +91,8 @@ GROUP = "mcmc"
 BIT_GENERATOR = "MT19937"
 MT_KEY_SIZE = 624
 _FINGERPRINT_RE = re.compile(r"^[0-9a-f]{1,64}$")
+#: the group of the random state of the committed step, and the one a flush fills before it commits
+STATE, PENDING = "random_state", "pending"
 _AFRESH = "delete it to start the chain afresh"
 #: stored positions (besides every walker's last one) whose log posterior is recomputed on resume
 LOG_PROB_SAMPLE = 8
@@ -275,22 +291,23 @@ class ChainFile:
         if max_steps is not None and n > max_steps:
             self._fail(f"it holds {n} steps, more than this run's --max-steps {max_steps} (resume with "
                        f"--max-steps {n} or more)")
-        names = [("chain", (W, D), n), ("log_prob", (W,), n), ("accepted", (W,), None)]
+        state, accepted = _committed_slot(g, n)
+        names = [("chain", (W, D), n), ("log_prob", (W,), n), (accepted, (W,), None)]
         names += [("blobs", (W, C), n)] if C else []
         datasets = {name: self._dataset(g, name, tail, rows, max_steps) for name, tail, rows in names}
         chain = self._array(datasets["chain"], "chain", n)
         lp = self._array(datasets["log_prob"], "log_prob", n)
         blobs = self._array(datasets["blobs"], "blobs", n) if C else None
-        acc = self._array(datasets["accepted"], "accepted", None)
+        acc = self._array(datasets[accepted], accepted, None)
         stored = max(n, int(datasets["chain"].shape[0]))
         if np.any(acc < 0) or np.any(acc > stored) or np.any(acc != np.round(acc)):
-            self._fail(f"'accepted' holds values that are not counts in 0..{stored}")
+            self._fail(f"'{accepted}' holds values that are not counts in 0..{stored}")
         # a kill inside a flush, after 'accepted' and before 'iteration' were written, leaves
         # counts of steps the file does not yet commit: held to the committed steps
         acc = np.minimum(acc, n)
         b = ChainBackend(self, W, D, flushed=n)
         b.chain, b.log_prob, b.blobs, b.accepted = chain, lp, blobs, acc
-        b.iteration, b.random_state = n, self._random_state(g, n)
+        b.iteration, b.random_state = n, self._random_state(g, n, state)
         return b
 
     def _dataset(self, g, name, tail, n, max_steps):
@@ -344,16 +361,16 @@ class ChainFile:
             self._fail(f"dataset '{name}' holds non-finite values")
         return a
 
-    def _random_state(self, g, n):
-        """The stored ``RandomState`` state tuple, checked field by field and by numpy."""
-        rg = _member(g, "random_state", h5py.Group)
+    def _random_state(self, g, n, slot=STATE):
+        """The stored ``RandomState`` state tuple of group ``slot``, checked field by field and by numpy."""
+        rg = _member(g, slot, h5py.Group)
         key = None if rg is None else _member(rg, "key", h5py.Dataset)
         if key is None:
-            self._fail("the random state ('random_state/key') is missing or not stored in this file")
+            self._fail(f"the random state ('{slot}/key') is missing or not stored in this file")
         if key.dtype != np.dtype(np.uint32) or tuple(key.shape) != (MT_KEY_SIZE,):
-            self._fail(f"'random_state/key' is {key.dtype.str} {tuple(key.shape)}, expected uint32 "
+            self._fail(f"'{slot}/key' is {key.dtype.str} {tuple(key.shape)}, expected uint32 "
                        f"({MT_KEY_SIZE},)")
-        self._check_storage(key, "random_state/key", MT_KEY_SIZE)
+        self._check_storage(key, f"{slot}/key", MT_KEY_SIZE)
         name = _attr_str(rg, "bit_generator")
         pos, has_gauss, step = (_attr_int(rg, k) for k in ("pos", "has_gauss", "step"))
         cached = _attr_float(rg, "cached_gaussian")
@@ -438,34 +455,52 @@ class ChainBackend(emcee.backends.Backend):
                     continue
                 g[name].resize(n1, axis=0)
                 g[name][n0:n1] = np.asarray(arr[n0:n1], float).reshape((n1 - n0,) + g[name].shape[1:])
+            # the block's steps are in the file before the state of its last step is, and that
+            # state before the step it belongs to is committed: a kill anywhere in a flush leaves
+            # a file whose committed step has its rows, counts and random state (module docstring)
             acc = np.asarray(self.accepted, float)
-            if "accepted" in g and g["accepted"].shape == acc.shape:
-                # overwritten in place: deleting and creating it again left, when a kill landed
-                # between the two, a dataset of whatever bytes its new space held (a resume then
-                # refused the chain: "'accepted' holds values that are not counts")
-                g["accepted"][...] = acc
-            else:
-                if "accepted" in g:
-                    del g["accepted"]
-                g.create_dataset("accepted", data=acc)
-            _write_random_state(g, self.random_state, n1)
+            pending = g.require_group(PENDING)
+            _write_state(pending, pending, self.random_state, acc, n1)
+            f.flush()
             g.attrs["iteration"] = n1
+            f.flush()
+            _write_state(g.require_group(STATE), g, self.random_state, acc, n1)
+            g[PENDING].attrs["step"] = -1
 
 
-def _write_random_state(g, state, step):
-    """Store a ``RandomState.get_state()`` tuple as typed fields (group ``random_state``)."""
+def _write_state(rg, counts_parent, state, accepted, step):
+    """Store a ``RandomState.get_state()`` tuple as typed fields of group ``rg``, with the accepted
+    counts as ``counts_parent['accepted']``; ``step`` is written last, after a flush, so the slot
+    names its step only once everything else it holds is in the file."""
     name, key, pos, has_gauss, cached = state
-    rg = g.require_group("random_state")
     key = np.asarray(key, dtype=np.uint32)
-    if "key" in rg:
-        rg["key"][...] = key
-    else:
-        rg.create_dataset("key", data=key, dtype=np.uint32)
+    for parent, ds, value in ((rg, "key", key), (counts_parent, "accepted", accepted)):
+        if ds in parent and parent[ds].shape == value.shape and parent[ds].dtype == value.dtype:
+            parent[ds][...] = value
+        else:
+            if ds in parent:
+                del parent[ds]
+            parent.create_dataset(ds, data=value)
     rg.attrs["bit_generator"] = str(name)
     rg.attrs["pos"] = int(pos)
     rg.attrs["has_gauss"] = int(has_gauss)
     rg.attrs["cached_gaussian"] = float(cached)
+    rg.file.flush()
     rg.attrs["step"] = int(step)
+
+
+def _committed_slot(g, n):
+    """The group holding the random state of committed step ``n`` and the path of its accepted
+    counts: ``random_state`` and ``accepted``, or ``pending`` when a kill landed after step ``n``
+    was committed and before ``random_state`` was rewritten (errors name ``random_state``)."""
+    if _slot_step(g, STATE) != n and _slot_step(g, PENDING) == n:
+        return PENDING, f"{PENDING}/accepted"
+    return STATE, "accepted"
+
+
+def _slot_step(g, slot):
+    rg = _member(g, slot, h5py.Group)
+    return None if rg is None else _attr_int(rg, "step")
 
 
 def _member(parent, name, kind):

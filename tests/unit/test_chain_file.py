@@ -371,3 +371,74 @@ def test_a_kill_inside_a_flush_resumes_with_the_committed_counts(post, chain_cop
         g["accepted"][...] = float(STOPPED)        # every walker accepted every step, the uncommitted one too
     run = _resume(post, chain_copy)
     assert run.steps >= STOPPED and 0.0 <= run.acceptance <= 1.0
+
+
+# ------------------------------------------------------------------ a kill inside a flush
+BLOCK = 5             # steps a block in the kill test
+
+
+def _gauss(x):
+    return -0.5 * float(np.sum(x * x))
+
+
+def _sample_to_file(path, steps):
+    """Sample a 3-d Gaussian for ``steps`` steps, flushing a block of BLOCK steps to ``path``."""
+    b = ChainFile(path, flush_every=BLOCK).new_backend(8, 3, fingerprint="ab")
+    s = emcee.EnsembleSampler(8, 3, _gauss, backend=b)
+    s.run_mcmc(emcee.State(np.random.default_rng(0).normal(size=(8, 3)),
+                           random_state=np.random.RandomState(7).get_state()), steps)
+
+
+def _killed_at_flush(path, k, steps):
+    """Run :func:`_sample_to_file` in a child that SIGKILLs itself right after its k-th HDF5 flush
+    (nothing closes the file: what is on disk is what a ``kill -9`` at that point leaves)."""
+    import os
+    import signal
+
+    pid = os.fork()
+    if pid == 0:
+        try:
+            calls = [0]
+            plain = h5py.File.flush
+
+            def flush(self):
+                plain(self)
+                calls[0] += 1
+                if calls[0] == k:
+                    os.kill(os.getpid(), signal.SIGKILL)
+
+            h5py.File.flush = flush
+            _sample_to_file(path, steps)
+        finally:
+            os._exit(3)
+    _, status = os.waitpid(pid, 0)
+    return os.WIFSIGNALED(status)
+
+
+def _loaded(path):
+    return ChainFile(path).load_backend(nwalkers=8, ndim=3, nblobs=0, fingerprint="ab")
+
+
+@pytest.mark.parametrize("k", range(1, 9))
+def test_a_kill_at_any_flush_of_a_block_leaves_a_chain_that_resumes_exactly(tmp_path, k):
+    """Killed after each of the HDF5 flushes of the first two blocks, the file loads (no refusal)
+    and holds exactly the rows, accepted counts and random state an uninterrupted run has at
+    the committed step: a resume continues the same chain. Before the two-slot commit, a kill
+    inside a flush left 'accepted' of unwritten bytes and a resume was refused (seen in CI)."""
+    path = tmp_path / "killed.h5"
+    assert _killed_at_flush(path, k, 4 * BLOCK), "the child was not killed inside a flush"
+    got = _loaded(path)
+    if got is None:                          # killed before the first block was committed
+        assert k <= 2
+        return
+    n = got.iteration
+    assert n in (BLOCK, 2 * BLOCK)
+    ref_path = tmp_path / "ref.h5"
+    _sample_to_file(ref_path, n)
+    ref = _loaded(ref_path)
+    assert ref.iteration == n
+    np.testing.assert_array_equal(got.chain, ref.chain)
+    np.testing.assert_array_equal(got.accepted, ref.accepted)
+    assert got.random_state[0] == ref.random_state[0]
+    np.testing.assert_array_equal(got.random_state[1], ref.random_state[1])
+    assert tuple(got.random_state[2:]) == tuple(ref.random_state[2:])
