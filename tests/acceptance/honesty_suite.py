@@ -85,6 +85,12 @@ class HonestyCase:
         return self.effect in CONDITIONAL_EFFECTS
 
     @property
+    def undeclared_air(self):
+        """A wind case that also flies air the round does not state (a warm day, ``dT``): its Cd
+        is conditional on the stated air when the fit says so (:func:`run_case`)."""
+        return self.withheld is None and (self.params.get("dT", 0.0) != 0.0 or self.params.get("ratio", 1.0) != 1.0)
+
+    @property
     def effect(self):
         if self.withheld is not None:
             return self.withheld.effect or "none"
@@ -152,6 +158,52 @@ def all_cases(small=False):
     if small:
         return withheld_cases(small=True) + [NEW_CASES[i] for i in (0, 3, 10)]
     return withheld_cases() + NEW_CASES
+
+
+#: parameters a reseeded case scales by a random factor (winds, temperature, clock, yaw); those
+#: given as a departure from 1 (density ratio, drag factor) scale their departure
+_SCALED = ("wx", "wy", "wx0", "wy0", "dT", "dt", "delta0")
+_SCALED_FROM_ONE = ("ratio", "factor")
+
+
+def reseeded(cases, k):
+    """The cases made anew for draw ``k`` >= 1: new noise and outlier seeds, the elevation moved
+    by up to 4 deg, the effect's size scaled by 0.6-1.4 (winds, layers and zones included), so a
+    suite run with ``--reseed k`` judges flights nobody tuned on. Ids gain ``-r{k}``."""
+    import dataclasses
+
+    rng = np.random.default_rng(7919 * int(k))
+
+    def scale(params):
+        out = {}
+        for name, v in params.items():
+            if name in _SCALED + ("shear", "wind"):
+                # a profile (levels' winds) gets a factor per level: its shape changes too
+                out[name] = (tuple(float(x) * rng.uniform(0.6, 1.4) for x in v) if isinstance(v, (tuple, list))
+                             else float(v) * rng.uniform(0.6, 1.4))
+            elif name in _SCALED_FROM_ONE:
+                out[name] = 1.0 + (float(v) - 1.0) * rng.uniform(0.6, 1.4)
+            elif name == "zones":
+                out[name] = [(float(wx * u), float(wy * u), until) for (wx, wy, until), u in
+                             zip(v, rng.uniform(0.6, 1.4, len(v)))]
+            else:
+                out[name] = v
+        return out
+
+    made = []
+    for c in cases:
+        seed = c.seed + 7919 * int(k)
+        if c.withheld is not None:
+            w = c.withheld
+            el = float(np.clip(w.elevation + rng.uniform(-4.0, 4.0), 5.0, 55.0))
+            w = dataclasses.replace(w, id=f"{w.id}-r{k}", params=scale(w.params), elevation=el, seed=seed)
+            made.append(dataclasses.replace(c, id=f"{c.id}-r{k}", seed=seed, withheld=w))
+        else:
+            p = scale(c.params)
+            qe = float(c.params["qe"])
+            p["qe"] = float(np.clip(qe + rng.uniform(-4.0, 4.0), 0.5 if qe < 5 else 5.0, 55.0))
+            made.append(dataclasses.replace(c, id=f"{c.id}-r{k}", params=p, seed=seed))
+    return made
 
 
 def case_by_id(cid):
@@ -434,8 +486,11 @@ def run_case(case, **fit_options):
     except (bayesdrag.InputError, bayesdrag.FitError) as exc:
         return {"id": case.id, "effect": case.effect, "conditional": case.conditional, "error": str(exc)}
     d = res.to_dict()
-    out = {"id": case.id, "effect": case.effect, "conditional": case.conditional, **judge(d, truth),
-           "quality_ok": bool(d["ml"]["quality"]["ok"])}
+    # a case of undeclared air is judged as conditional only when the fit itself says its Cd is
+    # conditional on the stated air (ml.quality.model_error.conditional_air): it must tell
+    said = bool((d["ml"]["quality"].get("model_error") or {}).get("conditional_air"))
+    out = {"id": case.id, "effect": case.effect, "conditional": case.conditional or (case.undeclared_air and said),
+           **judge(d, truth), "quality_ok": bool(d["ml"]["quality"]["ok"])}
     we = d["ml"].get("with_effects")
     if we:
         out["effects_added"] = we.get("fitted") or we.get("effects")

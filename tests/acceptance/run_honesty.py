@@ -1,6 +1,6 @@
 """Run the honesty suite (:mod:`acceptance.honesty_suite`) and print its table.
 
-    python tests/acceptance/run_honesty.py [--small] [--case ID ...] [--json OUT] [--with-none]
+    python tests/acceptance/run_honesty.py [--small] [--case ID ...] [--json OUT] [--with-none] [--reseed K]
 
 Columns: rows in the judged span, right (accuracy), determined, determined but wrong (the defect),
 worst |z| of a wrong determined row, determined fraction of the span, quality gate, seconds, the
@@ -35,8 +35,12 @@ def main(argv=None):
     ap.add_argument("--case", nargs="*")
     ap.add_argument("--json")
     ap.add_argument("--with-none", action="store_true", help="fit with with_effects='none' (no added effects)")
+    ap.add_argument("--reseed", type=int, default=0, metavar="K",
+                    help="judge the cases made anew (draw K >= 1: new seeds, elevations, effect sizes)")
     a = ap.parse_args(argv)
     cases = [hs.case_by_id(c) for c in a.case] if a.case else hs.all_cases(small=a.small)
+    if a.reseed:
+        cases = hs.reseeded(cases, a.reseed)
     opts = {"with_effects": "none"} if a.with_none else {}
     out = []
     print(f"{'case':28s} {'effect':12s} {'rows':>4s} {'right':>5s} {'det':>4s} {'WRONG':>5s} {'worst z':>7s} "

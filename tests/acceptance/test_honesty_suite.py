@@ -39,7 +39,7 @@ def test_full_suite_claims_no_wrong_row():
             continue
         r = hs.run_case(c)
         assert "error" not in r, (c.id, r.get("error"))
-        if r["determined_wrong"]:
+        if r["determined_wrong"] and not r["conditional"]:
             bad.append(f"{c.id}: {r['determined_wrong']}/{r['determined']} (worst z {r['worst_z_wrong']:.1f})")
     assert not bad, "; ".join(bad)
 
@@ -59,3 +59,42 @@ def test_effects_the_user_names_leave_a_misfit_that_is_still_checked():
     # before the check ran on named effects: 62 of 118 determined rows wrong, up to 53 band sd
     assert r["determined_wrong"] == 0, (f"{r['determined_wrong']} of {r['determined']} determined rows wrong "
                                         f"(worst {r['worst_z_wrong']:.1f} band sd)")
+
+
+def test_reseeded_cases_are_other_flights_of_the_same_kinds():
+    """``--reseed K`` judges flights nobody tuned on: every case gets a new seed and id, its
+    effect's size is scaled by 0.6-1.4 and its elevation moved by at most 4 deg; the same K gives
+    the same flights."""
+    base = hs.all_cases()
+    a, b = hs.reseeded(base, 1), hs.reseeded(base, 1)
+    assert [c.id for c in a] == [c.id for c in b] and [c.params for c in a] == [c.params for c in b]
+    for old, new in zip(base, a):
+        assert new.id == f"{old.id}-r1" and new.seed != old.seed
+        if old.withheld is not None:
+            w0, w1 = old.withheld, new.withheld
+            assert w1.seed != w0.seed and abs(w1.elevation - w0.elevation) <= 4.0
+            for k in ("wx", "wy", "dT", "dt"):
+                if w0.params.get(k):
+                    assert 0.6 <= w1.params[k] / w0.params[k] <= 1.4, (old.id, k)
+        else:
+            assert abs(new.params["qe"] - old.params["qe"]) <= 4.0
+    assert [c.seed for c in hs.reseeded(base, 2)] != [c.seed for c in a]
+
+
+#: reseeded flights whose default fit still claims wrong rows (issue 27, open; docs/fitting.md, "Judged
+#: on flights nobody tuned on"): two on AR(1) noise (a 2.4/2.7 m/s wind at rho 0.95; no effect at
+#: rho 0.9), where the noise fit on the residuals finds too short a correlation (rho 0.82 for the
+#: speed channel of the first: the flexible fit absorbs the slow noise), so the statistical band is
+#: about half what the noise gives; a 105 mm 6-DOF flight launched with 3 deg of yaw; and a 155 mm
+#: 6-DOF flight in a 10 m/s head wind at QE 10 whose wind profile's layers trade with Cd. Strict:
+#: when a change makes one pass, this test says so.
+OPEN_MISSES = [(1, "w-pm-wind-04-r1"), (1, "w-6dof-null-201-r1"), (2, "w-pm-null-101-r2"), (2, "w-6dof-wind-31-r2")]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 27 open: AR(1) correlation estimated short; 6-DOF yaw and wind layers")
+@pytest.mark.parametrize("draw, cid", OPEN_MISSES)
+def test_open_misses_of_the_reseeded_draws(draw, cid):
+    case = next(c for c in hs.reseeded(hs.all_cases(), draw) if c.id == cid)
+    r = hs.run_case(case)
+    assert r["determined_wrong"] == 0, f"{cid}: {r['determined_wrong']} wrong (worst z {r['worst_z_wrong']:.1f})"
