@@ -362,12 +362,15 @@ def fit_noise_restricted(e, dt_ratio, J, A_other, start):
     dtr = np.ascontiguousarray(dt_ratio, dtype=float)
     rho_a, q_a = np.empty(1), np.empty(1)
     Jc = np.ascontiguousarray(np.asarray(J, float))
-    # a correlation longer than the track is a drift the fitted parameters take whole: the
-    # restricted likelihood has no information on its size there and runs off to a random walk
-    lo = max(LOG_1M_RHO_RANGE[0], -math.log(N))
+    # searched at correlations no shorter than the plain likelihood's (the fit's absorption of
+    # slow noise only shortens them) and no longer than the track (beyond it the fitted
+    # parameters take the noise whole, and the restricted likelihood, with nothing to tell its
+    # size, runs off to a random walk); a plain estimate already beyond the track is kept
+    hi = min(math.log(max(1.0 - start[0], 1e-300)), 0.0)
+    lo = max(LOG_1M_RHO_RANGE[0], min(hi, -math.log(N)))
 
     def nll(x):
-        rho_a[0] = 1.0 - math.exp(min(max(x[0], lo), 0.0))
+        rho_a[0] = 1.0 - math.exp(min(max(x[0], lo), hi))
         q_a[0] = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
         ss, ld = _whitened_ss(rows, rho_a, q_a, dtr)
         s2 = max(ss[0], 1e-300) / N
@@ -377,9 +380,9 @@ def fit_noise_restricted(e, dt_ratio, J, A_other, start):
             return math.inf
         return -float(-0.5 * ld[0] - 0.5 * N * math.log(s2)) + 0.5 * lda
 
-    x0 = (max(math.log(max(1.0 - start[0], 1e-5)), lo), math.log(max(start[1], 1e-6)))
+    x0 = (min(max(math.log(max(1.0 - start[0], 1e-5)), lo), hi), math.log(max(start[1], 1e-6)))
     x, _ = nelder_mead_2d(nll, x0, xatol=1e-3, fatol=1e-4, maxiter=400)
-    rho = 1.0 - math.exp(min(max(x[0], lo), 0.0))
+    rho = 1.0 - math.exp(min(max(x[0], lo), hi))
     q = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
     u, _ = standardize(e, rho, q, dt_ratio)
     sigma = max(math.sqrt(float(u @ u) / N), 1e-9)
