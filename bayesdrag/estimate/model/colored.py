@@ -381,7 +381,7 @@ def fit_noise_restricted(e, dt_ratio, J, A_other, start):
         return -float(-0.5 * ld[0] - 0.5 * N * math.log(s2)) + 0.5 * lda
 
     x0 = (min(max(math.log(max(1.0 - start[0], 1e-5)), lo), hi), math.log(max(start[1], 1e-6)))
-    x, _ = nelder_mead_2d(nll, x0, xatol=1e-3, fatol=1e-4, maxiter=400)
+    x, _ = nelder_mead_2d(nll, x0, xatol=1e-5, fatol=1e-7, maxiter=400)
     rho = 1.0 - math.exp(min(max(x[0], lo), hi))
     q = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
     u, _ = standardize(e, rho, q, dt_ratio)
