@@ -129,36 +129,3 @@ def test_nelder_mead_2d_follows_scipy_on_the_noise_likelihood():
         for x0 in ((math.log(0.01), 0.0), (math.log(1e-4), 5.0), (-20.0, -20.0)):
             o, x, fun, calls = _scipy_and_ours(nll, x0, xatol=1e-3, fatol=1e-4)
             assert calls["ours"] == calls["scipy"] and fun == float(o.fun)
-
-
-#: seeds of the restricted-likelihood test, and the basis size of its flexible fit
-REML_SEEDS, REML_BASIS = 16, 8
-
-
-def test_restricted_likelihood_removes_the_fit_s_absorption_of_slow_noise():
-    """Residuals of a flexible fit (a cosine basis of REML_BASIS slow columns, as a spline in Cd
-    absorbs slow noise) of white + AR(1) noise (rho 0.95, q 20): the plain likelihood of the
-    residuals finds too short a correlation, the restricted one (the basis given) at most half as
-    far off. Judged on the mean of log(1 - rho) over REML_SEEDS seeds, the scale the fit works in.
-    (With 24 columns the restricted search reaches its bound, a correlation as long as the track,
-    on most seeds: there the basis takes the slow noise whole.)"""
-    n, rho, q = 400, 0.95, 20.0
-    dt_ratio = np.ones(n - 1)
-    tt = np.arange(n) / n
-    J = np.column_stack([np.cos(np.pi * k * tt) for k in range(REML_BASIS)])
-    H = J @ np.linalg.pinv(J)
-    ml, reml = [], []
-    for s in range(REML_SEEDS):
-        e = _ar_white(np.random.default_rng(100 + s), n, rho, q)
-        r = e - H @ e
-        _, r_ml, q_ml, _ = colored.fit_noise(r, dt_ratio)
-        _, r_re, _ = colored.fit_noise_restricted(r, dt_ratio, J, 1e-9 * np.eye(REML_BASIS), (r_ml, q_ml))
-        ml.append(math.log(1 - r_ml))
-        reml.append(math.log(1 - r_re))
-    truth = math.log(1 - rho)
-    ml_bias, reml_bias = np.mean(ml) - truth, np.mean(reml) - truth
-    se = np.std(ml, ddof=1) / math.sqrt(REML_SEEDS)
-    assert ml_bias > 3 * se, (ml_bias, se)                  # the plain fit's correlation is too short
-    assert abs(reml_bias) < 0.5 * ml_bias, (reml_bias, ml_bias)
-    # never beyond the track: a longer correlation is a drift the fit takes whole
-    assert min(reml) >= -math.log(n) - 1e-9

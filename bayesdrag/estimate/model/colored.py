@@ -329,66 +329,6 @@ def fit_noise(e, dt_ratio, start=None):
     return sigma, rho, q, lr
 
 
-def fit_noise_restricted(e, dt_ratio, J, A_other, start):
-    """Restricted-likelihood (REML) noise parameters of one channel, given the fit's sensitivities.
-
-    The residuals of a fit are the noise less what the fitted parameters absorb; for a flexible
-    fit that is much of the slow part of a correlated noise, so the plain likelihood of the
-    residuals (:func:`fit_noise`) finds too short a correlation and too small a variance, and the
-    bands that rest on them are too narrow. The restricted likelihood adds
-    ``-1/2 log det(A_other + J~' J~ / sigma^2)``: the volume the parameters take out of the data,
-    with ``J~`` this channel's sensitivities whitened by the candidate noise and ``A_other`` the
-    information of the other channels and the priors (held at their current noise).
-
-    Parameters
-    ----------
-    e : (N,) ndarray
-        Residuals over the noise scale.
-    dt_ratio : (N - 1,) ndarray
-    J : (N, K) ndarray
-        This channel's sensitivities to the K free parameters, over the noise scale.
-    A_other : (K, K) ndarray
-        Information from the other channels and the priors.
-    start : (rho, q)
-        The plain likelihood's estimate, where the search starts.
-
-    Returns
-    -------
-    sigma, rho, q : float
-    """
-    e = np.asarray(e, float)
-    N = e.size
-    rows = np.ascontiguousarray(e[None])
-    dtr = np.ascontiguousarray(dt_ratio, dtype=float)
-    rho_a, q_a = np.empty(1), np.empty(1)
-    Jc = np.ascontiguousarray(np.asarray(J, float))
-    # searched at correlations no shorter than the plain likelihood's (the fit's absorption of
-    # slow noise only shortens them) and no longer than the track (beyond it the fitted
-    # parameters take the noise whole, and the restricted likelihood, with nothing to tell its
-    # size, runs off to a random walk); a plain estimate already beyond the track is kept
-    hi = min(math.log(max(1.0 - start[0], 1e-300)), 0.0)
-    lo = max(LOG_1M_RHO_RANGE[0], min(hi, -math.log(N)))
-
-    def nll(x):
-        rho_a[0] = 1.0 - math.exp(min(max(x[0], lo), hi))
-        q_a[0] = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
-        ss, ld = _whitened_ss(rows, rho_a, q_a, dtr)
-        s2 = max(ss[0], 1e-300) / N
-        Jw, _ = _standardize(Jc, step_coefficients(rho_a[0], dtr), float(q_a[0]))
-        sign, lda = np.linalg.slogdet(A_other + (Jw.T @ Jw) / s2)
-        if sign <= 0:
-            return math.inf
-        return -float(-0.5 * ld[0] - 0.5 * N * math.log(s2)) + 0.5 * lda
-
-    x0 = (min(max(math.log(max(1.0 - start[0], 1e-5)), lo), hi), math.log(max(start[1], 1e-6)))
-    x, _ = nelder_mead_2d(nll, x0, xatol=1e-5, fatol=1e-7, maxiter=400)
-    rho = 1.0 - math.exp(min(max(x[0], lo), hi))
-    q = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
-    u, _ = standardize(e, rho, q, dt_ratio)
-    sigma = max(math.sqrt(float(u @ u) / N), 1e-9)
-    return sigma, rho, q
-
-
 def _nan_max(values):
     """The largest of floats, NaN when any is NaN (as ``np.max``)."""
     return math.nan if any(v != v for v in values) else max(values)

@@ -244,11 +244,6 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
     lam = 1e-3
     history = []
     converged = False
-    reml = False
-
-    def restricted(pJ, S):
-        return dict(S=S, prior_info=None if pJ is None else pJ.T @ pJ)
-
     message = ""
     it = 0
     cost = problem.cost(resid, sigma, theta, ar)
@@ -304,8 +299,7 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         theta = trial
         y, mach, S = problem.sensitivities(theta)
         resid = problem.z - y
-        new_sigma, new_ar = problem.update_noise(resid, sigma, ar, **(restricted(pJ if pr.size else None, S)
-                                                                      if reml else {}))
+        new_sigma, new_ar = problem.update_noise(resid, sigma, ar)
         dsig = max(abs(new_sigma[c] / sigma[c] - 1) for c in problem.channels)
         # model-error parameters (log correlation time and log variance) to 1 % : their effect
         # on the estimate and the bounds is second order, and their optimiser's tolerance is 1e-3
@@ -325,15 +319,6 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         small_step = np.all(np.abs(dtheta) < tol_step * sd)
         small_cost = abs(cost - ct) <= tol_cost * max(cost, 1e-300)
         cost = new_cost
-        if (small_step or small_cost) and dsig < tol_sigma and not reml and ar:
-            # converged with the noise of the residuals' likelihood: once more with the
-            # restricted likelihood, which the fit's own absorption of slow noise does not bias
-            # (Problem.update_noise); only now, as each of its evaluations whitens every
-            # sensitivity column
-            reml = True
-            sigma, ar = problem.update_noise(resid, sigma, ar, **restricted(pJ if pr.size else None, S))
-            cost = problem.cost(resid, sigma, theta, ar)
-            continue
         if (small_step or small_cost) and dsig < tol_sigma:
             converged = True
             message = ("converged: " + ("parameter steps < 1e-3 CRB sd" if small_step else

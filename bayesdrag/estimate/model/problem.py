@@ -351,31 +351,20 @@ class OutputErrorProblem:
             return a
         return a / (self.noise_scale if a.ndim == 2 else self.noise_scale[:, :, None])
 
-    def update_noise(self, resid, sigma, ar, S=None, prior_info=None):
+    def update_noise(self, resid, sigma, ar):
         """Noise relaxation: new ``(sigma, ar)`` at fixed parameters.
 
         White channels: the round's sigma where fixed, else the weighted residual rms. ``ar1``
         channels: sigma, rho and q of maximum likelihood (:func:`colored.fit_noise`, warm
-        started at the previous ``ar``); with the sensitivities ``S`` (N, C, K) of the free
-        parameters, of restricted likelihood (:func:`colored.fit_noise_restricted`), the other
-        channels' information (and ``prior_info``, K x K) held at ``sigma`` and ``ar``.
+        started at the previous ``ar``).
         """
         sig = self.update_sigma(resid, sigma)
         new = {}
-        W = None
         for j, c in enumerate(self.channels):
             if self.noise_model[c] != "ar1":
                 continue
             start = (ar or {}).get(c)
-            e = resid[:, j] / self.noise_scale[:, j]
-            s, rho, q, _ = colored.fit_noise(e, self.dt_ratio, start=start)
-            if S is not None and sigma is not None and ar is not None:
-                if W is None:
-                    W = self.weighted(S, sigma, ar)
-                    A_all = np.einsum("nck,ncl->ckl", W, W)
-                    A_sum = A_all.sum(axis=0) + (0.0 if prior_info is None else prior_info)
-                s, rho, q = colored.fit_noise_restricted(e, self.dt_ratio, S[:, j, :] / self.noise_scale[:, j, None],
-                                                         A_sum - A_all[j], (rho, q))
+            s, rho, q, _ = colored.fit_noise(resid[:, j] / self.noise_scale[:, j], self.dt_ratio, start=start)
             new[c] = (rho, q)
             sig[c] = s
         return sig, new
