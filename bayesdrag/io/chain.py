@@ -302,8 +302,8 @@ class ChainFile:
         stored = max(n, int(datasets["chain"].shape[0]))
         if np.any(acc < 0) or np.any(acc > stored) or np.any(acc != np.round(acc)):
             self._fail(f"'{accepted}' holds values that are not counts in 0..{stored}")
-        # a kill inside a flush, after 'accepted' and before 'iteration' were written, leaves
-        # counts of steps the file does not yet commit: held to the committed steps
+        # a file written before the two-slot commit, killed after 'accepted' and before
+        # 'iteration' were written, holds counts of uncommitted steps: held to the committed ones
         acc = np.minimum(acc, n)
         b = ChainBackend(self, W, D, flushed=n)
         b.chain, b.log_prob, b.blobs, b.accepted = chain, lp, blobs, acc
@@ -491,8 +491,9 @@ def _write_state(rg, counts_parent, state, accepted, step):
 
 def _committed_slot(g, n):
     """The group holding the random state of committed step ``n`` and the path of its accepted
-    counts: ``random_state`` and ``accepted``, or ``pending`` when a kill landed after step ``n``
-    was committed and before ``random_state`` was rewritten (errors name ``random_state``)."""
+    counts: ``random_state`` and ``accepted``, or ``pending`` (a hard-linked group only) when a
+    kill landed after step ``n`` was committed and before ``random_state`` was rewritten; errors
+    name the slot read."""
     if _slot_step(g, STATE) != n and _slot_step(g, PENDING) == n:
         return PENDING, f"{PENDING}/accepted"
     return STATE, "accepted"
