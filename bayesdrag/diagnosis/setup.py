@@ -518,10 +518,12 @@ def fit_effects(setup, effects, theta_start, max_iter=40):
         The fit, its problem and the fitted outputs per channel [m, m/s].
     """
     prob = effect_problem(setup, effects, theta_start)
+    # plain noise likelihood: the diagnosis compares these fits' likelihoods across effects,
+    # and restricted likelihoods of models with other parameters are not comparable
     if not any(e.name == "drag_shape" for e in effects):
-        res = prob.fit(max_iter=max_iter)
+        res = prob.fit(max_iter=max_iter, restricted=False)
     else:
-        res = prob.fit(max_iter=min(max_iter, DRAG_SHAPE_MAX_ITER))
+        res = prob.fit(max_iter=min(max_iter, DRAG_SHAPE_MAX_ITER), restricted=False)
         if not res.converged and np.all(np.isfinite(res.theta)):
             alt = prob.fit_trust_region(res.theta, res.sigma, max_nfev=DRAG_SHAPE_TRF_NFEV)
             if np.all(np.isfinite(alt.theta)) and alt.cost <= res.cost:

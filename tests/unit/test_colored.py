@@ -129,3 +129,113 @@ def test_nelder_mead_2d_follows_scipy_on_the_noise_likelihood():
         for x0 in ((math.log(0.01), 0.0), (math.log(1e-4), 5.0), (-20.0, -20.0)):
             o, x, fun, calls = _scipy_and_ours(nll, x0, xatol=1e-3, fatol=1e-4)
             assert calls["ours"] == calls["scipy"] and fun == float(o.fun)
+
+
+#: seeds of the restricted-likelihood test, and the basis size of its flexible fit
+REML_SEEDS, REML_BASIS = 16, 8
+#: information of "the other channels" in the single-channel tests: negligible [1/(noise scale)^2]
+NEGLIGIBLE_INFO = 1e-10
+
+
+def _dense_reml(e, J, rho, q):
+    """Minus the textbook restricted log-likelihood (sigma^2 profiled) of residuals ``e`` of the
+    linear model ``J`` under white + AR(1) noise (regular steps), from dense matrices; and its sigma^2."""
+    n, k = J.shape
+    V = np.eye(n) + q * rho ** np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+    Vi = np.linalg.inv(V)
+    XtViX = J.T @ Vi @ J
+    beta = np.linalg.solve(XtViX, J.T @ Vi @ e)
+    r = e - J @ beta
+    s2 = float(r @ Vi @ r) / (n - k)
+    val = 0.5 * (np.linalg.slogdet(V)[1] + (n - k) * math.log(s2) + np.linalg.slogdet(XtViX)[1] + (n - k))
+    return val, s2
+
+
+def test_restricted_objective_is_the_textbook_restricted_likelihood():
+    """With negligible other information the objective is the restricted likelihood of the
+    linear model (dense matrices, N = 80): its differences between noise parameters to 1e-6,
+    and its white variance the restricted rss / (N - K)."""
+    rng = np.random.default_rng(7)
+    n, k = 80, 4
+    tt = np.arange(n) / n
+    J = np.column_stack([np.cos(np.pi * j * tt) for j in range(k)])
+    e = _ar_white(rng, n, 0.9, 5.0)
+    EJ = np.ascontiguousarray(np.column_stack([e, J]))
+    dt_ratio = np.ones(n - 1)
+    points = [(0.9, 5.0), (0.7, 0.5), (0.97, 40.0)]
+    ours = [colored.restricted_objective(EJ, dt_ratio, NEGLIGIBLE_INFO * np.eye(k), np.zeros(k),
+                                         math.log(1 - r), math.log(q)) for r, q in points]
+    dense = [_dense_reml(e, J, r, q) for r, q in points]
+    for (v, s2), (dv, ds2) in zip(ours, dense):
+        assert s2 == pytest.approx(ds2, rel=1e-6)
+        assert v - ours[0][0] == pytest.approx(dv - dense[0][0], abs=1e-6)
+
+
+def test_quadratic_box_minimum_is_the_grid_s():
+    """The trust region's step: the exact minimum of a 2-D quadratic over a box, convex or not,
+    against a 401 x 401 grid (to its spacing)."""
+    rng = np.random.default_rng(3)
+    ga = np.linspace(-1.0, 2.0, 401)
+    gb = np.linspace(-0.5, 0.5, 401)
+    A, B = np.meshgrid(ga, gb, indexing="ij")
+    for _ in range(40):
+        c = rng.normal(size=6)
+        (a, b), v = colored._quadratic_box_min(c, (-1.0, -0.5), (2.0, 0.5))
+        grid = c[0] + c[1] * A + c[2] * B + c[3] * A * A + c[4] * A * B + c[5] * B * B
+        assert -1.0 <= a <= 2.0 and -0.5 <= b <= 0.5
+        assert v == pytest.approx(c[0] + c[1] * a + c[2] * b + c[3] * a * a + c[4] * a * b + c[5] * b * b)
+        assert v <= grid.min() + 1e-12
+
+
+def test_restricted_likelihood_removes_the_fit_s_absorption_of_slow_noise():
+    """Residuals of a flexible fit (a cosine basis of REML_BASIS slow columns, as a spline in Cd
+    absorbs slow noise) of white + AR(1) noise (rho 0.95, q 20): the plain likelihood of the
+    residuals finds too short a correlation, the restricted one (the basis given) at most half as
+    far off. Judged on the mean of log(1 - rho) over REML_SEEDS seeds, the scale the fit works in."""
+    n, rho, q = 400, 0.95, 20.0
+    dt_ratio = np.ones(n - 1)
+    tt = np.arange(n) / n
+    J = np.column_stack([np.cos(np.pi * k * tt) for k in range(REML_BASIS)])
+    H = J @ np.linalg.pinv(J)
+    ml, reml = [], []
+    for s in range(REML_SEEDS):
+        e = _ar_white(np.random.default_rng(100 + s), n, rho, q)
+        r = e - H @ e
+        _, r_ml, q_ml, _ = colored.fit_noise(r, dt_ratio)
+        _, r_re, _ = colored.fit_noise_restricted(r, dt_ratio, (r_ml, q_ml), J, NEGLIGIBLE_INFO * np.eye(REML_BASIS),
+                                                  np.zeros(REML_BASIS))
+        ml.append(math.log(1 - r_ml))
+        reml.append(math.log(1 - r_re))
+    truth = math.log(1 - rho)
+    ml_bias, reml_bias = np.mean(ml) - truth, np.mean(reml) - truth
+    se = np.std(ml, ddof=1) / math.sqrt(REML_SEEDS)
+    assert ml_bias > 3 * se, (ml_bias, se)                  # the plain fit's correlation is too short
+    assert abs(reml_bias) < 0.5 * ml_bias, (reml_bias, ml_bias)
+    # never beyond the track: a longer correlation is a drift the fit takes whole
+    assert min(reml) >= -math.log(n) - 1e-9
+    # never shorter than the plain fit's
+    assert all(b <= a + 1e-12 for a, b in zip(ml, reml))
+
+
+def test_restricted_search_finds_the_objective_s_minimum():
+    """The trust-region search ends where a dense grid of the objective has its minimum (within
+    the bounds it keeps), to the grid's spacing: 0.05 in log(1 - rho), 0.25 in log q."""
+    rng = np.random.default_rng(11)
+    n = 300
+    dt_ratio = np.ones(n - 1)
+    tt = np.arange(n) / n
+    J = np.column_stack([np.cos(np.pi * k * tt) for k in range(6)])
+    e = _ar_white(rng, n, 0.9, 10.0)
+    r = e - J @ np.linalg.lstsq(J, e, rcond=None)[0]
+    _, r_ml, q_ml, _ = colored.fit_noise(r, dt_ratio)
+    A, g = NEGLIGIBLE_INFO * np.eye(6), np.zeros(6)
+    _, r_re, q_re = colored.fit_noise_restricted(r, dt_ratio, (r_ml, q_ml), J, A, g)
+    EJ = np.ascontiguousarray(np.column_stack([r, J]))
+    hi, lo = math.log(1 - r_ml), max(-math.log(n), colored.LOG_1M_RHO_RANGE[0])
+    ga = np.arange(lo, hi + 1e-9, 0.05)
+    gb = np.arange(math.log(q_ml) - 4, math.log(q_ml) + 4, 0.25)
+    vals = np.array([[colored.restricted_objective(EJ, dt_ratio, A, g, a, b)[0] for b in gb] for a in ga])
+    i, j = np.unravel_index(np.argmin(vals), vals.shape)
+    found = colored.restricted_objective(EJ, dt_ratio, A, g, math.log(1 - r_re), math.log(q_re))[0]
+    assert found <= vals[i, j] + 1e-3
+    assert abs(math.log(1 - r_re) - ga[i]) <= 0.1 and abs(math.log(q_re) - gb[j]) <= 0.5

@@ -52,6 +52,8 @@ from .filters import convolve_same
 #: a fit that no step improves has converged when Gauss-Newton predicts a cost decrease below
 #: this (the cost is a chi2: 1e-3 is far below what the data can tell)
 STUCK_PREDICTED_DECREASE = 1e-3
+#: Levenberg-Marquardt steps at most with the noise held at its restricted estimate
+RESTRICTED_STEPS = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,7 +149,7 @@ class MLResult:
         return np.where(np.outer(sd, sd) > 0, c, 0.0)
 
 
-def fit(problem, *, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False):
+def fit(problem, *, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False, restricted=True):
     """Run Gauss-Newton / Levenberg-Marquardt with R relaxation. Returns :class:`MLResult`.
 
     Parameters
@@ -159,15 +161,20 @@ def fit(problem, *, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, f
         When Levenberg-Marquardt ends without converging, continue from where it stopped with
         scipy's trust-region reflective least squares (:meth:`fit_trust_region`) at the
         noise sd reached, and keep whichever result converged with the lower cost.
+    restricted : bool
+        Once converged, the ``ar1`` channels' noise (and with it the bounds) of restricted
+        likelihood (module docstring); the estimate stays the plain fit's. ``False`` keeps the plain likelihood: for fits whose likelihoods are
+        compared across models with other parameters (the diagnosis's), as restricted
+        likelihoods of different fixed effects are not comparable.
     """
-    res = _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma)
+    res = _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted)
     if res.converged or not fallback or not np.all(np.isfinite(res.theta)):
         return res
     alt = fit_trust_region(problem, res.theta, res.sigma, ar=res.ar)
     if alt.converged and (alt.cost <= res.cost * (1 + 1e-9) or not res.converged):
         if len(problem.sigma_fixed) < len(problem.channels) or problem.ar_channels:
             # the noise sd was held at the LM's last estimate: one more relaxation pass
-            again = _fit_lm(problem.replace(theta0=alt.theta), max_iter, tol_cost, tol_step, tol_sigma)
+            again = _fit_lm(problem.replace(theta0=alt.theta), max_iter, tol_cost, tol_step, tol_sigma, restricted)
             if again.converged:
                 return again
         return alt
@@ -231,7 +238,7 @@ def fit_trust_region(problem, theta, sigma, max_nfev=200, ar=None):
     return _finish(problem, th, y, mach, S, resid, dict(sigma), ar, cost, ok, msg, int(sol.nfev), [cost])
 
 
-def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
+def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
     theta = np.clip(problem.theta0, problem.lower, problem.upper)
     idx = np.flatnonzero(problem.free)
     C = len(problem.channels)
@@ -246,6 +253,7 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
     converged = False
     message = ""
     it = 0
+    held = None         # the iteration at which the noise was set to its restricted estimate
     cost = problem.cost(resid, sigma, theta, ar)
     for it in range(1, max_iter + 1):
         A = problem.weighted(S, sigma, ar).reshape(-1, idx.size)
@@ -299,7 +307,7 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         theta = trial
         y, mach, S = problem.sensitivities(theta)
         resid = problem.z - y
-        new_sigma, new_ar = problem.update_noise(resid, sigma, ar)
+        new_sigma, new_ar = (sigma, ar) if held is not None else problem.update_noise(resid, sigma, ar)
         dsig = max(abs(new_sigma[c] / sigma[c] - 1) for c in problem.channels)
         # model-error parameters (log correlation time and log variance) to 1 % : their effect
         # on the estimate and the bounds is second order, and their optimiser's tolerance is 1e-3
@@ -319,6 +327,21 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma):
         small_step = np.all(np.abs(dtheta) < tol_step * sd)
         small_cost = abs(cost - ct) <= tol_cost * max(cost, 1e-300)
         cost = new_cost
+        if (small_step or small_cost) and dsig < tol_sigma and restricted and ar and held is None:
+            # converged with the noise of the residuals' likelihood: the noise of restricted
+            # likelihood, which the fit's own absorption of slow noise does not bias, with the
+            # parameters' move under it linearised (Problem.update_noise_restricted), then held
+            # while the parameters take their generalised least squares at it
+            held = it
+            sigma, ar = problem.update_noise_restricted(resid, sigma, ar, S, problem.prior_terms(theta))
+            cost = problem.cost(resid, sigma, theta, ar)
+            continue
+        if held is not None and it - held >= RESTRICTED_STEPS:
+            # on a flat valley the steps creep (0.01-0.1 sd each for tens of iterations): the
+            # first steps make the move, the rest stays inside the band
+            converged = True
+            message = f"converged: noise of restricted likelihood held for {RESTRICTED_STEPS} steps"
+            break
         if (small_step or small_cost) and dsig < tol_sigma:
             converged = True
             message = ("converged: " + ("parameter steps < 1e-3 CRB sd" if small_step else

@@ -33,6 +33,7 @@ an ``ar1`` channel.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -56,6 +57,9 @@ IC_STEPS = (0.01, 0.01, 0.01, 0.001, 0.001, 0.001)
 MAX_BACKWARD = 0.25
 #: noise models of a channel
 NOISE_MODELS = ("white", "ar1")
+#: passes over the ``ar1`` channels of the restricted noise search (each channel's depends on the
+#: others' through their information), and the change of log(1 - rho) below which it stops [-]
+RESTRICTED_PASSES, RESTRICTED_PASS_TOL = 2, 0.01
 
 
 @dataclass(frozen=True)
@@ -369,6 +373,54 @@ class OutputErrorProblem:
             sig[c] = s
         return sig, new
 
+    def update_noise_restricted(self, resid, sigma, ar, S, priors=None):
+        """:meth:`update_noise` with the ``ar1`` channels' noise of restricted likelihood
+        (:func:`colored.fit_noise_restricted`), started and bounded at the plain estimate.
+
+        The channels are searched in turn, each with the others' information and gradient at
+        their latest noise, for :data:`RESTRICTED_PASSES` passes at most (fewer once no channel's
+        correlation moves by more than :data:`RESTRICTED_PASS_TOL` in ``log(1 - rho)``).
+
+        Parameters
+        ----------
+        resid : (N, C) ndarray
+        sigma, ar : dict
+            The current noise.
+        S : (N, C, K) ndarray
+            Sensitivities of the free parameters.
+        priors : (pr, pJ), optional
+            The priors' residuals (M,) and Jacobian (M, K) at the parameters.
+
+        Returns
+        -------
+        sigma, ar : dict
+        """
+        sig, new = self.update_noise(resid, sigma, ar)
+        plain = dict(new)
+        if priors is not None and priors[0].size:
+            A_p, g_p = priors[1].T @ priors[1], priors[1].T @ priors[0]
+        else:
+            A_p = g_p = 0.0
+        for _ in range(RESTRICTED_PASSES):
+            moved = 0.0
+            for j, c in enumerate(self.channels):
+                if c not in new:
+                    continue
+                W = self.weighted(S, sig, new)
+                rw = self.weighted(resid, sig, new)
+                A_all = np.einsum("nck,ncl->ckl", W, W)
+                g_all = np.einsum("nck,nc->ck", W, rw)
+                s, rho, q = colored.fit_noise_restricted(
+                    resid[:, j] / self.noise_scale[:, j], self.dt_ratio, plain[c],
+                    S[:, j, :] / self.noise_scale[:, j, None],
+                    A_all.sum(axis=0) - A_all[j] + A_p, g_all.sum(axis=0) - g_all[j] + g_p)
+                moved = max(moved, abs(math.log((1.0 - rho) / (1.0 - new[c][0]))))
+                new[c] = (rho, q)
+                sig[c] = s
+            if moved < RESTRICTED_PASS_TOL:
+                break
+        return sig, new
+
     @property
     def layout(self):
         """Where the drag coefficients, the initial state and the effects sit in theta
@@ -529,7 +581,7 @@ class OutputErrorProblem:
 
     # ----------------------------------------------------------------------------------------
 
-    def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False):
+    def fit(self, max_iter=50, tol_cost=1e-8, tol_step=1e-3, tol_sigma=1e-3, fallback=False, restricted=True):
         """Fit by Levenberg-Marquardt with noise relaxation (:func:`bayesdrag.estimate.model.ml.fit`).
 
         Parameters
@@ -539,6 +591,8 @@ class OutputErrorProblem:
             Convergence rules (:mod:`bayesdrag.estimate.model.ml`).
         fallback : bool
             Continue an unconverged fit with scipy's trust-region reflective least squares.
+        restricted : bool
+            ``ar1`` noise of restricted likelihood once converged (:func:`~bayesdrag.estimate.model.ml.fit`).
 
         Returns
         -------
@@ -547,7 +601,7 @@ class OutputErrorProblem:
         from . import ml
 
         return ml.fit(self, max_iter=max_iter, tol_cost=tol_cost, tol_step=tol_step, tol_sigma=tol_sigma,
-                      fallback=fallback)
+                      fallback=fallback, restricted=restricted)
 
     def fit_trust_region(self, theta, sigma, max_nfev=200):
         """Minimise the cost at fixed noise sd with scipy's trust-region reflective least
