@@ -25,7 +25,7 @@ from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_
 from .estimate.scheme1.effect_sizes import effect_sizes
 from .estimate.scheme1.fit import fit_scheme1
 from .estimate.scheme2 import fit_scheme2, windows_table
-from .model_check import (LEVEL_EFFECTS, air, clock_note, diagnosis_record, model_error, note_model_error,
+from .model_check import (LEVEL_EFFECTS, air, alternative_error, clock_note, diagnosis_record, model_error, note_model_error,
                           why_not_clean)
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
@@ -147,6 +147,11 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         gap.update(verdict=found["verdict"], skipped=found["skipped"], conditional_air=found["conditional_air"],
                    effects_fitted=list(f1.effects))
         _effect_residual(rows, gap, residual_share(plain.ml, f1.ml, f1.problem.channels, rnd.radar.sigma))
+        if "alternative" in found:
+            gap["alternative"] = found["alternative"]
+            alternative_error(rows, gap)
+        if found.get("unsized"):
+            gap["unsized"] = sorted(set(gap.get("unsized", [])) | set(found["unsized"]))
         with_note = {"added_by": "default", "requested": "default", "effects": list(f1.effects),
                      "candidates": list(found["verdict"]), "skipped": found["skipped"],
                      "reason": (f"the model check's diagnosis names {', '.join(found['verdict'])}, which the round "

@@ -22,6 +22,19 @@ in the result (``success=False`` with a message) and never passed off as an answ
 ``max_iter`` iterations, a damping factor beyond 1e10 (no descent direction), a singular or
 non-finite information matrix, an integration that produced non-finite states.
 
+Channels with the ``ar1`` noise (white + AR(1) model error, :mod:`colored`) have their
+correlation and variance fitted in the relaxation by the likelihood of the residuals. A fit
+flexible enough to absorb part of a slow noise leaves residuals whose correlation is shorter
+than the noise's, and the bounds that rest on it are too narrow (on an AR(1) flight with rho
+0.95, 0.79 was found and the Cd bands were half what the noise gives). Once the relaxation has
+converged, a fit with ``restricted=True`` (the default) therefore fits each ``ar1`` channel's
+noise once more by *restricted* likelihood, with the parameters' move under the candidate noise
+linearised (:meth:`OutputErrorProblem.update_noise_restricted`), holds it, and takes at most
+:data:`RESTRICTED_STEPS` more steps towards the generalised least squares at that noise; the
+bounds are those at it. Fits whose likelihoods are compared across models with other
+parameters (the diagnosis's) keep the plain likelihood: restricted likelihoods of different
+fixed effects are not comparable.
+
 Extra parameters (the diagnosis' unmodelled effects, :mod:`bayesdrag.effects`) may be appended
 after the initial state: ``theta = [drag (P), state (6), extras (E)]``. Each :class:`ExtraParam`
 has a name, start value, bounds and finite-difference step; an ``effect_fn`` maps the extra
