@@ -152,9 +152,9 @@ NOT_ALTERNATIVES = ("temperature", "density", "yaw_drag")
 
 
 def close_alternative(dsum, keep, rnd):
-    """The explanation the diagnosis ranks next to the verdict: the verdict with one member
-    replaced by a significant, material single effect that explains the gap alone nearly as well
-    (:data:`ALTERNATIVE_GAP_RATIO`).
+    """The explanation the diagnosis ranks next to the verdict: the verdict with its leading
+    member (the one that explains most of the gap alone) replaced by a significant, material
+    single effect that explains the gap alone nearly as well (:data:`ALTERNATIVE_GAP_RATIO`).
 
     Parameters
     ----------
@@ -174,10 +174,12 @@ def close_alternative(dsum, keep, rnd):
     from .estimate.scheme1.systematics import plan_effects
 
     rows = {e.get("name"): e for e in dsum.get("effects", [])}
+    alone = [(rows[m]["shrink"], m) for m in keep if rows.get(m, {}).get("shrink") is not None]
     best = None
-    for m in keep:
-        sm = rows.get(m, {}).get("shrink")
-        if sm is None or not sm < 1.0:
+    # the member that explains most alone: the others entered beside it, conditionally, and an
+    # effect compared with one of them alone is no alternative to it
+    for sm, m in sorted(alone, reverse=True)[:1]:
+        if not sm < 1.0:
             continue
         for n, e in rows.items():
             sn = e.get("shrink")

@@ -117,3 +117,53 @@ def test_residual_share_follows_the_structured_misfit_that_remains():
     # one that removes little is capped; a plain fit with no structure keeps the cap
     assert residual_share(plain, plain, ("x",), {"x": 1.0}) == EFFECT_RESIDUAL_SHARE
     assert residual_share(exact, exact, ("x",), None) == EFFECT_RESIDUAL_SHARE
+
+
+class _Round:
+    """A round with nothing declared: every effect is fittable (plan_effects)."""
+
+    class systematics:
+        @staticmethod
+        def declared():
+            return ()
+
+    class radar:
+        time_offset = None
+        position_offset = None
+
+    class launch:
+        latitude_deg = 45.0
+
+
+def _rows(**shrinks):
+    return {"effects": [{"name": n, "shrink": s, "significant": True, "material": True} for n, s in shrinks.items()]}
+
+
+def test_close_alternative_is_the_single_effect_the_data_barely_tell_from_the_verdict():
+    from bayesdrag.model_check import ALTERNATIVE_GAP_RATIO, close_alternative
+
+    # a 6-DOF flight in a head wind: the profile leaves 0.17 % of the gap, a constant wind 0.19 %
+    names, instead_of, ratio = close_alternative(_rows(wind_profile=0.9983, wind=0.9981, lift=0.16),
+                                                 ("wind_profile",), _Round)
+    assert names == ("wind",) and instead_of == "wind_profile" and ratio == pytest.approx(0.0019 / 0.0017)
+    # one that leaves ten times the misfit is no alternative (the demo: lift against a wind profile)
+    assert close_alternative(_rows(lift=0.99975, wind_profile=0.98457), ("lift",), _Round) is None
+    # at the ratio it is, beyond it not
+    edge = 1.0 - ALTERNATIVE_GAP_RATIO * 0.01
+    assert close_alternative(_rows(wind=0.99, coriolis=edge + 1e-9), ("wind",), _Round)[0] == ("coriolis",)
+    assert close_alternative(_rows(wind=0.99, coriolis=edge - 1e-6), ("wind",), _Round) is None
+    # the air and the Cd-level effects are never the alternative; a member stays in a two-member verdict
+    assert close_alternative(_rows(wind=0.99, temperature=0.995, yaw_drag=0.995), ("wind",), _Round) is None
+    names, instead_of, _ = close_alternative(_rows(wind=0.99, lift=0.5, coriolis=0.992), ("wind", "lift"), _Round)
+    assert names == ("coriolis", "lift") and instead_of == "wind"
+
+
+def test_alternative_error_adds_the_shift_on_the_answer_s_grid():
+    from bayesdrag.model_check import alternative_error
+
+    rows = [{"mach": m, "ml": 0.30, "crb_sd": 0.001, "model_error_sd": 0.002} for m in (0.9, 1.0, 1.1)]
+    gap = {"alternative": {"mach": [0.8, 1.0, 1.2], "cd": [0.31, 0.33, 0.35], "band_sd": [0.001, 0.001, 0.001]}}
+    alternative_error(rows, gap)
+    # the alternative's Cd interpolated to 0.32, 0.33, 0.34: shifts 0.02, 0.03, 0.04 added in squares
+    np.testing.assert_allclose([r["model_error_sd"] for r in rows], np.hypot(0.002, [0.02, 0.03, 0.04]), rtol=1e-12)
+    np.testing.assert_allclose(gap["parts"]["alternative"], [0.02, 0.03, 0.04], rtol=1e-3)
