@@ -154,7 +154,14 @@ NOT_ALTERNATIVES = ("temperature", "density", "yaw_drag")
 def close_alternative(dsum, keep, rnd):
     """The explanation the diagnosis ranks next to the verdict: the verdict with its leading
     member (the one that explains most of the gap alone) replaced by a significant, material
-    single effect that explains the gap alone nearly as well (:data:`ALTERNATIVE_GAP_RATIO`).
+    single effect with no more parameters that explains the gap alone nearly as well
+    (:data:`ALTERNATIVE_GAP_RATIO`).
+
+    Only a simpler (or as simple) one: the diagnosis keeps the simpler of two explanations unless
+    the larger is significantly better, so a larger one it passed over is not supported by the
+    data (a wind profile beside a constant wind on a Doppler track, whose layers the data cannot
+    place, moved Cd by 30 %), while a simpler one it passed over by a hair is (a constant head
+    wind beside the profile a 6-DOF flight's other misfit made slightly better).
 
     Parameters
     ----------
@@ -181,10 +188,11 @@ def close_alternative(dsum, keep, rnd):
     for sm, m in sorted(alone, reverse=True)[:1]:
         if not sm < 1.0:
             continue
+        k_member = len(rows[m].get("params") or {})
         for n, e in rows.items():
             sn = e.get("shrink")
             if (n in keep or n in NOT_ALTERNATIVES or sn is None or not e.get("significant")
-                    or not e.get("material")):
+                    or not e.get("material") or len(e.get("params") or {}) > k_member):
                 continue
             ratio = (1.0 - sn) / (1.0 - sm)
             if ratio <= ALTERNATIVE_GAP_RATIO and (best is None or ratio < best[2]):

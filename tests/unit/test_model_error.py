@@ -135,8 +135,14 @@ class _Round:
         latitude_deg = 45.0
 
 
+#: parameters of the effects in the close-alternative tests (a wind profile's ten layers, two winds each)
+_K = {"wind": 2, "wind_profile": 20, "lift": 1, "coriolis": 1, "temperature": 1, "yaw_drag": 2, "radar_time": 1,
+      "radar_position": 3}
+
+
 def _rows(**shrinks):
-    return {"effects": [{"name": n, "shrink": s, "significant": True, "material": True} for n, s in shrinks.items()]}
+    return {"effects": [{"name": n, "shrink": s, "significant": True, "material": True,
+                         "params": {f"p{i}": 0.0 for i in range(_K[n])}} for n, s in shrinks.items()]}
 
 
 def test_close_alternative_is_the_single_effect_the_data_barely_tell_from_the_verdict():
@@ -150,12 +156,16 @@ def test_close_alternative_is_the_single_effect_the_data_barely_tell_from_the_ve
     assert close_alternative(_rows(lift=0.99975, wind_profile=0.98457), ("lift",), _Round) is None
     # at the ratio it is, beyond it not
     edge = 1.0 - ALTERNATIVE_GAP_RATIO * 0.01
-    assert close_alternative(_rows(wind=0.99, coriolis=edge + 1e-9), ("wind",), _Round)[0] == ("coriolis",)
-    assert close_alternative(_rows(wind=0.99, coriolis=edge - 1e-6), ("wind",), _Round) is None
+    assert close_alternative(_rows(lift=0.99, coriolis=edge + 1e-9), ("lift",), _Round)[0] == ("coriolis",)
+    assert close_alternative(_rows(lift=0.99, coriolis=edge - 1e-6), ("lift",), _Round) is None
     # the air and the Cd-level effects are never the alternative; a member stays in a two-member verdict
     assert close_alternative(_rows(wind=0.99, temperature=0.995, yaw_drag=0.995), ("wind",), _Round) is None
     names, instead_of, _ = close_alternative(_rows(wind=0.99, lift=0.5, coriolis=0.992), ("wind", "lift"), _Round)
     assert names == ("coriolis", "lift") and instead_of == "wind"
+    # a larger explanation the diagnosis passed over is none, however close (a profile beside a
+    # constant wind; a radar site beside its clock)
+    assert close_alternative(_rows(wind=0.99, wind_profile=0.995), ("wind",), _Round) is None
+    assert close_alternative(_rows(radar_time=0.99, radar_position=0.99), ("radar_time",), _Round) is None
 
 
 def test_alternative_error_adds_the_shift_on_the_answer_s_grid():
