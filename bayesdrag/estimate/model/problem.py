@@ -401,22 +401,33 @@ class OutputErrorProblem:
             A_p, g_p = priors[1].T @ priors[1], priors[1].T @ priors[0]
         else:
             A_p = g_p = 0.0
+        Sn = self.standardized(S)
+        rn = self.standardized(resid)
+
+        def info(j, c):
+            # channel j's information and gradient at its current noise (a channel's rows whiten alone)
+            sw = np.sqrt(self.weights[:, j]) / sig[c]
+            if self.noise_model[c] == "ar1" and new.get(c, (0.0, 0.0))[1] > 0.0:
+                u, _ = colored.standardize(np.column_stack([rn[:, j], Sn[:, j, :]]), new[c][0], new[c][1],
+                                           self.dt_ratio)
+            else:
+                u = np.column_stack([rn[:, j], Sn[:, j, :]])
+            u = u * sw[:, None]
+            return u[:, 1:].T @ u[:, 1:], u[:, 1:].T @ u[:, 0]
+
+        parts = [info(j, c) for j, c in enumerate(self.channels)]
         for _ in range(RESTRICTED_PASSES):
             moved = 0.0
             for j, c in enumerate(self.channels):
                 if c not in new:
                     continue
-                W = self.weighted(S, sig, new)
-                rw = self.weighted(resid, sig, new)
-                A_all = np.einsum("nck,ncl->ckl", W, W)
-                g_all = np.einsum("nck,nc->ck", W, rw)
-                s, rho, q = colored.fit_noise_restricted(
-                    resid[:, j] / self.noise_scale[:, j], self.dt_ratio, plain[c],
-                    S[:, j, :] / self.noise_scale[:, j, None],
-                    A_all.sum(axis=0) - A_all[j] + A_p, g_all.sum(axis=0) - g_all[j] + g_p)
+                A_o = sum(p[0] for k, p in enumerate(parts) if k != j) + A_p
+                g_o = sum(p[1] for k, p in enumerate(parts) if k != j) + g_p
+                s, rho, q = colored.fit_noise_restricted(rn[:, j], self.dt_ratio, plain[c], Sn[:, j, :], A_o, g_o)
                 moved = max(moved, abs(math.log((1.0 - rho) / (1.0 - new[c][0]))))
                 new[c] = (rho, q)
                 sig[c] = s
+                parts[j] = info(j, c)
             if moved < RESTRICTED_PASS_TOL:
                 break
         return sig, new
