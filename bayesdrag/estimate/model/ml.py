@@ -359,7 +359,8 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
             converged = True
             message = ("converged: " + ("parameter steps < 1e-3 CRB sd" if small_step else
                                         "relative cost change < 1e-8") +
-                       (", noise sd change < 0.1 %" if len(problem.sigma_fixed) < C or ar else ""))
+                       (", noise sd change < 0.1 %" if len(problem.sigma_fixed) < C or ar else "") +
+                       (", noise of restricted likelihood" if held is not None else ""))
             break
     else:
         message = f"not converged after {max_iter} iterations"
