@@ -394,6 +394,13 @@ def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_lay
 _CHECK_NAMES = {"student-t": "robust fit (Student-t, white noise)", "white": "white-noise fit"}
 
 
+def _beyond_half_band(rows, part):
+    """A model-error part's shift per row [Cd] when anywhere above half the row's band, else None:
+    a shift that small is not worth a line of its own."""
+    shift = np.asarray(part, float)
+    return shift if np.any(shift > 0.5 * np.array([r["band_sd"] for r in rows], float)) else None
+
+
 def note_model_error(gap, quality, grid, rows):
     """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do."""
     quality["model_error"] = gap
@@ -409,25 +416,22 @@ def note_model_error(gap, quality, grid, rows):
             f"the cause)")
         quality["ok"] = False
     if gap["noise_check"] and "noise" in gap["parts"]:
-        stat = np.array([r["band_sd"] for r in rows], float)
-        shift = np.asarray(gap["parts"]["noise"], float)
-        if np.any(shift > 0.5 * stat):
+        shift = _beyond_half_band(rows, gap["parts"]["noise"])
+        if shift is not None:
             quality["problems"].append(
                 f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
                 f"it as model error")
     alt = gap.get("alternative") or {}
-    if "alternative" in gap["parts"]:
-        stat = np.array([r["band_sd"] for r in rows], float)
-        shift = np.asarray(gap["parts"]["alternative"], float)
-        if np.any(shift > 0.5 * stat):
-            quality["problems"].append(
-                f"{' and '.join(alt['effects'])} explain{'s' if len(alt['effects']) == 1 else ''} the track nearly as "
-                f"well as {alt['instead_of']} (the misfit left alone {alt['gap_ratio']:.3g} times as large), and the Cd "
-                f"of that explanation differs by {describe(grid, ml, shift)}: the bands include it as model error "
-                f"(what was measured on the day, or `bayesdrag fit ... --with {','.join(alt['effects'])}`, decides "
-                f"between them)")
-            quality["ok"] = False
+    shift = _beyond_half_band(rows, gap["parts"]["alternative"]) if "alternative" in gap["parts"] else None
+    if shift is not None:
+        quality["problems"].append(
+            f"{' and '.join(alt['effects'])} explain{'s' if len(alt['effects']) == 1 else ''} the track nearly as "
+            f"well as {alt['instead_of']} (the misfit left alone {alt['gap_ratio']:.3g} times as large), and the Cd "
+            f"of that explanation differs by {describe(grid, ml, shift)}: the bands include it as model error "
+            f"(what was measured on the day, or `bayesdrag fit ... --with {','.join(alt['effects'])}`, decides "
+            f"between them)")
+        quality["ok"] = False
     if gap.get("unsized"):
         for r in rows:
             r["determined"] = False
