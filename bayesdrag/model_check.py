@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from .errors import FitError, InputError
-from .estimate.cd.model_error import check_sd, combine, describe, shift_sd
+from .estimate.cd.model_error import add_in_squares, check_sd, combine, describe, shift_sd
 from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
@@ -214,8 +214,7 @@ def alternative_error(rows, gap):
     mach = np.array([r["mach"] for r in rows], float)
     # the answer's grid is its own flight's (beyond the alternative's span, its end values)
     sd = shift_sd(ml, band, np.interp(mach, alt["mach"], alt["cd"]), np.interp(mach, alt["mach"], alt["band_sd"]))
-    for r, v in zip(rows, sd):
-        r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, v))
+    add_in_squares(rows, sd)
     gap.setdefault("parts", {})["alternative"] = [float(f"{v:.4g}") for v in sd]
 
 

@@ -19,7 +19,7 @@ from ._beside import computed_beside, started_beside
 from ._threads import single_blas
 from .errors import FitError, InputError
 from .estimate.cd.headline import headline
-from .estimate.cd.model_error import fold_into_budget
+from .estimate.cd.model_error import add_in_squares, fold_into_budget
 from .estimate.cd.quality import assess, check_against_flexible, intervals
 from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
 from .estimate.scheme1.effect_sizes import effect_sizes
@@ -301,7 +301,7 @@ def _effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
     """Add ``share`` (at most :data:`EFFECT_RESIDUAL_SHARE`) of each row's correction (``ml``
     against ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
     res = [share * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
-    _add_model_error(rows, res)
+    add_in_squares(rows, res)
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
     gap["effect_residual_share"] = float(f"{share:.4g}")
 
@@ -317,15 +317,10 @@ def _placement_error(f1, grid, rows):
     if not f1.layer_placements:
         return None
     sd = placement_sd(f1.drag_model, f1.layer_placements, grid)
-    _add_model_error(rows, sd)
+    add_in_squares(rows, sd)
     return float(f"{float(np.max(sd)):.4g}")
 
 
-def _add_model_error(rows, sd):
-    """Add ``sd`` [Cd], one per row, to each row's ``model_error_sd`` in squares (independent
-    model errors)."""
-    for r, v in zip(rows, sd):
-        r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, v))
 
 
 def _trades_with_cd(f1, rnd):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.linalg import cholesky, solve_triangular
 
-from bayesdrag.estimate.model import colored
+from bayesdrag.estimate.model import colored, restricted
 
 #: relative agreement of the Kalman filter with the dense Cholesky factor [-]
 EXACT_TOL = 1e-9
@@ -163,7 +163,7 @@ def test_restricted_objective_is_the_textbook_restricted_likelihood():
     EJ = np.ascontiguousarray(np.column_stack([e, J]))
     dt_ratio = np.ones(n - 1)
     points = [(0.9, 5.0), (0.7, 0.5), (0.97, 40.0)]
-    ours = [colored.restricted_objective(EJ, dt_ratio, NEGLIGIBLE_INFO * np.eye(k), np.zeros(k),
+    ours = [restricted.restricted_objective(EJ, dt_ratio, NEGLIGIBLE_INFO * np.eye(k), np.zeros(k),
                                          math.log(1 - r), math.log(q)) for r, q in points]
     dense = [_dense_reml(e, J, r, q) for r, q in points]
     for (v, s2), (dv, ds2) in zip(ours, dense):
@@ -180,7 +180,7 @@ def test_quadratic_box_minimum_is_the_grid_s():
     A, B = np.meshgrid(ga, gb, indexing="ij")
     for _ in range(40):
         c = rng.normal(size=6)
-        (a, b), v = colored._quadratic_box_min(c, (-1.0, -0.5), (2.0, 0.5))
+        (a, b), v = restricted._quadratic_box_min(c, (-1.0, -0.5), (2.0, 0.5))
         grid = c[0] + c[1] * A + c[2] * B + c[3] * A * A + c[4] * A * B + c[5] * B * B
         assert -1.0 <= a <= 2.0 and -0.5 <= b <= 0.5
         assert v == pytest.approx(c[0] + c[1] * a + c[2] * b + c[3] * a * a + c[4] * a * b + c[5] * b * b)
@@ -202,7 +202,7 @@ def test_restricted_likelihood_removes_the_fit_s_absorption_of_slow_noise():
         e = _ar_white(np.random.default_rng(100 + s), n, rho, q)
         r = e - H @ e
         _, r_ml, q_ml, _ = colored.fit_noise(r, dt_ratio)
-        _, r_re, _ = colored.fit_noise_restricted(r, dt_ratio, (r_ml, q_ml), J, NEGLIGIBLE_INFO * np.eye(REML_BASIS),
+        _, r_re, _ = restricted.fit_noise_restricted(r, dt_ratio, (r_ml, q_ml), J, NEGLIGIBLE_INFO * np.eye(REML_BASIS),
                                                   np.zeros(REML_BASIS))
         ml.append(math.log(1 - r_ml))
         reml.append(math.log(1 - r_re))
@@ -229,13 +229,13 @@ def test_restricted_search_finds_the_objective_s_minimum():
     r = e - J @ np.linalg.lstsq(J, e, rcond=None)[0]
     _, r_ml, q_ml, _ = colored.fit_noise(r, dt_ratio)
     A, g = NEGLIGIBLE_INFO * np.eye(6), np.zeros(6)
-    _, r_re, q_re = colored.fit_noise_restricted(r, dt_ratio, (r_ml, q_ml), J, A, g)
+    _, r_re, q_re = restricted.fit_noise_restricted(r, dt_ratio, (r_ml, q_ml), J, A, g)
     EJ = np.ascontiguousarray(np.column_stack([r, J]))
     hi, lo = math.log(1 - r_ml), max(-math.log(n), colored.LOG_1M_RHO_RANGE[0])
     ga = np.arange(lo, hi + 1e-9, 0.05)
     gb = np.arange(math.log(q_ml) - 4, math.log(q_ml) + 4, 0.25)
-    vals = np.array([[colored.restricted_objective(EJ, dt_ratio, A, g, a, b)[0] for b in gb] for a in ga])
+    vals = np.array([[restricted.restricted_objective(EJ, dt_ratio, A, g, a, b)[0] for b in gb] for a in ga])
     i, j = np.unravel_index(np.argmin(vals), vals.shape)
-    found = colored.restricted_objective(EJ, dt_ratio, A, g, math.log(1 - r_re), math.log(q_re))[0]
+    found = restricted.restricted_objective(EJ, dt_ratio, A, g, math.log(1 - r_re), math.log(q_re))[0]
     assert found <= vals[i, j] + 1e-3
     assert abs(math.log(1 - r_re) - ga[i]) <= 0.1 and abs(math.log(q_re) - gb[j]) <= 0.5

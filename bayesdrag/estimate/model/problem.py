@@ -43,7 +43,7 @@ from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras th
 from ...errors import InputError
 from ...measure import RadarSite, channel_jacobian, channel_values, near_branch, sample_noise
 from ...track import ALL_CHANNELS, NATIVE_CHANNELS
-from . import colored
+from . import colored, restricted
 from .layout import ParameterLayout
 
 IC_NAMES = ("X0", "Y0", "Z0", "Ux0", "Uy0", "Uz0")
@@ -375,7 +375,7 @@ class OutputErrorProblem:
 
     def update_noise_restricted(self, resid, sigma, ar, S, priors=None):
         """:meth:`update_noise` with the ``ar1`` channels' noise of restricted likelihood
-        (:func:`colored.fit_noise_restricted`), started and bounded at the plain estimate.
+        (:func:`restricted.fit_noise_restricted`), started and bounded at the plain estimate.
 
         The channels are searched in turn, each with the others' information and gradient at
         their latest noise, for :data:`RESTRICTED_PASSES` passes at most (fewer once no channel's
@@ -423,7 +423,7 @@ class OutputErrorProblem:
                     continue
                 A_o = sum(p[0] for k, p in enumerate(parts) if k != j) + A_p
                 g_o = sum(p[1] for k, p in enumerate(parts) if k != j) + g_p
-                s, rho, q = colored.fit_noise_restricted(rn[:, j], self.dt_ratio, plain[c], Sn[:, j, :], A_o, g_o)
+                s, rho, q = restricted.fit_noise_restricted(rn[:, j], self.dt_ratio, plain[c], Sn[:, j, :], A_o, g_o)
                 moved = max(moved, abs(math.log((1.0 - rho) / (1.0 - new[c][0]))))
                 new[c] = (rho, q)
                 sig[c] = s
