@@ -10,6 +10,7 @@ diagnosis from here.
 from __future__ import annotations
 
 import functools
+import math
 import time
 from typing import Any, Callable
 
@@ -459,6 +460,23 @@ def _budget(f1, grid, rows):
     return out
 
 
+def noise_record(noise, res):
+    """``ml.noise`` of the final fit: the noise choice's record with the AR(1) parameters the
+    final fit holds (a fit with effects after the noise choice moves them) and ``sd``, each
+    channel's total noise sd, white sd times ``sqrt(1 + q)`` on an ``ar1`` channel.
+
+    Why ``sd``: ``ml.sigma`` is the *white* part only; where the fit puts nearly all the scatter
+    in the AR(1) part (its split from the white part is not determined when rho is near 0) that
+    part reads 1e-4 m beside residuals of 1 m, and a reader takes it for the channel's noise.
+    """
+    out = dict(noise)
+    ar = {c: v for c, v in (res.ar or {}).items() if res.noise_model.get(c) == "ar1"}
+    if ar:
+        out["ar"] = {c: {"rho": float(v[0]), "q": float(v[1])} for c, v in ar.items()}
+    out["sd"] = {c: float(s * math.sqrt(1.0 + ar[c][1])) if c in ar else float(s) for c, s in res.sigma.items()}
+    return out
+
+
 def _ml_summary(f1, rows, quality, lo, hi, opts):
     """The ``scheme``, ``drag_model``, ``ml`` and ``cd`` parts of result.json."""
     res = f1.ml
@@ -479,7 +497,8 @@ def _ml_summary(f1, rows, quality, lo, hi, opts):
                "warnings": list(res.warnings),
                "mach_range_data": [lo, hi], "mach_range_determined": list(det) if det else None,
                "likelihood": opts.likelihood, "rejected_samples": f1.rejected, "smoothing": smoothing,
-               "model_size": dict(f1.model_size) or None, "noise": f1.noise, "quality": quality},
+               "model_size": dict(f1.model_size) or None, "noise": noise_record(f1.noise, res),
+               "quality": quality},
         "cd": rows,
     }
 

@@ -346,6 +346,30 @@ def _common(result, sources, title_kind):
 NOISE_EXPLAIN_RATIO = 2.0
 
 
+def noise_used(noise, white):
+    """The ML fit's noise sd per channel as the report prints it: ``ml.noise.sd`` (the total),
+    with an ``ar1`` channel's correlation from ``ml.noise.ar``.
+
+    Parameters
+    ----------
+    noise : dict
+        ``result.json``'s ``ml.noise``.
+    white : dict channel -> float
+        ``ml.sigma``, used where an older result has no ``sd``.
+
+    Returns
+    -------
+    str
+    """
+    total, ar = noise.get("sd") or white, noise.get("ar") or {}
+    parts = []
+    for c, v in total.items():
+        f, unit = channel_scale(c)
+        rho = f" (AR(1), rho {ar[c]['rho']:.3g})" if c in ar else ""
+        parts.append(f"{c} {f * v:.3g} {unit}{rho}")
+    return ", ".join(parts)
+
+
 def noise_explanation(sampled, used, source=None):
     """Rows explaining a sampled noise sd far above the one the ML fit used (the round's
     ``[radar] sigma`` or the track's own high-frequency noise): the sampler's noise sd takes up
@@ -406,8 +430,8 @@ def _context_scheme1(result, sources):
               ("Mach range of the data", f"{s['ml']['mach_range_data'][0]:.3f} - {s['ml']['mach_range_data'][1]:.3f}"),
               ("Mach range determined (band sd < 1 % of Cd, inside the data, not clamped)",
                f"{det[0]:.2f} - {det[1]:.2f}" if det else "none"),
-              ("noise sd used by the ML fit", ", ".join(f"{c} {channel_scale(c)[0] * v:.3g} {channel_scale(c)[1]}"
-                                                         for c, v in res.sigma.items())),
+              ("noise sd used by the ML fit (total; an AR(1) channel's white and model-error parts together)",
+               noise_used(s["ml"]["noise"], res.sigma)),
               ("wall-clock time", f"{result.seconds:.1f} s")]
     conv = post_ctx = None
     if bayes is not None:
