@@ -457,6 +457,12 @@ def _budget(f1, grid, rows):
         radar_conditional(f1.problem.channels, declared | _wholly_fitted(f1))   # a radar's own: its native channels
     if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
+    if "launch_yaw" in declared:
+        from .estimate.scheme1.systematics import LAUNCH_YAW_DECAY, LAUNCH_YAW_SD_DEG
+        out["assumed"] = {"launch_yaw": {
+            "sd_deg": LAUNCH_YAW_SD_DEG, "decay_per_s": LAUNCH_YAW_DECAY,
+            "why": "the track shows a spinning shell's lift: its launch yaw, which no round states, adds a "
+                   "decaying drag the track cannot tell from the Cd of the first seconds"}}
     return out
 
 

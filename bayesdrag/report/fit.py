@@ -472,9 +472,12 @@ def budget_context(summary, n=6):
         return None
     cond = b.get("conditional_on") or []
     srcs = [k for k in b["by_source"] if k not in ("statistical", "cross")]
-    declared = [k for k in srcs if k != "model_error"]
+    assumed = b.get("assumed") or {}
+    declared = [k for k in srcs if k != "model_error" and k not in assumed]
     note = ("Includes the declared sources " + ", ".join(declared) + " (fitted with their priors); "
             if declared else "No systematic source is declared: ")
+    for k, a in assumed.items():
+        note += f"includes the assumed {k} (sd {a['sd_deg']:g} deg: {a['why']}); "
     note += ("the Cd is conditional on the nominal " + ", ".join(cond) + "." if cond else "every source is included.")
     if b.get("model_error_floor"):
         note += (" The residuals show model error: the band uses the model-error floor (the colored bound of the "

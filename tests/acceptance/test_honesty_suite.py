@@ -86,11 +86,13 @@ def test_reseeded_cases_are_other_flights_of_the_same_kinds():
 #: drag the point-mass Cd absorbs over the Mach numbers flown first (2 rows, 4.1 band sd); and AR(1)
 #: speed noise of rho 0.9 with no effect at QE 8.6, one row 2.5 % and 3.08 band sd off (the restricted
 #: noise fit finds rho 0.86). Strict: when a change makes one pass, this test says so.
-OPEN_MISSES = [(1, "w-6dof-null-201-r1"), (2, "w-pm-null-101-r2")]
+OPEN_MISSES = [(2, "w-pm-null-101-r2")]
 #: reseeded flights that claimed wrong rows and no longer do: AR(1) speed noise of rho 0.95 with a
 #: 2.4/2.7 m/s wind (8 rows, 5.2 sd, before the restricted-likelihood noise), and a 155 mm 6-DOF flight
-#: in a 10 m/s head wind at QE 8.8 (72 rows, 7.2 sd, before the close alternative's model error)
-FIXED_MISSES = [(1, "w-pm-wind-04-r1"), (2, "w-6dof-wind-31-r2")]
+#: in a 10 m/s head wind at QE 8.8 (72 rows, 7.2 sd, before the close alternative's model error), and a
+#: 105 mm 6-DOF flight launched with 3 deg of yaw at QE 35.4 (4 rows 3-4 % high, 4.1 sd, before the
+#: assumed launch yaw of a shell whose lift the track shows)
+FIXED_MISSES = [(1, "w-pm-wind-04-r1"), (2, "w-6dof-wind-31-r2"), (1, "w-6dof-null-201-r1")]
 
 
 @pytest.mark.slow

@@ -64,7 +64,7 @@ from ...track import NATIVE_CHANNELS
 from ..model.problem import Prior
 from ..model.layout import ParameterLayout
 
-__all__ = ["SOURCE_PARAMS", "RADAR_SOURCES", "source_extras", "source_priors", "source_fn", "radar_conditional",
+__all__ = ["SOURCE_PARAMS", "RADAR_SOURCES", "source_extras", "assumed_extras", "source_priors", "source_fn", "radar_conditional",
            "radar_unused"]
 
 #: parameter name of each source (the diagnosis effect's name where one exists)
@@ -86,6 +86,15 @@ T_NODE_MIN = 0.5
 FD_STEP_SDS = 0.1
 #: how far (in declared sd) a source's bounds lie from its nominal value
 BOUND_SDS = 20.0
+#: sd of the launch yaw [deg] assumed for a spinning shell whose lift the track shows: a stable
+#: shell leaves the muzzle with a first maximum yaw of one to a few degrees. Its decaying induced
+#: drag ``Cd k delta^2`` is a change of the Cd curve over the Mach numbers flown first, which the
+#: track cannot tell from Cd: held at zero it gave rows 3-4 % high with bands of 0.3 % on a 105 mm
+#: 6-DOF flight launched at 3 deg (docs/fitting.md, "Launch yaw")
+LAUNCH_YAW_SD_DEG = 3.0
+#: decay rate [1/s] of the assumed launch yaw's amplitude (its drag decays at twice this): the
+#: slow mode of the 6-DOF shells damps with an amplitude e-folding time of 1.7-2 s
+LAUNCH_YAW_DECAY = 0.5
 
 
 def _depends(stem, channels):
@@ -169,6 +178,29 @@ def source_extras(rnd, channels=()):
     return tuple(out) + radar_extras(rnd, channels)
 
 
+def assumed_extras(effects, channels):
+    """The sources the fit assumes beside the declared ones: a launch yaw of sd
+    :data:`LAUNCH_YAW_SD_DEG` when ``lift`` is fitted (the track shows a spinning shell's yaw)
+    and ``yaw_drag`` is not (one quantity, one parameter).
+
+    Its parameter is the ``yaw_drag`` amplitude ``a = k delta0^2`` (:mod:`bayesdrag.effects`)
+    with a Gaussian prior of mean 0 and sd ``k sd^2``, the decay held at
+    :data:`LAUNCH_YAW_DECAY`: a launch yaw of one sd adds ``k sd^2`` (2.7 %) to the drag at the
+    muzzle. Where the track cannot tell it from the Cd curve, the budget's ``launch_yaw`` share
+    is that prior carried into Cd over the first seconds; where it can, the data size it.
+
+    Returns
+    -------
+    tuple of (stem, ExtraParam, nominal, sd)
+    """
+    from ...effects import K_YAW, YAW_AMP_MAX
+
+    if "lift" not in effects or "yaw_drag" in effects:
+        return ()
+    sd = K_YAW * math.radians(LAUNCH_YAW_SD_DEG) ** 2
+    return (("launch_yaw", ExtraParam("launch_yaw.yaw_amp", 0.0, -0.5, YAW_AMP_MAX, sd * FD_STEP_SDS), 0.0, sd),)
+
+
 def source_priors(extras, offset):
     """Gaussian priors of the sources whose parameters start at index ``offset`` of theta."""
     pri = []
@@ -231,6 +263,9 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
             ov[K.P_KREF] = math.pi * d * d / (8.0 * m)
         if "density" in col:
             ov[K.P_RHO_SCALE] = E[:, col["density"]] * ov.get(K.P_RHO_SCALE, 1.0)
+        if "launch_yaw" in col:
+            ov[K.P_YAW_AMP] = E[:, col["launch_yaw"]]
+            ov[K.P_YAW_DECAY] = np.full(B, LAUNCH_YAW_DECAY)
         tables = base.atmosphere_tables
         if T_tabs is not None:
             h, (lo, mid, hi) = T_tabs
@@ -386,7 +421,7 @@ def _fit_with(prob, res, rnd, effects, ctx, start=None):
     from ..model.problem import OutputErrorProblem
     from .winds import layer_free, wind_layer_priors
 
-    extras = source_extras(rnd, prob.channels)
+    extras = source_extras(rnd, prob.channels) + assumed_extras(effects, prob.channels)
     effs = tuple(get_effect(n) for n in effects)
     if not extras and not effs:
         return prob, res, (), ()
