@@ -10,7 +10,6 @@ diagnosis from here.
 from __future__ import annotations
 
 import functools
-import math
 import time
 from typing import Any, Callable
 
@@ -24,7 +23,7 @@ from .estimate.cd.model_error import add_in_squares, fold_into_budget
 from .estimate.cd.quality import assess, check_against_flexible, intervals
 from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
 from .estimate.scheme1.effect_sizes import effect_sizes
-from .estimate.scheme1.fit import fit_scheme1
+from .estimate.scheme1.fit import fit_scheme1, noise_record
 from .estimate.scheme2 import fit_scheme2, windows_table
 from .model_check import (LEVEL_EFFECTS, air, alternative_error, clock_note, diagnosis_record, model_error, note_model_error,
                           why_not_clean)
@@ -434,7 +433,7 @@ def _budget(f1, grid, rows):
     gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
     budget is all ``statistical`` and ``conditional_on`` lists what the Cd assumes known."""
     from .estimate.cd.budget import budget_rows, uncertainty_budget
-    from .estimate.scheme1.systematics import radar_conditional
+    from .estimate.scheme1.systematics import assumed_record, radar_conditional
     from .round import SYSTEMATIC_SOURCES
 
     res = f1.ml
@@ -457,29 +456,9 @@ def _budget(f1, grid, rows):
         radar_conditional(f1.problem.channels, declared | _wholly_fitted(f1))   # a radar's own: its native channels
     if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
-    if "launch_yaw" in declared:
-        from .estimate.scheme1.systematics import LAUNCH_YAW_DECAY, LAUNCH_YAW_SD_DEG
-        out["assumed"] = {"launch_yaw": {
-            "sd_deg": LAUNCH_YAW_SD_DEG, "decay_per_s": LAUNCH_YAW_DECAY,
-            "why": "the track shows a spinning shell's lift: its launch yaw, which no round states, adds a "
-                   "decaying drag the track cannot tell from the Cd of the first seconds"}}
-    return out
-
-
-def noise_record(noise, res):
-    """``ml.noise`` of the final fit: the noise choice's record with the AR(1) parameters the
-    final fit holds (a fit with effects after the noise choice moves them) and ``sd``, each
-    channel's total noise sd, white sd times ``sqrt(1 + q)`` on an ``ar1`` channel.
-
-    Why ``sd``: ``ml.sigma`` is the *white* part only; where the fit puts nearly all the scatter
-    in the AR(1) part (its split from the white part is not determined when rho is near 0) that
-    part reads 1e-4 m beside residuals of 1 m, and a reader takes it for the channel's noise.
-    """
-    out = dict(noise)
-    ar = {c: v for c, v in (res.ar or {}).items() if res.noise_model.get(c) == "ar1"}
-    if ar:
-        out["ar"] = {c: {"rho": float(v[0]), "q": float(v[1])} for c, v in ar.items()}
-    out["sd"] = {c: float(s * math.sqrt(1.0 + ar[c][1])) if c in ar else float(s) for c, s in res.sigma.items()}
+    assumed = assumed_record(declared)
+    if assumed:
+        out["assumed"] = assumed
     return out
 
 

@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from bayesdrag.pipeline import noise_record
+from bayesdrag.estimate.scheme1.fit import noise_record
 from bayesdrag.report.fit import noise_used
 
 #: relative tolerance of a total sd rebuilt from its parts [-]

@@ -45,6 +45,7 @@ How a fit is set up and run (each choice with its reason):
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -68,7 +69,7 @@ from .native_start import start_position, start_view
 from .start import DataStart, check_gravity_units, check_heights, data_start
 from ...measure import gun_equivalent, site_of
 
-__all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "coriolis_of"]
+__all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "coriolis_of", "noise_record"]
 
 #: Student-t degrees of freedom of the robust fit
 ROBUST_NU = STUDENT_T_NU
@@ -645,3 +646,19 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
                 for j, c in enumerate(chans)}
     return prob, res, rejected
 
+
+def noise_record(noise, res):
+    """``ml.noise`` of the final fit: the noise choice's record with the AR(1) parameters the
+    final fit holds (a fit with effects after the noise choice moves them) and ``sd``, each
+    channel's total noise sd, white sd times ``sqrt(1 + q)`` on an ``ar1`` channel.
+
+    Why ``sd``: ``ml.sigma`` is the *white* part only; where the fit puts nearly all the scatter
+    in the AR(1) part (its split from the white part is not determined when rho is near 0) that
+    part reads 1e-4 m beside residuals of 1 m, and a reader takes it for the channel's noise.
+    """
+    out = dict(noise)
+    ar = {c: v for c, v in (res.ar or {}).items() if res.noise_model.get(c) == "ar1"}
+    if ar:
+        out["ar"] = {c: {"rho": float(v[0]), "q": float(v[1])} for c, v in ar.items()}
+    out["sd"] = {c: float(s * math.sqrt(1.0 + ar[c][1])) if c in ar else float(s) for c, s in res.sigma.items()}
+    return out

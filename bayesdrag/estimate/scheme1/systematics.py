@@ -64,7 +64,7 @@ from ...track import NATIVE_CHANNELS
 from ..model.problem import Prior
 from ..model.layout import ParameterLayout
 
-__all__ = ["SOURCE_PARAMS", "RADAR_SOURCES", "source_extras", "assumed_extras", "source_priors", "source_fn", "radar_conditional",
+__all__ = ["SOURCE_PARAMS", "RADAR_SOURCES", "source_extras", "assumed_extras", "assumed_record", "source_priors", "source_fn", "radar_conditional",
            "radar_unused"]
 
 #: parameter name of each source (the diagnosis effect's name where one exists)
@@ -199,6 +199,16 @@ def assumed_extras(effects, channels):
         return ()
     sd = K_YAW * math.radians(LAUNCH_YAW_SD_DEG) ** 2
     return (("launch_yaw", ExtraParam("launch_yaw.yaw_amp", 0.0, -0.5, YAW_AMP_MAX, sd * FD_STEP_SDS), 0.0, sd),)
+
+
+def assumed_record(stems):
+    """``uncertainty_budget.assumed`` of a fit whose sources are ``stems``: what it assumed and
+    why (empty when it assumed nothing)."""
+    if "launch_yaw" not in stems:
+        return {}
+    return {"launch_yaw": {"sd_deg": LAUNCH_YAW_SD_DEG, "decay_per_s": LAUNCH_YAW_DECAY,
+                           "why": "the track shows a spinning shell's lift: its launch yaw, which no round states, "
+                                  "adds a decaying drag the track cannot tell from the Cd of the first seconds"}}
 
 
 def source_priors(extras, offset):
