@@ -473,9 +473,12 @@ def budget_context(summary, n=6):
     cond = b.get("conditional_on") or []
     srcs = [k for k in b["by_source"] if k not in ("statistical", "cross")]
     assumed = b.get("assumed") or {}
-    declared = [k for k in srcs if k != "model_error" and k not in assumed]
+    effects = [k for k in srcs if k in ((summary["ml"].get("with_effects") or {}).get("fitted") or [])]
+    declared = [k for k in srcs if k != "model_error" and k not in assumed and k not in effects]
     note = ("Includes the declared sources " + ", ".join(declared) + " (fitted with their priors); "
             if declared else "No systematic source is declared: ")
+    if effects:
+        note += "includes the effects " + ", ".join(effects) + " (fitted beside Cd: ml.with_effects); "
     for k, a in assumed.items():
         note += f"includes the assumed {k} (sd {a['sd_deg']:g} deg: {a['why']}); "
     note += ("the Cd is conditional on the nominal " + ", ".join(cond) + "." if cond else "every source is included.")
