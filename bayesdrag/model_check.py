@@ -16,7 +16,7 @@ from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "diagnosis_record", "close_alternative", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
+__all__ = ["model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
            "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
@@ -80,6 +80,15 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             else:
                 rec["unsized"] = [n for n, r in zip(keep, rel) if r is None]   # no size: no row is claimed
         rec["effects"] = list(keep)
+    hidden = shape_confounded(dsum, verdict) if diagnose_effects and verdict else []
+    if hidden:
+        # the verdict's drag shape is Cd itself (nothing to add), but the data cannot tell it from
+        # a decaying yaw's drag, which would put the Cd of the first seconds elsewhere: its shift
+        # as the diagnosis sized it is model error
+        sized = level_shift(grid, ml, profiles, hidden)
+        if sized is not None:
+            parts["shape_confounded"] = sized
+            rec["shape_confounded"] = hidden
     if keep and diagnose_effects and verdict:
         other = close_alternative(dsum, keep, rnd)
         if other is not None:
@@ -149,6 +158,44 @@ ALTERNATIVE_GAP_RATIO = 1.5
 #: effects never taken as an alternative: the air (its Cd is conditional on the stated air, said
 #: apart) and those that trade with the Cd level (LEVEL_EFFECTS: sized by the diagnosis, level_shift)
 NOT_ALTERNATIVES = ("temperature", "density", "yaw_drag")
+
+
+def shape_confounded(dsum, verdict):
+    """The effects that trade with the Cd curve (:data:`LEVEL_EFFECTS` but the air, which is said
+    apart: ``yaw_drag``) standing behind a verdict's ``drag_shape``: significant and material,
+    confounded with it, and explaining the gap alone nearly as well
+    (:data:`ALTERNATIVE_GAP_RATIO` of what ``drag_shape`` leaves alone, or better).
+
+    Why: a verdict's ``drag_shape`` adds nothing to the fit (the fit estimates the curve), so its
+    Cd stands unwidened; where a decaying yaw explains the same misfit, the drag of the first
+    seconds is the yaw's and the zero-yaw Cd lies elsewhere. Measured: a point-mass flight with
+    a 5 deg launch yaw decaying at 0.3 /s (QE 45) got the verdict ``drag_shape, density``, with
+    ``yaw_drag`` removing the whole gap alone (``drag_shape`` 77 %), and claimed every row, 6 %
+    high at Mach 2.3 with bands of 0.1-0.3 %.
+
+    Returns
+    -------
+    list of str
+    """
+    if "drag_shape" not in verdict:
+        return []
+    rows = {e.get("name"): e for e in dsum.get("effects", [])}
+    shape = rows.get("drag_shape") or {}
+    s_shape = shape.get("shrink")
+    if s_shape is None:
+        return []
+    out = []
+    for n in LEVEL_EFFECTS:
+        e = rows.get(n) or {}
+        sn = e.get("shrink")
+        if (n in verdict or n in ("temperature",) or sn is None or not e.get("significant")
+                or not e.get("material")):
+            continue
+        if "drag_shape" not in (e.get("confounded_with") or []) and n not in (shape.get("confounded_with") or []):
+            continue
+        if 1.0 - sn <= ALTERNATIVE_GAP_RATIO * (1.0 - s_shape):
+            out.append(n)
+    return out
 
 
 def close_alternative(dsum, keep, rnd):
@@ -430,6 +477,14 @@ def note_model_error(gap, quality, grid, rows):
             f"of that explanation differs by {describe(grid, ml, shift)}: the bands include it as model error "
             f"(what was measured on the day, or `bayesdrag fit ... --with {','.join(alt['effects'])}`, decides "
             f"between them)")
+        quality["ok"] = False
+    shift = _beyond_half_band(rows, gap["parts"]["shape_confounded"]) if "shape_confounded" in gap["parts"] else None
+    if shift is not None:
+        quality["problems"].append(
+            f"the track departs from the firing table's shape (drag_shape), which the data cannot tell from a "
+            f"decaying {' and '.join(gap['shape_confounded'])} early in the flight; under that explanation the Cd "
+            f"differs by {describe(grid, ml, shift)}: the bands include it as model error (a measured launch yaw, "
+            f"or `bayesdrag fit ... --with yaw_drag`, decides between them)")
         quality["ok"] = False
     if gap.get("unsized"):
         for r in rows:

@@ -57,3 +57,21 @@ def test_rows_of_a_yawing_launch_are_right_and_the_budget_says_what_was_assumed(
     mach = np.asarray(b["mach"], float)
     # the share lives at the Mach numbers flown first (the highest) and is gone late in the flight
     assert share[np.argmax(mach)] > 0.005 > share[np.argmin(mach)]
+
+
+def test_a_large_slowly_damped_yaw_is_found_and_no_row_is_claimed_wrong():
+    # point mass, delta0 0.16 rad decaying at 0.3 /s, QE 30: from its one small start the
+    # diagnosis's yaw fit stopped at 0.04 rad and the table's shape took the misfit; the default
+    # fit claimed 40 rows, up to 91 band sd off (tests/acceptance/run_launch_yaw.py --only pm)
+    from bayesdrag.diagnosis import diagnose
+
+    c = wc.Case("pmyaw-0.16-0.3-30", "pm", "yaw_drag", {"delta0": 0.16, "decay": 0.3}, 30.0, seed=727)
+    track, rnd, truth = hs.make(hs.HonestyCase(f"w-{c.id}", "withheld", seed=c.seed, withheld=c))
+    s = diagnose(track, rnd).summary
+    assert s["verdict"][0] == "yaw_drag"
+    yaw = next(e for e in s["effects"] if e["name"] == "yaw_drag")
+    assert yaw["params"]["delta0"] == pytest.approx(0.16, rel=0.1)
+    d = bayesdrag.fit(track, rnd, mcmc=False).to_dict()
+    j = hs.judge(d, truth)
+    assert j["determined_wrong"] == 0, f"{j['determined_wrong']} wrong rows, worst {j['worst_z_wrong']:.1f} sd"
+    assert j["determined"] >= 0.5 * j["rows"]

@@ -177,3 +177,31 @@ def test_alternative_error_adds_the_shift_on_the_answer_s_grid():
     # the alternative's Cd interpolated to 0.32, 0.33, 0.34: shifts 0.02, 0.03, 0.04 added in squares
     np.testing.assert_allclose([r["model_error_sd"] for r in rows], np.hypot(0.002, [0.02, 0.03, 0.04]), rtol=1e-12)
     np.testing.assert_allclose(gap["parts"]["alternative"], [0.02, 0.03, 0.04], rtol=1e-3)
+
+
+def test_a_yaw_behind_the_verdict_s_drag_shape_is_named_when_it_explains_nearly_as_much():
+    from bayesdrag.model_check import ALTERNATIVE_GAP_RATIO, shape_confounded
+
+    def dsum(yaw_shrink, shape_shrink=0.77, **yaw):
+        row = dict(name="yaw_drag", shrink=yaw_shrink, significant=True, material=True,
+                   confounded_with=["drag_shape"])
+        row.update(yaw)
+        return {"effects": [dict(name="drag_shape", shrink=shape_shrink, significant=True, material=True,
+                                 confounded_with=["yaw_drag"]), row]}
+
+    # the measured flight: yaw removes the whole gap alone, the table's shape 77 %
+    assert shape_confounded(dsum(1.0), ["drag_shape", "density"]) == ["yaw_drag"]
+    # at the ratio's edge and just beyond it (what each leaves alone)
+    edge = 1.0 - ALTERNATIVE_GAP_RATIO * (1.0 - 0.77)
+    assert shape_confounded(dsum(edge + 1e-9), ["drag_shape"]) == ["yaw_drag"]
+    assert shape_confounded(dsum(edge - 1e-3), ["drag_shape"]) == []
+    # no drag_shape in the verdict, the yaw in it already, or not significant / material: nothing
+    assert shape_confounded(dsum(1.0), ["wind"]) == []
+    assert shape_confounded(dsum(1.0), ["drag_shape", "yaw_drag"]) == []
+    assert shape_confounded(dsum(1.0, significant=False), ["drag_shape"]) == []
+    assert shape_confounded(dsum(1.0, material=False), ["drag_shape"]) == []
+    # not confounded with the shape (either row may say so): a distinct effect, not this rule's
+    assert shape_confounded(dsum(1.0, confounded_with=[]), ["drag_shape"]) == ["yaw_drag"]
+    d = dsum(1.0, confounded_with=[])
+    d["effects"][0]["confounded_with"] = []
+    assert shape_confounded(d, ["drag_shape"]) == []
