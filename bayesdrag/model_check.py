@@ -160,11 +160,32 @@ ALTERNATIVE_GAP_RATIO = 1.5
 NOT_ALTERNATIVES = ("temperature", "density", "yaw_drag")
 
 
+#: a yaw fit that stands for a launch yaw: its decay above this many times the slowest allowed
+#: (YAW_DECAY_MIN) and its delta0 below this share of the largest (sqrt(YAW_AMP_MAX / K_YAW)). A
+#: table of another shell drives the yaw to 0.29-0.3 rad never damping (decay at the bound, Cd
+#: shifts of 90-530 %): that is the table's error, which the fit's free curve estimates
+PLAUSIBLE_YAW_DECAY_FACTOR, PLAUSIBLE_YAW_SHARE = 1.5, 0.8
+
+
+def plausible_launch_yaw(params):
+    """Whether a diagnosis's ``yaw_drag`` parameters (``delta0`` [rad], ``decay`` [1/s]) describe
+    a launch yaw that damps, not a stand-in pinned at the effect's bounds (bool)."""
+    from .effects import K_YAW, YAW_AMP_MAX, YAW_DECAY_MIN
+
+    d0, decay = params.get("delta0"), params.get("decay")
+    if d0 is None or decay is None:
+        return False
+    return decay > PLAUSIBLE_YAW_DECAY_FACTOR * YAW_DECAY_MIN and \
+        abs(d0) < PLAUSIBLE_YAW_SHARE * math.sqrt(YAW_AMP_MAX / K_YAW)
+
+
 def shape_confounded(dsum, verdict):
     """The effects that trade with the Cd curve (:data:`LEVEL_EFFECTS` but the air, which is said
     apart: ``yaw_drag``) standing behind a verdict's ``drag_shape``: significant and material,
     confounded with it, and explaining the gap alone nearly as well
     (:data:`ALTERNATIVE_GAP_RATIO` of what ``drag_shape`` leaves alone, or better).
+
+    The yaw must be one that damps (:func:`plausible_launch_yaw`).
 
     Why: a verdict's ``drag_shape`` adds nothing to the fit (the fit estimates the curve), so its
     Cd stands unwidened; where a decaying yaw explains the same misfit, the drag of the first
@@ -192,6 +213,8 @@ def shape_confounded(dsum, verdict):
                 or not e.get("material")):
             continue
         if "drag_shape" not in (e.get("confounded_with") or []) and n not in (shape.get("confounded_with") or []):
+            continue
+        if n == "yaw_drag" and not plausible_launch_yaw(e.get("params") or {}):
             continue
         if 1.0 - sn <= ALTERNATIVE_GAP_RATIO * (1.0 - s_shape):
             out.append(n)

@@ -184,7 +184,7 @@ def test_a_yaw_behind_the_verdict_s_drag_shape_is_named_when_it_explains_nearly_
 
     def dsum(yaw_shrink, shape_shrink=0.77, **yaw):
         row = dict(name="yaw_drag", shrink=yaw_shrink, significant=True, material=True,
-                   confounded_with=["drag_shape"])
+                   confounded_with=["drag_shape"], params={"delta0": 0.13, "decay": 0.24})
         row.update(yaw)
         return {"effects": [dict(name="drag_shape", shrink=shape_shrink, significant=True, material=True,
                                  confounded_with=["yaw_drag"]), row]}
@@ -205,3 +205,8 @@ def test_a_yaw_behind_the_verdict_s_drag_shape_is_named_when_it_explains_nearly_
     d = dsum(1.0, confounded_with=[])
     d["effects"][0]["confounded_with"] = []
     assert shape_confounded(d, ["drag_shape"]) == []
+    # a yaw pinned at the effect's bounds stands for another shell's table (the robustness
+    # suite's G1 bullet with a G7 table: 0.288 rad never damping), not for a launch yaw
+    assert shape_confounded(dsum(1.0, params={"delta0": 0.288, "decay": 0.1}), ["drag_shape"]) == []
+    assert shape_confounded(dsum(1.0, params={"delta0": 0.3, "decay": 0.5}), ["drag_shape"]) == []
+    assert shape_confounded(dsum(1.0, params={"delta0": 0.13, "decay": 0.14}), ["drag_shape"]) == []
