@@ -470,6 +470,15 @@ def _beyond_half_band(rows, part):
     return shift if np.any(shift > 0.5 * np.array([r["band_sd"] for r in rows], float)) else None
 
 
+def _part_problem(quality, rows, gap, part, words):
+    """A problem line (``words(shift)``) for the model-error part ``part`` where it reaches half a
+    row's band (:func:`_beyond_half_band`); the answer is then not clean."""
+    shift = _beyond_half_band(rows, gap["parts"][part]) if part in gap["parts"] else None
+    if shift is not None:
+        quality["problems"].append(words(shift))
+        quality["ok"] = False
+
+
 def note_model_error(gap, quality, grid, rows):
     """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do."""
     quality["model_error"] = gap
@@ -492,23 +501,17 @@ def note_model_error(gap, quality, grid, rows):
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
                 f"it as model error")
     alt = gap.get("alternative") or {}
-    shift = _beyond_half_band(rows, gap["parts"]["alternative"]) if "alternative" in gap["parts"] else None
-    if shift is not None:
-        quality["problems"].append(
-            f"{' and '.join(alt['effects'])} explain{'s' if len(alt['effects']) == 1 else ''} the track nearly as "
-            f"well as {alt['instead_of']} (the misfit left alone {alt['gap_ratio']:.3g} times as large), and the Cd "
-            f"of that explanation differs by {describe(grid, ml, shift)}: the bands include it as model error "
-            f"(what was measured on the day, or `bayesdrag fit ... --with {','.join(alt['effects'])}`, decides "
-            f"between them)")
-        quality["ok"] = False
-    shift = _beyond_half_band(rows, gap["parts"]["shape_confounded"]) if "shape_confounded" in gap["parts"] else None
-    if shift is not None:
-        quality["problems"].append(
-            f"the track departs from the firing table's shape (drag_shape), which the data cannot tell from a "
-            f"decaying {' and '.join(gap['shape_confounded'])} early in the flight; under that explanation the Cd "
-            f"differs by {describe(grid, ml, shift)}: the bands include it as model error (a measured launch yaw, "
-            f"or `bayesdrag fit ... --with yaw_drag`, decides between them)")
-        quality["ok"] = False
+    _part_problem(quality, rows, gap, "alternative", lambda shift: (
+        f"{' and '.join(alt['effects'])} explain{'s' if len(alt['effects']) == 1 else ''} the track nearly as "
+        f"well as {alt['instead_of']} (the misfit left alone {alt['gap_ratio']:.3g} times as large), and the Cd "
+        f"of that explanation differs by {describe(grid, ml, shift)}: the bands include it as model error "
+        f"(what was measured on the day, or `bayesdrag fit ... --with {','.join(alt['effects'])}`, decides "
+        f"between them)"))
+    _part_problem(quality, rows, gap, "shape_confounded", lambda shift: (
+        f"the track departs from the firing table's shape (drag_shape), which the data cannot tell from a "
+        f"decaying {' and '.join(gap.get('shape_confounded', []))} early in the flight; under that explanation the "
+        f"Cd differs by {describe(grid, ml, shift)}: the bands include it as model error (a measured launch yaw, "
+        f"or `bayesdrag fit ... --with yaw_drag`, decides between them)"))
     if gap.get("unsized"):
         for r in rows:
             r["determined"] = False
