@@ -115,6 +115,13 @@ def _popen(argv, **kw):
                             stderr=subprocess.PIPE, text=True, **kw)
 
 
+def _interruptible(argv, **kw):
+    """:func:`_popen` with SIGINT at its default in the child, as a terminal's Ctrl-C finds it: a
+    test run started in the background (``cmd &`` without job control) ignores SIGINT, the child
+    inherits that, and the Ctrl-C tests then saw the fit run to its end (exit 0, and a skip)."""
+    return _popen(argv, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **kw)
+
+
 def _wait_for(cond, proc, what):
     t0 = time.monotonic()
     while not cond():
@@ -328,8 +335,8 @@ def test_a_run_killed_while_working_leaves_the_earlier_set_and_no_stray_file(cas
     before = _earlier_run(out)
     # 1000 walkers: a step then takes tens of ms, so the run is still sampling a second after its
     # chain file appears (with 16 it converged within that second once the sampler got faster)
-    proc = _popen(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", "--walkers", "1000", *QUICK],
-                  cwd=case)
+    proc = _interruptible(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", "--walkers", "1000",
+                           *QUICK], cwd=case)
     _wait_for(lambda: (out / "chain.partial.h5").exists(), proc, "sampling")
     proc.send_signal(signal.SIGKILL)
     proc.wait()
@@ -706,8 +713,8 @@ def test_ctrl_c_while_sampling_exits_130_without_a_traceback(case):
     out = case / "out"
     # 1000 walkers: a step then takes tens of ms, so the run is still sampling a second after its
     # chain file appears (with 16 it converged within that second once the sampler got faster)
-    proc = _popen(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", "--walkers", "1000", *QUICK],
-                  cwd=case)
+    proc = _interruptible(["fit", "track.csv", "round.toml", "-o", out, "--max-steps", "200000", "--walkers", "1000",
+                           *QUICK], cwd=case)
     _wait_for(lambda: (out / "chain.partial.h5").exists(), proc, "sampling")
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
@@ -723,7 +730,7 @@ def test_ctrl_c_during_the_ml_fit_exits_130_without_a_traceback(case):
     tr = read_track(case / "track.csv")
     t = np.linspace(tr.t[0], tr.t[-1], 9000)
     write_track(case / "dense.csv", type(tr)(t, {c: np.interp(t, tr.t, a) for c, a in tr.channels.items()}, {}))
-    proc = _popen(["fit", "dense.csv", "round.toml", "-o", "out", "--no-mcmc"], cwd=case)
+    proc = _interruptible(["fit", "dense.csv", "round.toml", "-o", "out", "--no-mcmc"], cwd=case)
     _wait_for(lambda: _staging(case / "out"), proc, "the fit")
     time.sleep(1.5)
     proc.send_signal(signal.SIGINT)
