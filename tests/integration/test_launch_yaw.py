@@ -22,18 +22,18 @@ def _flight(yaw_deg, qe, seed):
 
 
 def test_the_assumed_launch_yaw_comes_with_lift_only_and_is_one_parameter():
-    (stem, ep, nominal, sd), = S.assumed_extras(("lift",), ("x", "y", "z", "v"))
+    (stem, ep, nominal, sd), = S.assumed_extras(("lift",))
     assert stem == "launch_yaw" and nominal == 0.0
     assert sd == pytest.approx(K_YAW * math.radians(S.LAUNCH_YAW_SD_DEG) ** 2)
-    assert S.assumed_extras(("wind",), ("x", "z")) == ()
+    assert S.assumed_extras(("wind",)) == ()
     # a fitted yaw_drag is the same quantity: no second parameter for it
-    assert S.assumed_extras(("lift", "yaw_drag"), ("x", "z")) == ()
+    assert S.assumed_extras(("lift", "yaw_drag")) == ()
 
 
 def test_the_assumed_source_drives_the_yaw_columns_of_the_kernel():
     from bayesdrag.dynamics import kernel as K
 
-    extras = S.assumed_extras(("lift",), ("x", "z"))
+    extras = S.assumed_extras(("lift",))
     rnd = wc.diagnosis_round(wc.Case("r", "6dof", None, {}, 30.0, shell="105"))
     fn = S.source_fn(extras, rnd, None)
     out = fn(np.array([[0.02], [0.0]]))

@@ -178,7 +178,7 @@ def source_extras(rnd, channels=()):
     return tuple(out) + radar_extras(rnd, channels)
 
 
-def assumed_extras(effects, channels):
+def assumed_extras(effects):
     """The sources the fit assumes beside the declared ones: a launch yaw of sd
     :data:`LAUNCH_YAW_SD_DEG` when ``lift`` is fitted (the track shows a spinning shell's yaw)
     and ``yaw_drag`` is not (one quantity, one parameter).
@@ -431,7 +431,7 @@ def _fit_with(prob, res, rnd, effects, ctx, start=None):
     from ..model.problem import OutputErrorProblem
     from .winds import layer_free, wind_layer_priors
 
-    extras = source_extras(rnd, prob.channels) + assumed_extras(effects, prob.channels)
+    extras = source_extras(rnd, prob.channels) + assumed_extras(effects)
     effs = tuple(get_effect(n) for n in effects)
     if not extras and not effs:
         return prob, res, (), ()
