@@ -239,3 +239,45 @@ def test_restricted_search_finds_the_objective_s_minimum():
     found = restricted.restricted_objective(EJ, dt_ratio, A, g, math.log(1 - r_re), math.log(q_re))[0]
     assert found <= vals[i, j] + 1e-3
     assert abs(math.log(1 - r_re) - ga[i]) <= 0.1 and abs(math.log(q_re) - gb[j]) <= 0.5
+
+
+def _counted(monkeypatch):
+    """Count the restricted objective's values (the search's cost, known before any timing)."""
+    calls = []
+    inner = restricted.restricted_objective
+
+    def counted(*args):
+        calls.append(args[-2:])
+        return inner(*args)
+
+    monkeypatch.setattr(restricted, "restricted_objective", counted)
+    return calls
+
+
+def test_a_correlation_held_at_the_track_s_length_searches_log_q_alone(monkeypatch):
+    """A plain estimate beyond the track (rho 0.9999 on 300 samples) is kept; the search then
+    moves log q only, on three-point models (no value off its line), and ends at the minimum of
+    a dense line of the objective (spacing 0.05 in log q) to the search's tolerance."""
+    rng = np.random.default_rng(12)
+    n = 300
+    dt_ratio = np.ones(n - 1)
+    tt = np.arange(n) / n
+    J = np.column_stack([np.cos(np.pi * k * tt) for k in range(6)])
+    e = np.cumsum(rng.normal(size=n)) * 0.1 + rng.normal(size=n)
+    r = e - J @ np.linalg.lstsq(J, e, rcond=None)[0]
+    A, g = NEGLIGIBLE_INFO * np.eye(6), np.zeros(6)
+    start = (0.9999, 0.05)
+    calls = _counted(monkeypatch)
+    _, r_re, q_re = restricted.fit_noise_restricted(r, dt_ratio, start, J, A, g)
+    a0 = math.log(1 - start[0])
+    assert r_re == pytest.approx(start[0], rel=0, abs=1e-12)
+    assert all(a == pytest.approx(a0, abs=1e-12) for a, _ in calls)        # no value off the line
+    monkeypatch.undo()
+    EJ = np.ascontiguousarray(np.column_stack([r, J]))
+    gb = np.arange(math.log(1e-3), math.log(1e3), 0.05)
+    vals = np.array([restricted.restricted_objective(EJ, dt_ratio, A, g, a0, b)[0] for b in gb])
+    found = restricted.restricted_objective(EJ, dt_ratio, A, g, a0, math.log(q_re))[0]
+    # within the search's own tolerance of the line's minimum (a flat stretch is left where the
+    # decrease a model predicts falls below REML_FTOL)
+    assert found <= vals.min() + 2 * restricted.REML_FTOL
+

@@ -44,12 +44,25 @@ def _nodes(c, lo, hi):
     return (c - h, c, c + h)
 
 
-def _quadratic_model(f, center, f_center):
+def _quadratic_model(f, center, f_center, a_fixed=False):
     """Coefficients of the quadratic in ``(a, b) - center`` through ``f`` at a six-point stencil
-    (the centre row and column of a 3 x 3 grid and one corner), or None where ``f`` is not finite."""
+    (the centre row and column of a 3 x 3 grid and one corner), or None where ``f`` is not finite.
+    ``a_fixed``: the search cannot move in ``a`` (its bounds meet), so only the terms in ``b``
+    are fitted, from the centre column alone (the same ones the six points give at ``a`` = its
+    centre, for half the values)."""
     ca, cb = center
-    na = _nodes(ca, LOG_1M_RHO_RANGE[0], 0.0)
     nb = _nodes(cb, *LOG_Q_RANGE)
+    if a_fixed:
+        X, y = [], []
+        for b in nb:
+            db = b - cb
+            X.append((1.0, db, db * db))
+            y.append(f_center if b == cb else f(ca, b))
+        if not np.all(np.isfinite(y)):
+            return None
+        c0, c2, c5 = np.linalg.solve(np.array(X), np.array(y))
+        return np.array([c0, 0.0, c2, 0.0, 0.0, c5])
+    na = _nodes(ca, LOG_1M_RHO_RANGE[0], 0.0)
     pa = [x for x in na if x != ca][0]
     pb = [x for x in nb if x != cb][0]
     points = [(ca, cb)] + [(x, cb) for x in na if x != ca] + [(ca, x) for x in nb if x != cb] + [(pa, pb)]
@@ -227,7 +240,7 @@ def fit_noise_restricted(e, dt_ratio, start, J, A_other, g_other):
         if not math.isfinite(f_x):
             break
         if coef is None:                     # a model at each new centre; a rejected step keeps it
-            coef = _quadratic_model(f, x, f_x)
+            coef = _quadratic_model(f, x, f_x, a_fixed=lo >= hi)
             if coef is None:
                 break
         # the model's minimum within the radius and the search's bounds (offsets from x)
