@@ -176,9 +176,8 @@ def mode_fit(problem, ml):
         None when the ML fit already estimated every noise sd or the refit fails (the ML
         estimate is then the mode). An ``ar1`` channel's noise is estimated whether its sd is
         held or not (:meth:`~bayesdrag.estimate.model.problem.OutputErrorProblem.update_noise`),
-        so a fit that holds only such channels' sd has estimated every one: a refit walked
-        away under the plain noise and back under the restricted one to the same estimate
-        (the demo's: 6 iterations, 2.5e-5 sd, the noise the same to 5 digits, 0.11 s).
+        so a fit that holds only such channels' sd has estimated every one: a refit only
+        walked away under the plain noise and back under the restricted one (docs/bayes.md).
     """
     if not set(problem.sigma_fixed) - set(problem.ar_channels):
         return None
