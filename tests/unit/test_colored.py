@@ -281,3 +281,19 @@ def test_a_correlation_held_at_the_track_s_length_searches_log_q_alone(monkeypat
     # decrease a model predicts falls below REML_FTOL)
     assert found <= vals.min() + 2 * restricted.REML_FTOL
 
+
+
+def test_a_step_beyond_the_float_range_has_no_value_and_no_warning():
+    """Residuals of 1e154 (a track far off the model: an attacker's offset) overflow the
+    parameters' move: the objective is inf there, with no numpy warning."""
+    import warnings
+
+    n = 50
+    J = np.column_stack([np.ones(n), np.linspace(0.0, 1.0, n)])
+    EJ = np.ascontiguousarray(np.column_stack([np.full(n, 1e154), J]))
+    A = np.diag([1e-300, 1e-300])
+    g = np.array([1e300, -1e300])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        value, _ = restricted.restricted_objective(EJ, np.ones(n - 1), A, g, math.log(0.5), 0.0)
+    assert value == math.inf

@@ -142,10 +142,19 @@ def restricted_objective(EJ, dt_ratio, A_other, g_other, a, b):
     s2 : float
         The restricted white variance [(noise scale)^2].
     """
-    N = EJ.shape[0]
     rho, q = 1.0 - math.exp(a), math.exp(b)
     U, ld = standardize(EJ, rho, q, dt_ratio)
-    P = U.T @ U
+    with np.errstate(over="ignore", invalid="ignore"):
+        # a track far off the model (an attacker's 1 km offset) moves the parameters beyond the
+        # float range: no value there, and no numpy warning on the user's console
+        P = U.T @ U
+        value, s2 = _profiled(P, ld, EJ.shape[0], A_other, g_other)
+    return (value if math.isfinite(value) else math.inf), s2
+
+
+def _profiled(P, ld, N, A_other, g_other):
+    """:func:`restricted_objective`'s value and white variance from the whitened products
+    ``P = [e~ J~]' [e~ J~]`` and the whitening's ``sum log F`` (``ld``)."""
     ee, h, G = P[0, 0], P[1:, 0], P[1:, 1:]
     s2 = max(ee / N, 1e-300)
     rhs = np.empty((G.shape[0], G.shape[0] + 1))
