@@ -191,6 +191,10 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         summary["ml"]["with_effects"] = _with_effects_record(f1, with_note, sizes, placement)
     if floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
+    nm = [r.get("noise_model_sd", 0.0) for r in rows]
+    if any(v > 0 for v in nm):
+        # the ar1 noise's own uncertainty (noise_spread), statistical but shown apart
+        budget["by_source"]["noise_model"] = [float(f"{v:.6g}") for v in nm]
     fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])

@@ -474,7 +474,7 @@ def budget_context(summary, n=6):
     srcs = [k for k in b["by_source"] if k not in ("statistical", "cross")]
     assumed = b.get("assumed") or {}
     effects = [k for k in srcs if k in ((summary["ml"].get("with_effects") or {}).get("fitted") or [])]
-    declared = [k for k in srcs if k != "model_error" and k not in assumed and k not in effects]
+    declared = [k for k in srcs if k not in ("model_error", "noise_model") and k not in assumed and k not in effects]
     note = ("Includes the declared sources " + ", ".join(declared) + " (fitted with their priors); "
             if declared else "No systematic source is declared: ")
     if effects:
@@ -489,6 +489,9 @@ def budget_context(summary, n=6):
     if "model_error" in srcs:
         note += (" model_error is the Cd shift the misfit that remains implies (an undeclared effect the diagnosis "
                  "finds, fitted; or a robust fit of the noise), see ml.quality.model_error.")
+    if "noise_model" in srcs:
+        note += (" noise_model is what the AR(1) noise's correlation, which the track tells only so well, adds: "
+                 "the band averages over it (ml.noise.ar.*.sd_log_1m_rho).")
     note += " The total is the band each cd row reports (band_sd): the squares plus cross give it."
     rows = []
     if srcs or b.get("model_error_floor"):

@@ -306,7 +306,10 @@ def assess(fit1, rows, track, sigma_given=None):
     ml = np.array([r["ml"] for r in rows], float)
     crb = np.array([r["crb_sd"] for r in rows], float)
     crbc = np.array([r.get("crb_sd_colored", r["crb_sd"]) for r in rows], float)
-    band = np.maximum(crb, crbc) if honest_colored else crb
+    # the ar1 noise's own uncertainty (noise_model_sd) is statistical: it widens the model's band
+    nm = np.array([r.get("noise_model_sd", 0.0) for r in rows], float)
+    crb_n = np.sqrt(crb**2 + nm**2)
+    band = np.maximum(crb_n, crbc) if honest_colored else crb_n
     size = getattr(fit1, "model_size", None) or {}
     notes = [size["note"]] if size.get("note") else []
     notes += sigma_notes(fit)

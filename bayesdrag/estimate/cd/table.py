@@ -78,11 +78,17 @@ def cd_table(result, drag_model, mach, reference=None):
     cd = drag_model.cd(result.drag_params, mach)
     var = np.einsum("ij,jk,ik->i", B, result.cov[:P, :P], B)
     varc = np.einsum("ij,jk,ik->i", B, result.cov_colored[:P, :P], B)
+    cov_noise = getattr(result, "cov_noise", None)
+    # the noise model's own uncertainty: a row's share is kept only where it widens (a
+    # correlation shorter than the estimate narrows some rows; the estimate's band stands there)
+    varn = (np.einsum("ij,jk,ik->i", B, cov_noise[:P, :P], B) if cov_noise is not None else None)
     rows = []
     for i, m in enumerate(mach):
         rows.append({"mach": round(float(m), 4), "ml": float(cd[i]), "crb_sd": float(np.sqrt(max(var[i], 0))),
                      "crb_sd_colored": float(np.sqrt(max(varc[i], 0))),
                      "reference": float(reference.value(m)) if reference is not None else None})
+        if varn is not None:
+            rows[-1]["noise_model_sd"] = float(np.sqrt(max(varn[i], 0)))
     return rows
 
 

@@ -158,6 +158,92 @@ def standardize(a, rho, q, dt_ratio):
     return u.reshape(a.shape), float(logdet)
 
 
+@njit(cache=True)
+def _adjoint_standardize(y, phi, q):
+    """The transpose of :func:`_standardize`'s linear map applied to the columns of ``y`` (N, K):
+    its recursion run backwards (the filter's variances and gains do not depend on the data)."""
+    N, K = y.shape
+    s = np.empty(N)
+    g = np.empty(N)
+    P = q
+    for i in range(N):
+        F = P + 1.0
+        s[i] = math.sqrt(F)
+        g[i] = P / F
+        if i < N - 1:
+            f = phi[i]
+            P = f * f * (P / F) + q * (1.0 - f * f)
+    x = np.empty_like(y)
+    lam = np.zeros(K)              # the adjoint of the filter's state after sample i
+    for i in range(N - 1, -1, -1):
+        f = phi[i] if i < N - 1 else 0.0
+        for k in range(K):
+            direct = y[i, k] / s[i]
+            x[i, k] = direct + lam[k] * f * g[i]
+            lam[k] = -direct + lam[k] * f * (1.0 - g[i])
+    return x
+
+
+def adjoint_standardize(y, rho, q, dt_ratio):
+    """``L^-T y``, where ``L^-1`` is :func:`standardize`'s map (the whitening: ``L L'`` is the
+    noise's correlation matrix over the white variance, ``I + q R``).
+
+    Parameters
+    ----------
+    y : (N,) or (N, K) array_like
+    rho, q : float
+    dt_ratio : (N - 1,) array_like
+
+    Returns
+    -------
+    ndarray of ``y``'s shape
+        With ``u = standardize(a)``, ``(I + q R)^-1 a = adjoint_standardize(u)``.
+    """
+    y = np.asarray(y, float)
+    flat = np.ascontiguousarray(y.reshape(y.shape[0], -1))
+    return _adjoint_standardize(flat, step_coefficients(rho, dt_ratio), float(q)).reshape(y.shape)
+
+
+@njit(cache=True)
+def _correlation_apply(z, phi):
+    """``R z`` for the AR(1) correlation ``R_ij = prod phi`` between samples i and j: a forward
+    and a backward exponentially weighted sum, less the diagonal counted twice."""
+    N, K = z.shape
+    out = np.empty_like(z)
+    acc = np.zeros(K)
+    for i in range(N):
+        f = phi[i - 1] if i > 0 else 0.0
+        for k in range(K):
+            acc[k] = z[i, k] + f * acc[k]
+            out[i, k] = acc[k]
+    acc[:] = 0.0
+    for i in range(N - 1, -1, -1):
+        f = phi[i] if i < N - 1 else 0.0
+        for k in range(K):
+            acc[k] = z[i, k] + f * acc[k]
+            out[i, k] += acc[k] - z[i, k]
+    return out
+
+
+def correlation_apply(z, rho, dt_ratio):
+    """The AR(1) part's correlation matrix times ``z``: ``(R z)_i = sum_j rho^|t_i - t_j|
+    z_j``, times in median sample intervals (O(N) per column).
+
+    Parameters
+    ----------
+    z : (N,) or (N, K) array_like
+    rho : float
+    dt_ratio : (N - 1,) array_like
+
+    Returns
+    -------
+    ndarray of ``z``'s shape
+    """
+    z = np.asarray(z, float)
+    flat = np.ascontiguousarray(z.reshape(z.shape[0], -1))
+    return _correlation_apply(flat, step_coefficients(rho, dt_ratio)).reshape(z.shape)
+
+
 def innovation_variances(rho, q, dt_ratio):
     """Variances of the Kalman innovations in units of the white noise variance, ``F_i``.
 

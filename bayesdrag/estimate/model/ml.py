@@ -61,6 +61,7 @@ import numpy as np
 from .layout import ParameterLayout
 from ...errors import FitError
 from .filters import convolve_same
+from .noise_spread import noise_covariance
 
 #: a fit that no step improves has converged when Gauss-Newton predicts a cost decrease below
 #: this (the cost is a chi2: 1e-3 is far below what the data can tell)
@@ -111,6 +112,12 @@ class MLResult:
         (:mod:`bayesdrag.estimate.model.colored`; empty when every channel is white).
     noise_model : dict channel -> str
         ``white`` or ``ar1`` per channel.
+    cov_noise : (n, n) ndarray or None
+        What the ``ar1`` channels' noise uncertainty adds to ``cov``
+        (:func:`~bayesdrag.estimate.model.noise_spread.noise_covariance`); None where the fit's
+        noise is not of restricted likelihood or has no spread.
+    noise_spread : dict channel -> float
+        sd of ``log(1 - rho)`` of each ``ar1`` channel behind ``cov_noise``.
     """
 
     names: tuple
@@ -136,6 +143,8 @@ class MLResult:
     weights: np.ndarray = None
     ar: dict = field(default_factory=dict)
     noise_model: dict = field(default_factory=dict)
+    cov_noise: np.ndarray = None
+    noise_spread: dict = field(default_factory=dict)
 
     @property
     def params(self):
@@ -364,10 +373,11 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
             break
     else:
         message = f"not converged after {max_iter} iterations"
-    return _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history)
+    return _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history,
+                   spread=held is not None)
 
 
-def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history):
+def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history, spread=False):
     idx = np.flatnonzero(problem.free)
     n = theta.size
     Sw_all = problem.weighted(S, sigma, ar)                        # (N, C, nf): whitened / sigma
@@ -426,6 +436,13 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
     covc = np.zeros((n, n))
     cov[np.ix_(idx, idx)] = Minv
     covc[np.ix_(idx, idx)] = cov_c
+    cov_noise, noise_spread = None, {}
+    if spread:
+        # the restricted noise's own uncertainty, averaged into the estimate's error (noise_spread)
+        inc, noise_spread = noise_covariance(problem, S, resid, sigma, ar, Minv, (pr, pJ) if pr.size else None)
+        if inc is not None:
+            cov_noise = np.zeros((n, n))
+            cov_noise[np.ix_(idx, idx)] = inc
     crb = np.sqrt(np.clip(np.diag(cov), 0, None))
     crbc = np.sqrt(np.clip(np.diag(covc), 0, None))
     # identifiability warnings
@@ -449,4 +466,5 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
     return MLResult(problem.names, theta, problem.free.copy(), crb, crbc, cov, covc, sigma, cost,
                     converged, success, message, it, tuple(warnings), resids, fitted, mach,
                     tuple(history), problem.P, problem.E, problem.weights,
-                    {c: (float(v[0]), float(v[1])) for c, v in (ar or {}).items()}, dict(problem.noise_model))
+                    {c: (float(v[0]), float(v[1])) for c, v in (ar or {}).items()}, dict(problem.noise_model),
+                    cov_noise, noise_spread)

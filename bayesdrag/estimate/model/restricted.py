@@ -276,3 +276,64 @@ def fit_noise_restricted(e, dt_ratio, start, J, A_other, g_other):
         u, _ = standardize(e, start[0], start[1], dt_ratio)
         s2 = float(u @ u) / N
     return max(math.sqrt(s2), 1e-9), 1.0 - math.exp(x[0]), math.exp(x[1])
+
+
+def restricted_spread(e, dt_ratio, J, A_other, g_other, rho, q):
+    """How far the restricted likelihood leaves a channel's correlation open: its sd in
+    ``log(1 - rho)`` and the two noises one sd either side (``log q`` following its ridge, the
+    white variance profiled), for :mod:`noise_spread`.
+
+    The curvature is that of a quadratic model at the estimate (:func:`_quadratic_model`); the sd
+    is the profile's (``log q`` free), no larger than a uniform spread over the correlations the
+    search allows (``rho`` from 0 to the track's length). A correlation beyond the track (the
+    search held it there, the fitted parameters take such noise whole) has no spread.
+
+    Parameters
+    ----------
+    e, dt_ratio, J, A_other, g_other
+        As in :func:`fit_noise_restricted`.
+    rho, q : float
+        The channel's estimate.
+
+    Returns
+    -------
+    sd : float
+        sd of ``log(1 - rho)`` [-] (0 where there is no spread).
+    points : tuple of (rho, q, s2)
+        The noises at one sd below and above (``s2``: the restricted white variance [(noise
+        scale)^2]); empty where there is no spread or a value is not finite.
+    """
+    e = np.asarray(e, float)
+    N = e.size
+    EJ = np.ascontiguousarray(np.column_stack([e, np.asarray(J, float)]))
+    dtr = np.ascontiguousarray(dt_ratio, dtype=float)
+    lo = max(LOG_1M_RHO_RANGE[0], -math.log(N))
+    a0 = math.log(max(1.0 - rho, 1e-300))
+    b0 = min(max(math.log(max(q, 1e-300)), LOG_Q_RANGE[0]), LOG_Q_RANGE[1])
+    if not a0 > lo + 1e-9:
+        return 0.0, ()
+
+    def f(a, b):
+        return restricted_objective(EJ, dtr, A_other, g_other, a, b)[0]
+
+    f0 = f(a0, b0)
+    coef = _quadratic_model(f, (a0, b0), f0) if math.isfinite(f0) else None
+    if coef is None:
+        return 0.0, ()
+    c3, c4, c5 = (float(v) for v in coef[3:])
+    det = 4.0 * c3 * c5 - c4 * c4
+    if c5 > 0 and det > 0:
+        var, slope = 2.0 * c5 / det, -c4 / (2.0 * c5)
+    elif c3 > 0:
+        var, slope = 1.0 / (2.0 * c3), 0.0
+    else:
+        var, slope = math.inf, 0.0
+    sd = math.sqrt(min(var, lo * lo / 12.0))
+    points = []
+    for a in (max(a0 - sd, lo), min(a0 + sd, 0.0)):
+        b = min(max(b0 + slope * (a - a0), LOG_Q_RANGE[0]), LOG_Q_RANGE[1])
+        value, s2 = restricted_objective(EJ, dtr, A_other, g_other, a, b)
+        if not (math.isfinite(value) and math.isfinite(s2)):
+            return sd, ()
+        points.append((1.0 - math.exp(a), math.exp(b), s2))
+    return sd, tuple(points)

@@ -650,7 +650,9 @@ def robust_refit(prob, res, *, sigma=None, nu=ROBUST_NU, iterations=ROBUST_ITERA
 def noise_record(noise, res):
     """``ml.noise`` of the final fit: the noise choice's record with the AR(1) parameters the
     final fit holds (a fit with effects after the noise choice moves them) and ``sd``, each
-    channel's total noise sd, white sd times ``sqrt(1 + q)`` on an ``ar1`` channel.
+    channel's total noise sd, white sd times ``sqrt(1 + q)`` on an ``ar1`` channel, and each
+    ``ar1`` channel's ``sd_log_1m_rho`` where the fit's bands average over its correlation
+    (:mod:`bayesdrag.estimate.model.noise_spread`).
 
     Why ``sd``: ``ml.sigma`` is the *white* part only; where the fit puts nearly all the scatter
     in the AR(1) part (its split from the white part is not determined when rho is near 0) that
@@ -660,5 +662,9 @@ def noise_record(noise, res):
     ar = {c: v for c, v in (res.ar or {}).items() if res.noise_model.get(c) == "ar1"}
     if ar:
         out["ar"] = {c: {"rho": float(v[0]), "q": float(v[1])} for c, v in ar.items()}
+        for c, sd in (getattr(res, "noise_spread", None) or {}).items():
+            if c in out["ar"]:
+                # how far the restricted likelihood leaves rho open (the bands average over it)
+                out["ar"][c]["sd_log_1m_rho"] = float(sd)
     out["sd"] = {c: float(s * math.sqrt(1.0 + ar[c][1])) if c in ar else float(s) for c, s in res.sigma.items()}
     return out
