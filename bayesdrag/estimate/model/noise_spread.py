@@ -75,15 +75,41 @@ def noise_covariance(problem, S, resid, sigma, ar, Minv, priors=None):
         spread[c] = float(sd)
         if not points:
             continue
-        s20 = sigma[c] ** 2
-        U, _ = colored.standardize(Sn[:, j, :], rho0, q0, problem.dt_ratio)
-        Y = colored.adjoint_standardize(U, rho0, q0, problem.dt_ratio)         # S0^-1 J s20
-        YY = Y.T @ Y
-        ref = YY + q0 * (Y.T @ colored.correlation_apply(Y, rho0, problem.dt_ratio))
-        mean = sum((s2 / s20) * (YY + qp * (Y.T @ colored.correlation_apply(Y, rp, problem.dt_ratio)))
-                   for rp, qp, s2 in points) / len(points)
-        D += (mean - ref) / s20
+        D += channel_change(Sn[:, j, :], rho0, q0, sigma[c] ** 2, points, problem.dt_ratio)
     if not spread or not np.any(D):
         return None, spread
     D = 0.5 * (D + D.T)
     return Minv @ D @ Minv, spread
+
+
+def channel_change(J, rho0, q0, s20, points, dt_ratio):
+    """Average change of one channel's ``J' S0^-1 S S0^-1 J`` over the noises ``S`` of
+    ``points``, from the estimate's ``S0``: the information the estimate's error sees.
+
+    ``S = s2 (I + q R(rho))`` (:mod:`colored`); ``S0^-1 J`` is the whitening followed by its
+    transpose (:func:`colored.adjoint_standardize`), and ``R`` is applied in O(N) per column
+    (:func:`colored.correlation_apply`), so no N x N matrix is formed.
+
+    Parameters
+    ----------
+    J : (N, K) ndarray
+        The channel's sensitivities over its noise scale.
+    rho0, q0, s20 : float
+        The estimate's noise (``s20`` the white variance [(noise scale)^2]).
+    points : sequence of (rho, q, s2)
+    dt_ratio : (N - 1,) ndarray
+
+    Returns
+    -------
+    (K, K) ndarray
+        Zero when every point is the estimate.
+    """
+    U, _ = colored.standardize(J, rho0, q0, dt_ratio)
+    Y = colored.adjoint_standardize(U, rho0, q0, dt_ratio)                 # s20 S0^-1 J
+    YY = Y.T @ Y
+    # at the estimate, s20 (YY + q0 Y' R0 Y) / s20^2 is J' S0^-1 J itself: the same formula, so
+    # the change is exactly zero there
+    ref = YY + q0 * (Y.T @ colored.correlation_apply(Y, rho0, dt_ratio))
+    mean = sum((s2 / s20) * (YY + qp * (Y.T @ colored.correlation_apply(Y, rp, dt_ratio)))
+               for rp, qp, s2 in points) / len(points)
+    return (mean - ref) / s20
