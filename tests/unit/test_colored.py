@@ -77,58 +77,45 @@ def test_shared_noise_parameters_give_the_per_walker_numbers(irregular):
         np.testing.assert_array_equal(ld_s, ld_w)
 
 
-def _scipy_and_ours(f, x0, **tol):
+def _scipy_on_the_noise_likelihood(e, dt, x0):
+    """scipy's Nelder-Mead on the noise fit's likelihood (the profile log-likelihood, the
+    parameters clamped to their ranges), with the noise fit's tolerances."""
     from scipy.optimize import minimize
 
-    calls = {"scipy": [], "ours": []}
+    def nll(x):
+        r = 1.0 - math.exp(min(max(x[0], colored.LOG_1M_RHO_RANGE[0]), 0.0))
+        qq = math.exp(min(max(x[1], colored.LOG_Q_RANGE[0]), colored.LOG_Q_RANGE[1]))
+        return -colored.profile_loglik(e, r, qq, dt)
 
-    def rec(key):
-        def g(x):
-            calls[key].append((float(x[0]), float(x[1])))
-            return f(x)
-        return g
-
-    o = minimize(rec("scipy"), x0, method="Nelder-Mead", options={**tol, "maxiter": 400})
-    x, fun = colored.nelder_mead_2d(rec("ours"), x0, maxiter=400, **tol)
-    return o, x, fun, calls
+    return minimize(nll, x0, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400})
 
 
-def _plateau(x):
-    # clamped like the noise likelihood's parameters: equal values on a whole region (ties)
-    a, b = min(max(x[0], -3.0), 0.0), min(max(x[1], -2.0), 4.0)
-    return (a + 1.3) ** 2 + 3.0 * (b - 0.7) ** 2 + 0.5 * a * b
-
-
-@pytest.mark.parametrize("f, x0", [
-    (lambda x: (x[0] - 1.0) ** 2 + 10.0 * (x[1] + 2.0) ** 2 + x[0] * x[1], (0.0, 0.0)),
-    (lambda x: 100.0 * (x[1] - x[0] ** 2) ** 2 + (1.0 - x[0]) ** 2, (-1.2, 1.0)),
-    (_plateau, (-5.0, 9.0)),
-    (_plateau, (math.log(0.01), 0.0)),
-    (lambda x: math.nan if x[0] > 0.3 else (x[0] - 1.0) ** 2 + x[1] ** 2, (0.2, 0.5)),
-])
-def test_nelder_mead_2d_is_scipys_step_for_step(f, x0):
-    """The noise fit's own 2-D Nelder-Mead evaluates the same points in the same order as
-    scipy's and ends on the same vertex and value, bit for bit (it only drops the array work)."""
-    o, x, fun, calls = _scipy_and_ours(f, x0, xatol=1e-3, fatol=1e-4)
-    assert calls["ours"] == calls["scipy"]
-    assert x == (float(o.x[0]), float(o.x[1]))
-    assert fun == float(o.fun) or (math.isnan(fun) and math.isnan(o.fun))
-
-
-def test_nelder_mead_2d_follows_scipy_on_the_noise_likelihood():
+@pytest.mark.parametrize("rho, q, irregular", [(0.99, 4.0, False), (0.5, 0.01, True), (0.0, 0.0, False),
+                                               (0.999, 100.0, True)])
+def test_the_compiled_nelder_mead_is_scipys_bit_for_bit(rho, q, irregular):
+    """The noise fit's compiled Nelder-Mead takes scipy's steps (standard coefficients, its first
+    simplex, stopping rules, the order of equal values) and ends on the same vertex and value with
+    as many values taken, bit for bit; the starts include one deep in the clamped region, where
+    whole regions share one value (ties)."""
     rng = np.random.default_rng(7)
-    for rho, q in ((0.99, 4.0), (0.5, 0.01), (0.0, 0.0)):
-        e = _ar_white(rng, 600, rho, q) if q else rng.standard_normal(600)
-        dt = np.ones(599)
+    n = 600
+    e = _ar_white(rng, n, rho, q) if q else rng.standard_normal(n)
+    dt = rng.uniform(0.5, 2.0, n - 1) if irregular else np.ones(n - 1)
+    rows = np.ascontiguousarray(e[None])
+    for x0 in ((math.log(0.01), 0.0), (math.log(1e-4), 5.0), (-20.0, -20.0), (0.5, 25.0)):
+        o = _scipy_on_the_noise_likelihood(e, dt, x0)
+        a, b, fun, nfev = colored._noise_nelder_mead(rows, dt, x0[0], x0[1], 1e-3, 1e-4, 400)
+        assert (a, b) == (float(o.x[0]), float(o.x[1])) and fun == float(o.fun) and nfev == o.nfev
 
-        def nll(x):
-            r = 1.0 - math.exp(min(max(x[0], colored.LOG_1M_RHO_RANGE[0]), 0.0))
-            qq = math.exp(min(max(x[1], colored.LOG_Q_RANGE[0]), colored.LOG_Q_RANGE[1]))
-            return -colored.profile_loglik(e, r, qq, dt)
 
-        for x0 in ((math.log(0.01), 0.0), (math.log(1e-4), 5.0), (-20.0, -20.0)):
-            o, x, fun, calls = _scipy_and_ours(nll, x0, xatol=1e-3, fatol=1e-4)
-            assert calls["ours"] == calls["scipy"] and fun == float(o.fun)
+def test_a_nan_value_ends_the_compiled_search_on_nan_as_scipys():
+    e = np.random.default_rng(8).standard_normal(200)
+    e[50] = np.nan
+    dt = np.ones(199)
+    o = _scipy_on_the_noise_likelihood(e, dt, (math.log(0.01), 0.0))
+    a, b, fun, nfev = colored._noise_nelder_mead(np.ascontiguousarray(e[None]), dt, math.log(0.01), 0.0,
+                                                1e-3, 1e-4, 400)
+    assert math.isnan(fun) and math.isnan(o.fun) and nfev == o.nfev and (a, b) == tuple(map(float, o.x))
 
 
 #: seeds of the restricted-likelihood test, and the basis size of its flexible fit

@@ -383,18 +383,8 @@ def fit_noise(e, dt_ratio, start=None):
     e = np.asarray(e, float)
     N = e.size
     white = -0.5 * N * math.log(max(float(e @ e) / N, 1e-300))
-    # profile_loglik's kernel called directly on arrays made once: the optimiser evaluates this
-    # ~100 times per call, and the wrapper's conversions cost more than the filter
     rows = np.ascontiguousarray(e[None])
     dtr = np.ascontiguousarray(dt_ratio, dtype=float)
-    rho_a, q_a = np.empty(1), np.empty(1)
-
-    def nll(x):
-        rho_a[0] = 1.0 - math.exp(min(max(x[0], LOG_1M_RHO_RANGE[0]), 0.0))
-        q_a[0] = math.exp(min(max(x[1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
-        ss, ld = _whitened_ss(rows, rho_a, q_a, dtr)
-        return -float(-0.5 * ld[0] - 0.5 * N * math.log(max(ss[0], 1e-300) / N))
-
     if start is not None:
         # warm start (the relaxation's previous optimum, which moves little): that one only
         starts = [(math.log(max(1.0 - start[0], 1e-5)), math.log(max(start[1], 1e-6)))]
@@ -402,9 +392,9 @@ def fit_noise(e, dt_ratio, start=None):
         starts = [(math.log(0.01), 0.0), (math.log(1e-3), 2.0), (math.log(1e-4), 5.0)]
     best = None
     for x0 in starts:
-        x, fun = nelder_mead_2d(nll, x0, xatol=1e-3, fatol=1e-4, maxiter=400)
+        a, b, fun, _ = _noise_nelder_mead(rows, dtr, float(x0[0]), float(x0[1]), 1e-3, 1e-4, 400)
         if best is None or fun < best[1]:
-            best = (x, fun)
+            best = ((a, b), fun)
     rho = 1.0 - math.exp(min(max(best[0][0], LOG_1M_RHO_RANGE[0]), 0.0))
     q = math.exp(min(max(best[0][1], LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
     lr = 2.0 * (-best[1] - white)
@@ -415,77 +405,118 @@ def fit_noise(e, dt_ratio, start=None):
     return sigma, rho, q, lr
 
 
-def _nan_max(values):
-    """The largest of floats, NaN when any is NaN (as ``np.max``)."""
-    return math.nan if any(v != v for v in values) else max(values)
+@njit(cache=True)
+def _py_max(a, b):
+    """Python's ``max(a, b)`` of floats: ``a`` unless ``b`` is larger (a NaN ``a`` stays)."""
+    return b if b > a else a
 
 
-def nelder_mead_2d(f, x0, xatol=1e-4, fatol=1e-4, maxiter=400):
-    """Minimise ``f((a, b))`` by Nelder-Mead from ``x0``: scipy's ``minimize(method="Nelder-Mead")``
-    (standard coefficients, its initial simplex and stopping rules, no bounds) step for step and
-    bit for bit on two floats, without its per-step array work (the noise ML above calls it a
-    hundred times per fit; tests/unit/test_colored.py compares the two).
+@njit(cache=True)
+def _py_min(a, b):
+    """Python's ``min(a, b)`` of floats: ``a`` unless ``b`` is smaller."""
+    return b if b < a else a
 
-    Parameters
-    ----------
-    f : callable
-        ``f((a, b)) -> float``.
-    x0 : (2,) sequence of float
-    xatol, fatol : float
-        Stop when every vertex is within ``xatol`` of the best in each coordinate and every
-        value within ``fatol`` of the best.
-    maxiter : int
+
+@njit(cache=True)
+def _noise_nll(rows, dtr, rho_a, q_a, a, b):
+    """Minus the profile log-likelihood (:func:`profile_loglik`) of ``rows`` (1, N) at
+    ``(log(1 - rho), log q) = (a, b)``, each clamped to its range."""
+    N = rows.shape[1]
+    rho_a[0] = 1.0 - math.exp(_py_min(_py_max(a, LOG_1M_RHO_RANGE[0]), 0.0))
+    q_a[0] = math.exp(_py_min(_py_max(b, LOG_Q_RANGE[0]), LOG_Q_RANGE[1]))
+    ss, ld = _whitened_ss(rows, rho_a, q_a, dtr)
+    return -(-0.5 * ld[0] - 0.5 * N * math.log(_py_max(ss[0], 1e-300) / N))
+
+
+@njit(cache=True)
+def _less(x, y):
+    """numpy's sort order of floats: NaN after every number."""
+    return x < y or (y != y and x == x)
+
+
+@njit(cache=True)
+def _noise_nelder_mead(rows, dtr, a0, b0, xatol, fatol, maxiter):
+    """Minimise :func:`_noise_nll` by Nelder-Mead from ``(a0, b0)``: scipy's
+    ``minimize(method="Nelder-Mead")`` (standard coefficients, its initial simplex and stopping
+    rules, no bounds) step for step and bit for bit on two floats, compiled with the likelihood
+    (the noise ML calls it ~100 times per fit; tests/unit/test_colored.py compares it with
+    scipy's).
 
     Returns
     -------
-    x : (float, float)
+    a, b : float
         The best vertex.
     fun : float
         Its value (NaN when a vertex's value is NaN).
+    nfev : int
+        Values taken.
     """
-    a, b = float(x0[0]), float(x0[1])
-    sim = [(a, b), ((1 + 0.05) * a if a != 0 else 0.00025, b), (a, (1 + 0.05) * b if b != 0 else 0.00025)]
-    fsim = [f(v) for v in sim]
-
-    def order():
-        # numpy's own sort, as scipy's (its order of equal values is the sort's to choose)
-        idx = np.argsort(np.array(fsim)).tolist()
-        return [sim[i] for i in idx], [fsim[i] for i in idx]
-
-    sim, fsim = order()
-    sim, fsim = order()      # scipy sorts the first simplex twice
+    rho_a, q_a = np.empty(1), np.empty(1)
+    sa = np.empty(3)
+    sb = np.empty(3)
+    fs = np.empty(3)
+    sa[0], sb[0] = a0, b0
+    sa[1], sb[1] = ((1.0 + 0.05) * a0 if a0 != 0 else 0.00025), b0
+    sa[2], sb[2] = a0, ((1.0 + 0.05) * b0 if b0 != 0 else 0.00025)
+    for j in range(3):
+        fs[j] = _noise_nll(rows, dtr, rho_a, q_a, sa[j], sb[j])
+    nfev = 3
     it = 1
-    while it < maxiter:
-        (x0a, x0b), (x1a, x1b), (x2a, x2b) = sim
-        if (_nan_max([abs(x1a - x0a), abs(x1b - x0b), abs(x2a - x0a), abs(x2b - x0b)]) <= xatol
-                and _nan_max([abs(fsim[0] - fsim[1]), abs(fsim[0] - fsim[2])]) <= fatol):
+    while True:
+        # the vertices in numpy's order of their values (a stable sort: ties keep their order)
+        for i in range(1, 3):
+            j = i
+            while j > 0 and _less(fs[j], fs[j - 1]):
+                sa[j], sa[j - 1] = sa[j - 1], sa[j]
+                sb[j], sb[j - 1] = sb[j - 1], sb[j]
+                fs[j], fs[j - 1] = fs[j - 1], fs[j]
+                j -= 1
+        if it >= maxiter:
             break
-        xa, xb = (x0a + x1a) / 2, (x0b + x1b) / 2
-        xr = (2 * xa - x2a, 2 * xb - x2b)
-        fxr = f(xr)
-        if fxr < fsim[0]:
-            xe = (3 * xa - 2 * x2a, 3 * xb - 2 * x2b)
-            fxe = f(xe)
-            sim[2], fsim[2] = (xe, fxe) if fxe < fxr else (xr, fxr)
-        elif fxr < fsim[1]:
-            sim[2], fsim[2] = xr, fxr
+        dx = (abs(sa[1] - sa[0]), abs(sb[1] - sb[0]), abs(sa[2] - sa[0]), abs(sb[2] - sb[0]))
+        df = (abs(fs[0] - fs[1]), abs(fs[0] - fs[2]))
+        if (not (dx[0] != dx[0] or dx[1] != dx[1] or dx[2] != dx[2] or dx[3] != dx[3])
+                and max(max(dx[0], dx[1]), max(dx[2], dx[3])) <= xatol
+                and not (df[0] != df[0] or df[1] != df[1]) and max(df[0], df[1]) <= fatol):
+            break
+        xa, xb = (sa[0] + sa[1]) / 2, (sb[0] + sb[1]) / 2
+        ra, rb = 2 * xa - sa[2], 2 * xb - sb[2]
+        fxr = _noise_nll(rows, dtr, rho_a, q_a, ra, rb)
+        nfev += 1
+        if fxr < fs[0]:
+            ea, eb = 3 * xa - 2 * sa[2], 3 * xb - 2 * sb[2]
+            fxe = _noise_nll(rows, dtr, rho_a, q_a, ea, eb)
+            nfev += 1
+            if fxe < fxr:
+                sa[2], sb[2], fs[2] = ea, eb, fxe
+            else:
+                sa[2], sb[2], fs[2] = ra, rb, fxr
+        elif fxr < fs[1]:
+            sa[2], sb[2], fs[2] = ra, rb, fxr
         else:
-            if fxr < fsim[2]:
-                xc = (1.5 * xa - 0.5 * x2a, 1.5 * xb - 0.5 * x2b)
-                fxc = f(xc)
+            if fxr < fs[2]:
+                ca, cb = 1.5 * xa - 0.5 * sa[2], 1.5 * xb - 0.5 * sb[2]
+                fxc = _noise_nll(rows, dtr, rho_a, q_a, ca, cb)
+                nfev += 1
                 shrink = not fxc <= fxr
                 if not shrink:
-                    sim[2], fsim[2] = xc, fxc
+                    sa[2], sb[2], fs[2] = ca, cb, fxc
             else:
-                xcc = (0.5 * xa + 0.5 * x2a, 0.5 * xb + 0.5 * x2b)
-                fxcc = f(xcc)
-                shrink = not fxcc < fsim[2]
+                ca, cb = 0.5 * xa + 0.5 * sa[2], 0.5 * xb + 0.5 * sb[2]
+                fxcc = _noise_nll(rows, dtr, rho_a, q_a, ca, cb)
+                nfev += 1
+                shrink = not fxcc < fs[2]
                 if not shrink:
-                    sim[2], fsim[2] = xcc, fxcc
+                    sa[2], sb[2], fs[2] = ca, cb, fxcc
             if shrink:
                 for j in (1, 2):
-                    sim[j] = (x0a + 0.5 * (sim[j][0] - x0a), x0b + 0.5 * (sim[j][1] - x0b))
-                    fsim[j] = f(sim[j])
+                    sa[j] = sa[0] + 0.5 * (sa[j] - sa[0])
+                    sb[j] = sb[0] + 0.5 * (sb[j] - sb[0])
+                    fs[j] = _noise_nll(rows, dtr, rho_a, q_a, sa[j], sb[j])
+                    nfev += 1
         it += 1
-        sim, fsim = order()
-    return sim[0], (math.nan if any(v != v for v in fsim) else fsim[0])
+    fun = fs[0]
+    for j in range(3):
+        if fs[j] != fs[j]:
+            fun = math.nan
+    return sa[0], sb[0], fun, nfev
