@@ -288,6 +288,8 @@ class LogPosterior:
         self.rms = {c: max(float(np.sqrt(np.mean(res[c] ** 2))), 1e-9) for c in self.channels}
         # model-error noise: the sampled log(1 - rho), log q per ar1 channel (Gaussian only)
         self.ar_channels = tuple(problem.ar_channels) if likelihood == "gaussian" else ()
+        # residuals over a noise scale of ones are the residuals (the division is skipped)
+        self._unit_scale = bool(np.all(problem.noise_scale == 1.0))
         self.ar_ml = {c: tuple(src.ar.get(c, (0.0, 0.0))) for c in self.ar_channels}
         #: sampled model-error coordinates (else held at their ML values)
         self.ar_sampled = tuple(self.ar_channels) if sample_ar else ()
@@ -523,10 +525,15 @@ class LogPosterior:
                 y, _ = self.problem.predict(self.full_theta(X[ok]))
             except (FloatingPointError, ValueError, ZeroDivisionError):
                 return out
-            r = (self.problem.z[None] - y) / self.problem.noise_scale[None]   # (w, N, C), per-sample sd out
+            r = self.problem.z[None] - y
+            if not self._unit_scale:
+                r = r / self.problem.noise_scale[None]        # (w, N, C), per-sample sd out
             finite = np.all(np.isfinite(r), axis=(1, 2))
-            r = np.where(finite[:, None, None], r, 0.0)
-            ss = np.sum(r ** 2, axis=1)                       # (w, C)
+            if not finite.all():
+                r = np.where(finite[:, None, None], r, 0.0)
+            # every channel AR(1): the plain sums would all be replaced by the whitened ones
+            all_ar = self.likelihood == "gaussian" and len(self.ar_channels) == self.C
+            ss = np.empty((r.shape[0], self.C)) if all_ar else np.sum(r ** 2, axis=1)      # (w, C)
             if self.likelihood == "gaussian":
                 ll = np.zeros(ss.shape[0])
                 for c in self.ar_channels:
