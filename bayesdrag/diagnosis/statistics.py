@@ -16,6 +16,7 @@ import math
 import numpy as np
 from scipy.stats import chi2 as _chi2
 
+from ..estimate.model.filters import autocovariance_window
 from .setup import track_chi2
 
 __all__ = ["autocovariance", "chi2_noise_sd", "colored_inflation", "threshold", "tested_drop", "tested_inflation"]
@@ -44,12 +45,7 @@ def autocovariance(resid, weights, max_lag=None):
     for j in range(C):
         w = weights[:, j] > 0
         e = np.where(w, resid[:, j] - (resid[w, j].mean() if w.any() else 0.0), 0.0)
-        r = np.correlate(e, e, mode="full")[N - 1:] / max(w.sum(), 1)
-        lim = 2.0 / math.sqrt(N) * r[0]
-        below = np.flatnonzero(r < lim)
-        kmax = int(below[0]) if below.size else N // 4
-        kmax = min(kmax, N // 4, max_lag or N)
-        out.append(r[:kmax + 1])
+        out.append(autocovariance_window(e, max(w.sum(), 1), min(N // 4, max_lag or N)))
     return out
 
 

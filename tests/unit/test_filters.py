@@ -53,3 +53,23 @@ def test_fast_length_is_the_least_5_smooth_length_not_below_n():
         m = fast_length(n)
         assert m >= n and smooth(m)
         assert not any(smooth(k) for k in range(n, m))
+
+
+@pytest.mark.parametrize("n, rho, cap", [(1209, 0.0, 302), (1209, 0.95, 302), (500, 0.999, 125), (3, 0.0, 0),
+                                         (300, 0.9, 10)])
+def test_autocovariance_window_is_numpys_correlate_to_the_bit(n, rho, cap):
+    """The window's lags are numpy's full correlation's, bit for bit, up to the first below the
+    white-noise band (or the cap), and no further."""
+    from bayesdrag.estimate.model.filters import autocovariance_window
+
+    rng = np.random.default_rng(n)
+    e = rng.standard_normal(n)
+    for i in range(1, n):
+        e[i] += rho * e[i - 1]
+    e -= e.mean()
+    full = np.correlate(e, e, mode="full")[n - 1:] / n
+    below = np.flatnonzero(full < 2.0 / np.sqrt(n) * full[0])
+    kmax = min(int(below[0]) if below.size else n // 4, cap)
+    got = autocovariance_window(e, n, cap)
+    assert got.size == kmax + 1
+    np.testing.assert_array_equal(got, full[:kmax + 1])

@@ -1,4 +1,5 @@
-"""Savitzky-Golay coefficients and smoothing, and an FFT convolution: the few signal filters
+"""Savitzky-Golay coefficients and smoothing, an FFT convolution and a residual's autocovariance
+to its window's end: the few signal filters
 the estimators use, in numpy, so that a fit does not import ``scipy.signal`` (which imports
 ``scipy.stats``: ~0.6 s of a command's start-up, measured in docs/report.md "Speed"). Each
 follows scipy's algorithm (``scipy.signal.savgol_coeffs``, ``savgol_filter(mode="interp")``,
@@ -10,7 +11,7 @@ import math
 
 import numpy as np
 
-__all__ = ["savgol_coeffs", "savgol_smooth", "convolve_same", "fast_length"]
+__all__ = ["savgol_coeffs", "savgol_smooth", "convolve_same", "fast_length", "autocovariance_window"]
 
 
 def savgol_coeffs(window, order, deriv=0, delta=1.0, pos=None, use="conv"):
@@ -112,3 +113,41 @@ def fast_length(n):
             p35 *= 3
         p5 *= 5
     return best
+
+
+def autocovariance_window(e, scale, cap):
+    """A residual's autocovariances up to the end of its window: ``r_k = sum_n e[n + k] e[n] /
+    scale`` for ``k = 0..kmax``, ``kmax`` the first lag whose value is below ``2 r_0 / sqrt(N)``
+    (the white-noise band), at most ``cap``.
+
+    The same numbers as ``np.correlate(e, e, "full")[N - 1:][:kmax + 1] / scale`` to the bit
+    (each lag one BLAS dot product, as numpy's correlate takes it), without the O(N^2) lags
+    beyond the window (tests/unit/test_filters.py).
+
+    Parameters
+    ----------
+    e : (N,) ndarray
+        Residuals, mean removed [any unit].
+    scale : float
+        Divisor of the sums (the samples counted).
+    cap : int
+        Largest lag returned.
+
+    Returns
+    -------
+    (kmax + 1,) ndarray
+        ``r_0 .. r_kmax`` [unit^2].
+    """
+    e = np.asarray(e, float)
+    N = e.size
+    r0 = float(np.dot(e, e)) / scale
+    lim = 2.0 / math.sqrt(N) * r0
+    out = [r0]
+    if r0 < lim:
+        return np.array(out)
+    for k in range(1, cap + 1):
+        rk = float(np.dot(e[k:], e[:N - k])) / scale
+        out.append(rk)
+        if rk < lim:
+            break
+    return np.array(out)

@@ -60,7 +60,7 @@ import numpy as np
 
 from .layout import ParameterLayout
 from ...errors import FitError
-from .filters import convolve_same
+from .filters import autocovariance_window, convolve_same
 from .noise_spread import noise_covariance
 
 #: a fit that no step improves has converged when Gauss-Newton predicts a cost decrease below
@@ -419,11 +419,8 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
     for j in range(len(problem.channels)):
         wj = problem.weights[:, j] > 0
         e = np.where(wj, resid_w[:, j] - resid_w[wj, j].mean(), 0.0)
-        r = np.correlate(e, e, mode="full")[N - 1:] / N
-        limit = 2.0 / np.sqrt(N) * r[0]
-        below = np.flatnonzero(r < limit)
-        kmax = int(below[0]) if below.size else N // 4
-        kmax = min(kmax, N // 4)
+        r = autocovariance_window(e, N, N // 4)
+        kmax = r.size - 1
         s = np.ascontiguousarray(Sw[:, j, :])
         D += r[0] * s.T @ s
         if kmax > 0:
