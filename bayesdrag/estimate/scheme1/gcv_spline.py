@@ -7,8 +7,8 @@ floating-point operations in the same order, the same bounded minimiser, and sci
 for the spline once ``lam`` is known. What differs is how the criterion's sequential loops run:
 scipy's reach into numpy arrays element by element (~1.7 ms per evaluation for the ~150 bins of
 a start curve, 36 evaluations per spline, two splines per fit: 0.12 s of a 0.35 s ML fit of the
-demo track); here they run over Python floats (docs/measurements.md, "The start curve's
-smoothing"). ``tests/unit/test_gcv_spline.py`` compares the two bit for bit.
+demo track); here they run over Python floats, and the trace's backward recursion compiled
+(docs/measurements.md, "The start curve's smoothing"). ``tests/unit/test_gcv_spline.py`` compares the two bit for bit.
 
 The design matrix, penalty and criterion follow scipy 1.17's ``_bsplines.py`` (BSD-3-Clause,
 Copyright (c) 2001-2002 Enthought, Inc. 2003, SciPy Developers), after Woltring's algorithm and
@@ -17,6 +17,7 @@ Hutchinson & de Hoog (1985) for the trace.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.interpolate import BSpline, make_smoothing_spline
 from scipy.linalg import cholesky_banded, solve_banded
 from scipy.optimize import minimize_scalar
@@ -134,26 +135,33 @@ def _b_inv(A):
         U[-i, i - 1:] /= U[-1, :-i + 1]
     D = 1. / (U[-1]) ** 2
     U[-1] /= U[-1]
+    B = _b_inv_bands(U, D)
+    B[0] = 0.
+    return B
+
+
+@njit(cache=True)
+def _b_inv_bands(U, D):
+    """Hutchinson & de Hoog's backward recursion of :func:`_b_inv` over the scaled Cholesky
+    bands ``U`` (4, n) and ``D`` (n,): scipy's loop, compiled, with the same operations in the
+    same order."""
     n = U.shape[1]
-    u, d = U.tolist(), D.tolist()            # Python floats: the same operations, without indexing numpy
-    b = [[0.0] * n for _ in range(4)]
+    b = np.zeros((4, n))
     for i in range(n - 1, -1, -1):
         rng = min(3, n - i - 1)
         for j in range(rng, -1, -1):
             s = 0.
             if j == 0:
                 for k in range(1, rng + 1):
-                    s -= u[3 - k][i + k] * b[3 - k][i + k]
-                s += d[i]
-                b[3][i] = s
+                    s -= U[3 - k, i + k] * b[3 - k, i + k]
+                s += D[i]
+                b[3, i] = s
             else:
                 for k in range(1, rng + 1):
                     diag = abs(k - j)
-                    s -= u[3 - k][i + k] * b[3 - diag][i + min(k, j) + diag]
-                b[3 - j][i + j] = s
-    B = np.array(b)
-    B[0] = 0.
-    return B
+                    s -= U[3 - k, i + k] * b[3 - diag, i + min(k, j) + diag]
+                b[3 - j, i + j] = s
+    return b
 
 
 def _gcv(lam, X, XtWX, wE, XtE, y):
