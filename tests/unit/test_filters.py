@@ -73,3 +73,18 @@ def test_autocovariance_window_is_numpys_correlate_to_the_bit(n, rho, cap):
     got = autocovariance_window(e, n, cap)
     assert got.size == kmax + 1
     np.testing.assert_array_equal(got, full[:kmax + 1])
+
+
+def test_autocovariance_window_beyond_the_float_range_is_silent_as_numpys():
+    """Residuals whose squares overflow give the same inf/NaN lags as numpy's correlate, and no
+    warning on the user's console."""
+    import warnings
+
+    from bayesdrag.estimate.model.filters import autocovariance_window
+
+    e = np.r_[np.full(3, 1e200), np.full(3, -1e200)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = autocovariance_window(e, 6, 1)
+        want = np.correlate(e, e, mode="full")[5:7] / 6
+    np.testing.assert_array_equal(got, want)

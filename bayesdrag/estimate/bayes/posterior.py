@@ -290,6 +290,8 @@ class LogPosterior:
         self.ar_channels = tuple(problem.ar_channels) if likelihood == "gaussian" else ()
         # residuals over a noise scale of ones are the residuals (the division is skipped)
         self._unit_scale = bool(np.all(problem.noise_scale == 1.0))
+        # every channel AR(1): the plain sums of squares would all be replaced by whitened ones
+        self._all_ar = len(self.ar_channels) == self.C
         self.ar_ml = {c: tuple(src.ar.get(c, (0.0, 0.0))) for c in self.ar_channels}
         #: sampled model-error coordinates (else held at their ML values)
         self.ar_sampled = tuple(self.ar_channels) if sample_ar else ()
@@ -531,9 +533,7 @@ class LogPosterior:
             finite = np.all(np.isfinite(r), axis=(1, 2))
             if not finite.all():
                 r = np.where(finite[:, None, None], r, 0.0)
-            # every channel AR(1): the plain sums would all be replaced by the whitened ones
-            all_ar = self.likelihood == "gaussian" and len(self.ar_channels) == self.C
-            ss = np.empty((r.shape[0], self.C)) if all_ar else np.sum(r ** 2, axis=1)      # (w, C)
+            ss = np.empty((r.shape[0], self.C)) if self._all_ar else np.sum(r ** 2, axis=1)      # (w, C)
             if self.likelihood == "gaussian":
                 ll = np.zeros(ss.shape[0])
                 for c in self.ar_channels:

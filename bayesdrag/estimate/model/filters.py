@@ -140,14 +140,16 @@ def autocovariance_window(e, scale, cap):
     """
     e = np.asarray(e, float)
     N = e.size
-    r0 = float(np.dot(e, e)) / scale
-    lim = 2.0 / math.sqrt(N) * r0
-    out = [r0]
-    if r0 < lim:
-        return np.array(out)
-    for k in range(1, cap + 1):
-        rk = float(np.dot(e[k:], e[:N - k])) / scale
-        out.append(rk)
-        if rk < lim:
-            break
+    # residuals beyond the float range give inf and NaN lags silently, as numpy's correlate does
+    with np.errstate(over="ignore", invalid="ignore"):
+        r0 = float(np.dot(e, e)) / scale
+        lim = 2.0 / math.sqrt(N) * r0
+        out = [r0]
+        if r0 < lim:
+            return np.array(out)
+        for k in range(1, cap + 1):
+            rk = float(np.dot(e[k:], e[:N - k])) / scale
+            out.append(rk)
+            if rk < lim:
+                break
     return np.array(out)

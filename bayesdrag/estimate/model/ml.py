@@ -436,7 +436,8 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
     cov_noise, noise_spread = None, {}
     if spread:
         # the restricted noise's own uncertainty, averaged into the estimate's error (noise_spread)
-        inc, noise_spread = noise_covariance(problem, S, resid, sigma, ar, Minv, (pr, pJ) if pr.size else None)
+        inc, noise_spread = noise_covariance(problem, S, resid, sigma, ar, Minv, (pr, pJ) if pr.size else None,
+                                             Sw=Sw_all)
         if inc is not None:
             cov_noise = np.zeros((n, n))
             cov_noise[np.ix_(idx, idx)] = inc

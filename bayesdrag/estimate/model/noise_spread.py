@@ -26,7 +26,7 @@ import numpy as np
 from . import colored, restricted
 
 
-def noise_covariance(problem, S, resid, sigma, ar, Minv, priors=None):
+def noise_covariance(problem, S, resid, sigma, ar, Minv, priors=None, Sw=None):
     """Increment of the free parameters' covariance from the ``ar1`` channels' noise uncertainty.
 
     Parameters
@@ -42,6 +42,8 @@ def noise_covariance(problem, S, resid, sigma, ar, Minv, priors=None):
         The fit's covariance of the free parameters.
     priors : (pr, pJ), optional
         The priors' residuals (M,) and Jacobian (M, K).
+    Sw : (N, C, K) ndarray, optional
+        ``problem.weighted(S, sigma, ar)`` where the caller has it already.
 
     Returns
     -------
@@ -55,9 +57,9 @@ def noise_covariance(problem, S, resid, sigma, ar, Minv, priors=None):
              if problem.noise_model[c] == "ar1" and c in (ar or {}) and ar[c][1] > 0.0]
     if not chans or not np.all(np.isfinite(Minv)):
         return None, {}
-    sig = {c: sigma[c] for c in problem.channels}
-    Sw = problem.weighted(S, sig, ar)                                  # (N, C, K)
-    rw = problem.weighted(resid, sig, ar)                              # (N, C)
+    if Sw is None:
+        Sw = problem.weighted(S, sigma, ar)                            # (N, C, K)
+    rw = problem.weighted(resid, sigma, ar)                            # (N, C)
     parts = [(Sw[:, j, :].T @ Sw[:, j, :], Sw[:, j, :].T @ rw[:, j]) for j in range(len(problem.channels))]
     A_all = sum(p[0] for p in parts)
     g_all = sum(p[1] for p in parts)
