@@ -41,6 +41,10 @@ FITS = {
     "s130-g1-part": dict(mcmc=False),
     "demo-bayes": dict(mcmc=True, seed=0),
 }
+#: fits that are not golden files: a deliberate change of the method, for the test to show it fails
+PROBES = {
+    "demo-ml-white": dict(mcmc=False, noise_model="white"),
+}
 
 
 def case_inputs(name):
@@ -81,11 +85,11 @@ def fit_case(name):
     import bayesdrag
 
     track, rnd = case_inputs(name)
-    res = bayesdrag.fit(bayesdrag.read_track(track), bayesdrag.read_round(rnd), **FITS[name])
+    res = bayesdrag.fit(bayesdrag.read_track(track), bayesdrag.read_round(rnd), **{**FITS, **PROBES}[name])
     return res.to_dict()
 
 
-def fit_cases_loaded(names):
+def fit_cases_loaded(names, root=None):
     """``result.json`` of the golden cases computed in a fresh process whose compiled code was
     loaded from numba's cache, as ``{name: dict}``.
 
@@ -94,14 +98,19 @@ def fit_cases_loaded(names):
     enough to move the demo's ML fit by one iteration (8 vs 9, Cd ~1e-8 relative). Code loaded
     from the cache is the same whichever process compiled it, so the golden files are written,
     and compared, with loaded code: a process that had to compile anything is run once more.
+
+    ``root``: the folder holding the ``bayesdrag`` package to run (default: the one imported
+    here); ``tests/golden/identical.py`` runs another commit's.
     """
     import os
     import subprocess
 
-    import bayesdrag
+    if root is None:
+        import bayesdrag
 
+        root = Path(bayesdrag.__file__).resolve().parents[1]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(Path(bayesdrag.__file__).resolve().parents[1])] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+        [str(root)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
     for _ in range(2):   # without a kept cache (an unsafe cache folder) the second run compiles too
         out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--print", *names], env=env,
                              capture_output=True, text=True, check=True)
