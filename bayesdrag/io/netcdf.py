@@ -7,12 +7,25 @@ dimension scale, floating-point variables with a NaN ``_FillValue``, strings var
 UTF-8, non-dimension coordinates named in their variables' ``coordinates`` attribute, numeric
 variables compressed (byte shuffle and gzip). Without ArviZ's and xarray's imports and xarray's probe for dask, a
 fit's folder is ~1 s quicker (docs/measurements.md, "posterior.nc without ArviZ").
+
+:func:`read_inference_data` reads such a file from a folder someone else may have written: the
+file's bytes are read once (a regular file, not a link, of bounded size), every member checked by
+:func:`bayesdrag.io.hdf5_guard.check_hdf5` against the caller's bounds (no external storage, no
+links, declared sizes and compressed chunks bounded), and only then are the groups decoded by
+xarray from an in-memory image of those same bytes, as ``arviz.from_netcdf`` decodes them.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["write_groups", "groups_bytes"]
+from ..errors import InputError
+from .hdf5_guard import Hdf5Limits, check_hdf5, read_regular_file
+
+__all__ = ["write_groups", "groups_bytes", "read_inference_data", "FILE_SLACK"]
+
+#: bytes a NetCDF-4 file may hold beyond its values' declared bytes [bytes]: HDF5 headers, the
+#: attributes, the chunk index, the strings' heap, gzip's few bytes per incompressible chunk
+FILE_SLACK = 16 << 20
 
 
 def write_groups(path, groups, attrs=None):
@@ -77,3 +90,74 @@ def groups_bytes(groups):
     """Bytes of the groups' arrays (what the file holds, before compression and overhead)."""
     return sum(int(np.asarray(arr).nbytes) for g in groups.values()
                for _, arr in list(g.data_vars.values()) + list(g.coords.values()))
+
+
+def read_inference_data(path, limits: Hdf5Limits):
+    """The ``arviz.InferenceData`` of the NetCDF-4 file ``path``, checked before it is decoded.
+
+    Parameters
+    ----------
+    path : path
+        A file in a folder someone else may have written (``posterior.nc``).
+    limits : Hdf5Limits
+        What its datasets may declare (:func:`bayesdrag.io.hdf5_guard.check_hdf5`); the file
+        itself may be at most ``limits.max_bytes`` + :data:`FILE_SLACK` bytes.
+
+    Returns
+    -------
+    arviz.InferenceData
+        Every group of the file, loaded into memory, with the root group's attributes (what
+        ``arviz.from_netcdf`` gives with ``data.load = "eager"``).
+
+    Raises
+    ------
+    InputError
+        One line naming the file and what is wrong: a link or not a regular file, too large, not
+        an HDF5 file, a member refused by the checks, or groups xarray cannot decode.
+    """
+    import h5py
+
+    name = str(path)
+    raw = read_regular_file(path, max_bytes=limits.max_bytes + FILE_SLACK, what=limits.what, why=limits.why,
+                            fix=limits.fix)
+    try:
+        # an in-memory image of the bytes read: what is checked is what is decoded
+        f = h5py.File(h5py.h5f.open_file_image(raw))
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise InputError(f"{name}: not an HDF5 (NetCDF-4) {limits.what} ({_detail(exc)}); {limits.fix}") from None
+    with f:
+        try:
+            check_hdf5(f, name, limits)
+            groups = [g for g in f if isinstance(f.get(g), h5py.Group)]
+        except InputError:
+            raise
+        except (OSError, ValueError, TypeError, KeyError, RuntimeError, LookupError) as exc:
+            raise InputError(f"{name}: not a readable {limits.what} ({_detail(exc)}); {limits.fix}") from None
+        try:
+            return _decode(f, groups)
+        except (OSError, ValueError, TypeError, KeyError, RuntimeError, LookupError, AttributeError, ArithmeticError,
+                MemoryError) as exc:
+            raise InputError(f"{name}: the {limits.what} cannot be decoded as NetCDF groups ({_detail(exc)}); "
+                             f"{limits.fix}") from None
+
+
+def _decode(f, groups):
+    """The groups of the checked open file ``f`` as xarray datasets in an InferenceData, decoded
+    as ``arviz.from_netcdf`` decodes them (xarray's h5netcdf backend, vlen strings as str)."""
+    import arviz as az
+    import h5netcdf
+    import xarray as xr
+
+    def load(group):
+        # closing xarray's store closes its h5netcdf wrapper, never the h5py file under it
+        store = xr.backends.H5NetCDFStore(h5netcdf.File(f, "r", decode_vlen_strings=True), group=group)
+        with xr.open_dataset(store) as data:
+            return data.load()
+
+    out = {g: load(g) for g in groups}
+    return az.InferenceData(attrs=dict(load(None).attrs), **out)
+
+
+def _detail(exc):
+    """An exception's message on one short line."""
+    return (" ".join(str(exc).split()) or type(exc).__name__)[:200]

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import MissingDataError
-from .document import jsonable, read_document
+from .document import DIAGNOSIS_SCHEMA, jsonable, read_document
 from .summary import Summary
 
 if TYPE_CHECKING:
@@ -35,8 +35,13 @@ def _params_text(e: dict[str, Any]) -> str:
     for k, v in (e.get("params") or {}).items():
         s = sd.get(k)
         unit = f" {units[k]}" if units.get(k) and units[k] != "-" else ""
-        out.append(f"{k} = {v:.4g}" + (f" ± {s:.2g}" if isinstance(s, (int, float)) else "") + unit)
+        out.append(f"{k} = {_num(v, '.4g')}" + (f" ± {s:.2g}" if isinstance(s, (int, float)) else "") + unit)
     return ", ".join(out)
+
+
+def _num(v: Any, spec: str) -> str:
+    """A number as ``spec`` formats it; ``—`` for a value the document holds as null."""
+    return "—" if v is None else format(v, spec)
 
 
 def _short(text: str) -> str:
@@ -122,13 +127,13 @@ class DiagnosisResult:
         b = s["baseline"]
         header = (("verdict", ", ".join(self.verdict) or "none (the nominal model explains the track)"),
                   ("detectable, immaterial", ", ".join(self.immaterial) or "none"),
-                  ("baseline chi2 per sample", f"{b['chi2_per_sample']:.4g}"),
-                  ("gap", f"{b['gap']:.4g}"),
+                  ("baseline chi2 per sample", _num(b["chi2_per_sample"], ".4g")),
+                  ("gap", _num(b["gap"], ".4g")),
                   ("reference drag", "yes" if s.get("reference_drag") else "no (judged against a fitted Cd)"),
                   ("candidates tested", str((s.get("tests") or {}).get("candidates", len(s["effects"])))))
         rows = tuple((e["name"], "yes" if e.get("significant") else "no",
-                      "yes" if e["name"] in self.verdict else "no", f"{e.get('shrink', float('nan')):.3f}",
-                      f"{e.get('delta_loglik', float('nan')):.4g}", _short(_params_text(e))) for e in s["effects"])
+                      "yes" if e["name"] in self.verdict else "no", _num(e.get("shrink"), ".3f"),
+                      _num(e.get("delta_loglik"), ".4g"), _short(_params_text(e))) for e in s["effects"])
         return Summary(title="bayesdrag diagnosis", header=header,
                        columns=("effect", "significant", "in verdict", "shrink", "delta loglik", "parameters"),
                        rows=rows, notes=(self.paragraph,), align=("<", ">", ">", ">", ">", "<"))
@@ -138,7 +143,8 @@ class DiagnosisResult:
         sig = sum(1 for e in s["effects"] if e.get("significant"))
         where = f"; read from {self.folder}" if self.loaded else ""
         return (f"<DiagnosisResult: verdict {self.verdict or 'none'}; immaterial {self.immaterial or 'none'}; "
-                f"baseline chi2/sample {s['baseline']['chi2_per_sample']:.3g}; {len(s['effects'])} candidates, "
+                f"baseline chi2/sample {_num(s['baseline']['chi2_per_sample'], '.3g')}; "
+                f"{len(s['effects'])} candidates, "
                 f"{sig} significant{where}. See .summary(), .to_dataframe(), .paragraph, .to_dict()>")
 
     def __eq__(self, other: object) -> bool:
@@ -218,9 +224,11 @@ def load_diagnosis(directory: str | Path) -> DiagnosisResult:
     Raises
     ------
     InputError
-        No ``diagnosis.json`` in the folder, or not a valid one.
+        No ``diagnosis.json`` in the folder, or not a valid one: a link, not JSON, a number
+        that is not finite, or a key the result reads of another type
+        (:data:`~.document.DIAGNOSIS_SCHEMA`), named by its path (``effects[2].shrink``).
     """
     folder = Path(directory)
     record = read_document(folder, "diagnosis.json", "diagnosis",
-                           required=("baseline", "effects", "verdict", "summary"))
+                           required=("baseline", "effects", "verdict", "summary"), schema=DIAGNOSIS_SCHEMA)
     return DiagnosisResult(record, folder=folder)

@@ -4,14 +4,17 @@ a written fit folder back into one."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import InputError, MissingDataError
+from ..io.hdf5_guard import Hdf5Limits
+from ..track import MAX_FIT_SAMPLES
 from .cd import CdTable, band_z
-from .document import jsonable, read_document
+from .document import REWRITE, RESULT_SCHEMA, jsonable, read_document
 from .summary import Summary
 
 if TYPE_CHECKING:
@@ -42,6 +45,26 @@ BAND_KINDS = ("total", "statistical", "posterior")
 LOG_LIKELIHOOD_DRAWS = 128
 #: rows of the Cd table a summary shows
 SUMMARY_ROWS = 7
+#: most bytes of values a posterior.nc may declare, whatever result.json records [bytes] (the
+#: demo's holds 12 MB; 16 walkers x 20 000 steps x 200 values per draw take 0.5 GB)
+MAX_POSTERIOR_BYTES = 4 << 30
+#: bytes of one value as the posterior bound counts it (float64) [bytes]
+POSTERIOR_VALUE_BYTES = 8
+#: the posterior bound's margin over its count of the file's values [-]
+POSTERIOR_MARGIN = 2
+#: posterior predictive draws per chain a posterior.nc may hold (fit_arrays keeps 5)
+PREDICTIVE_DRAWS = 16
+#: copies of the constants (observed and constant data, coordinates) a posterior.nc may hold
+CONSTANT_COPIES = 8
+#: sampled parameters beyond result.json's ml.params and ml.fixed (noise sd per channel, nu)
+EXTRA_PARAMETERS = 8
+#: chains of a Scheme 2 window (options.MAX_WALKERS: result.json does not record them)
+SCHEME2_MAX_CHAINS = 1024
+#: channels counted when result.json records no samples per channel (x, y, z, v)
+UNRECORDED_CHANNELS = 4
+#: what to do about a refused posterior.nc
+POSTERIOR_FIX = ("write the folder again with bayesdrag fit -o DIR (or res.write(DIR)), or move posterior.nc away to "
+                 "read the result without its draws")
 
 
 class FitResult:
@@ -147,7 +170,7 @@ class FitResult:
     def success(self) -> bool:
         """True when the fit converged and its residuals look like the noise."""
         ml = self.record["ml"]
-        return bool(ml.get("converged", False) and ml.get("quality", {}).get("ok", False))
+        return bool(ml.get("converged", False) and (ml.get("quality") or {}).get("ok", False))
 
     @property
     def message(self) -> str:
@@ -471,10 +494,10 @@ def _posterior_line(rec: dict[str, Any]) -> str:
     if not m:
         return "not sampled (maximum likelihood only)"
     if rec.get("scheme") == 2:
-        return f"{m.get('windows_converged')} window(s) converged, max r_hat {m.get('r_hat_max', float('nan')):.3f}"
+        return f"{m.get('windows_converged')} window(s) converged, max r_hat {_fmt(m.get('r_hat_max'), '.3f')}"
     state = "converged" if m.get("converged") else "NOT converged"
     return (f"{state}: {m.get('walkers')} walkers x {m.get('steps')} steps, {m.get('draws')} draws kept "
-            f"(tau max {m.get('tau_max', float('nan')):.1f} steps)")
+            f"(tau max {_fmt(m.get('tau_max'), '.1f')} steps)")
 
 
 def fit_paragraph(res: FitResult) -> str:
@@ -553,17 +576,73 @@ def load_result(directory: str | Path) -> FitResult:
     Raises
     ------
     InputError
-        No ``result.json`` in the folder, or not a valid one.
+        No ``result.json`` in the folder, or not a valid one (:func:`~.document.read_document`:
+        every key the result reads of its type, every number finite); a ``posterior.nc`` that
+        is a link or not a regular file, not HDF5, stored partly outside itself, or declaring
+        more values than ``result.json``'s sampler made (:func:`_posterior_limits`), checked
+        before any of its values is read (:func:`bayesdrag.io.netcdf.read_inference_data`).
     """
     folder = Path(directory)
-    record = read_document(folder, "result.json", "fit result", required=("scheme", "drag_model", "ml", "cd"))
+    record = read_document(folder, "result.json", "fit result", required=("scheme", "drag_model", "ml", "cd"),
+                           schema=RESULT_SCHEMA)
     idata = None
     nc = folder / "posterior.nc"
-    if nc.is_file():
-        from ..estimate.bayes.inference import read_inference_data
+    if os.path.lexists(nc):      # a link too: refused by the reader, never followed
+        from ..io.netcdf import read_inference_data
 
-        idata = read_inference_data(nc)
+        idata = read_inference_data(nc, _posterior_limits(record, folder))
     return FitResult(record, inference_data=idata, folder=folder, warnings=_recorded_warnings(record))
+
+
+def _posterior_limits(record: dict[str, Any], folder: Path) -> Hdf5Limits:
+    """What ``posterior.nc`` may declare, from ``result.json``'s (checked) record.
+
+    The values a posterior file holds: every kept draw of Cd on the M Mach rows and of the Q
+    parameters (W walkers x at most S steps), the predictive tracks and log-likelihood of a
+    few draws over the O observations, and constants; counted as float64 with a margin of
+    :data:`POSTERIOR_MARGIN`, and at most :data:`MAX_POSTERIOR_BYTES` whatever the record says.
+    Every dimension is at most the largest of W, S, M, Q and O.
+
+    Raises
+    ------
+    InputError
+        The record says the fit did not sample, or does not record its sampler's size.
+    """
+    doc, nc = folder / "result.json", folder / "posterior.nc"
+    mc = record.get("mcmc")
+    if not mc:
+        raise InputError(f"{nc}: result.json records no sampling ('mcmc' missing), so the folder holds no posterior; "
+                         f"{POSTERIOR_FIX}")
+    ml, m_rows = record["ml"], len(record["cd"])
+    if record["scheme"] == 1:
+        missing = [k for k in ("walkers", "steps") if mc.get(k) is None]
+        if missing:
+            raise InputError(f"{doc}: mcmc.{missing[0]} is missing: it bounds posterior.nc; {REWRITE}")
+        w, s = mc["walkers"], mc["steps"]
+        q = len(ml.get("params") or {}) + len(ml.get("fixed") or []) + EXTRA_PARAMETERS
+        o = _observations([ml.get("quality")])
+        values = (w * s * (m_rows + q + 1) + (w * PREDICTIVE_DRAWS + max(LOG_LIKELIHOOD_DRAWS, w)) * (m_rows + o)
+                  + CONSTANT_COPIES * (m_rows + q + o) + w + s)
+    else:
+        windows = record.get("windows") or []
+        w, s, q = SCHEME2_MAX_CHAINS, max([r.get("steps") or 0 for r in windows], default=0), 1
+        m_rows += len(windows)
+        o = _observations([r.get("quality") for r in windows])
+        values = w * s * m_rows + CONSTANT_COPIES * (m_rows + o) + w + s
+    max_bytes = min(MAX_POSTERIOR_BYTES, POSTERIOR_MARGIN * POSTERIOR_VALUE_BYTES * values)
+    why = (f"that result.json's sampler allows ({w} walkers x {s} steps, {m_rows} Mach rows, {q} parameters, {o} "
+           f"observations; at most {MAX_POSTERIOR_BYTES} bytes)")
+    return Hdf5Limits(max_bytes=max_bytes, max_length=max(w, s, m_rows, q, o), why=why, fix=POSTERIOR_FIX,
+                      what="posterior file")
+
+
+def _observations(qualities: list[Any]) -> int:
+    """Samples over all channels that the ``quality`` records give (``channels.<c>.n``), or
+    :data:`~bayesdrag.track.MAX_FIT_SAMPLES` per channel for :data:`UNRECORDED_CHANNELS` when
+    none is recorded."""
+    counts = [c.get("n") for q in qualities for c in ((q or {}).get("channels") or {}).values()]
+    counts = [n for n in counts if n is not None]
+    return sum(counts) if counts else MAX_FIT_SAMPLES * UNRECORDED_CHANNELS
 
 
 def _recorded_warnings(record: dict[str, Any]) -> tuple[str, ...]:

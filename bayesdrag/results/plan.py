@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import MissingDataError
-from .document import jsonable, read_document
+from .document import PLAN_SCHEMA, jsonable, read_document
 from .summary import Summary
 
 if TYPE_CHECKING:
@@ -179,8 +179,10 @@ def load_plan(directory: str | Path) -> PlanResult:
     Raises
     ------
     InputError
-        No ``plan.json`` in the folder, or not a valid one.
+        No ``plan.json`` in the folder, or not a valid one: a link, not JSON, a number that is
+        not finite, or a key the result reads of another type (:data:`~.document.PLAN_SCHEMA`),
+        named by its path (``cases[0].mach_range``).
     """
     folder = Path(directory)
-    record = read_document(folder, "plan.json", "plan", required=("cases", "summary"))
+    record = read_document(folder, "plan.json", "plan", required=("cases", "summary"), schema=PLAN_SCHEMA)
     return PlanResult(record, folder=folder)
