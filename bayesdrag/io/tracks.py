@@ -8,6 +8,10 @@ noise sd in the channel's file unit) and ``snr`` (the echo's signal-to-noise rat
 weights each sample by them (:mod:`bayesdrag.measure.sample_noise`). Other extra columns are kept,
 ignored by the fit, and reported by one line in ``RadarTrack.notes``.
 
+A device's own export is read too: :func:`read_track` sniffs the file's start and hands a
+LabRadar track (or any format of :mod:`bayesdrag.io.formats`) to that format's reader
+(``format="auto"``, the default; ``format="csv"`` or a format's name says which).
+
 Reading also checks that the channels agree with each other: the speed from the positions must
 match ``v`` (a track in yards beside m/s, in km, in ft/s is refused with the likely unit).
 
@@ -30,6 +34,7 @@ import numpy as np
 from ..errors import InputError
 from ..track import (ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, FILE_UNITS, GUN_CHANNELS, NATIVE_CHANNELS,
                      RadarTrack)
+from . import formats
 from .csv import read_table
 
 __all__ = ["read_track", "write_track", "channel_names", "ALIASES"]
@@ -216,20 +221,26 @@ def _track_header_check(path, line, names, columns=None):
 
 
 def read_track(path: str | os.PathLike[str], *, quote: bool = True,
-               columns: dict[str, str] | None = None) -> RadarTrack:
-    """Read and validate a radar track CSV.
+               columns: dict[str, str] | None = None, format: str = "auto") -> RadarTrack:
+    """Read and validate a radar track: a track CSV, or a device's export (a LabRadar track).
 
     Parameters
     ----------
     path : str or os.PathLike
         CSV with header ``t`` plus at least one of ``x, y, z, v, range, azimuth, elevation,
-        range_rate``; SI units (s, m, m/s), the angles in degrees (held in radians).
+        range_rate``; SI units (s, m, m/s), the angles in degrees (held in radians). Or a
+        device's export in a format of :mod:`bayesdrag.io.formats` (``Shot0001 Track.csv``).
     quote : bool
         False for a track another file points to (a campaign's): a message never repeats the
         file's content (:func:`bayesdrag.io.csv.read_table`).
     columns : dict, optional
         ``{channel: header name}`` (``--columns t=time,v=velocity``): which column holds which
         of t, x, y, z, v; other names are read through :data:`ALIASES` (:func:`channel_names`).
+        A track CSV's only: a device's export has its own columns.
+    format : str
+        ``"auto"`` (the default: the first few kB sniffed, :func:`bayesdrag.io.formats.detect`),
+        ``"csv"`` (the track CSV described here), or a registered device format's name
+        (``"labradar"``); :func:`bayesdrag.io.formats.names` lists them.
 
     Returns
     -------
@@ -247,7 +258,16 @@ def read_track(path: str | os.PathLike[str], *, quote: bool = True,
         names the likely unit mistake (km, ft, ft/s, yd, yd/s, km/h, mm, ms). A track entirely in
         another unit is consistent here; the fit refuses it from the physics (its path bends as
         if gravity were 32.2 for feet). A ``v`` in ft/s alone (no positions) cannot be detected.
+        An unknown ``format`` (the message lists the valid ones), ``columns`` with a device's
+        export, and what a device format's reader refuses
+        (:func:`bayesdrag.io.formats.labradar.read_labradar`).
     """
+    fmt = formats.resolve(path, format)
+    if fmt != formats.PLAIN:
+        if columns:
+            raise InputError(f"{path}: --columns maps the columns of a track CSV; this is a {fmt} export, whose "
+                             f"columns its reader knows (drop --columns)")
+        return formats.get(fmt, path).read(path, quote=quote)
     hline = []
 
     def check(p, line, names):
