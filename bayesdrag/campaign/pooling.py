@@ -134,14 +134,51 @@ def pooling_input(res, drag_model, reference=None, covariance="colored", name=""
 MAX_NODES = 1000
 
 
+#: largest drag coefficient a pooling input may hold [-]: shells and bullets have Cd 0.1-1, a
+#: flat plate ~2; a value above this is not a fitted Cd (a Cd of 1e300 pooled to 9.7e151)
+CD_MAX = 5.0
+
+
+#: longest ``name`` and ``drag_model`` text of a pooling input [characters] (a round's name is a
+#: folder name of at most 64)
+MAX_TEXT = 64
+
+
+#: relative agreement of a pooling input with its round's ``result.json`` beyond what the
+#: interpolation between the rows allows: both are written from the same fit, as
+#: full-precision JSON numbers (round-off only)
+RESULT_RTOL = 1e-9
+
+
+#: the most a curve through ``result.json``'s rows may leave the range of the two rows around a
+#: node, in units of the rows' own local bulge (largest second difference near it / 8):
+#: measured at most 0.52 on fitted rounds (the demo with the spline, poly2, poly2-split and
+#: reference-scale drag models, two simulated rounds), so 2 leaves a margin of 4
+BULGE_FACTOR = 2.0
+
+
+#: Mach distance a node may lie outside ``result.json``'s rows (their Mach is rounded to 1e-4)
+ROW_MACH_TOL = 1e-4
+
+
+#: most negative eigenvalue of a pooling input's covariance, relative to its trace: a
+#: covariance propagated through the spline basis is positive semi-definite to round-off
+#: (measured -3e-16 of the trace at most, on fitted rounds)
+PSD_RTOL = 1e-9
+
+
 def check_input(doc):
     """Raise :class:`ValueError` saying why ``doc`` is not a pooling input as :func:`pooling_input`
-    writes it: ``name`` text; ``mach`` the campaign nodes of ``mach_range`` (:func:`mach_nodes`,
-    at most :data:`MAX_NODES`); ``cd`` positive and finite there; ``cov`` a finite symmetric
-    matrix whose relative covariance plus the floor is positive definite (what :func:`pool_rounds`
-    factorises); ``reference`` None or positive; ``covariance`` one of :data:`COVARIANCES`.
+    writes it: ``name`` and ``drag_model`` text of at most :data:`MAX_TEXT` characters;
+    ``mach`` the campaign nodes of ``mach_range`` (:func:`mach_nodes`, at most
+    :data:`MAX_NODES`); ``cd`` finite in (0, :data:`CD_MAX`] there; ``cov`` a finite symmetric
+    matrix, positive semi-definite (to :data:`PSD_RTOL` of its trace), whose standard
+    deviations are at most :data:`CD_MAX` and whose relative covariance plus the floor is
+    positive definite (what :func:`pool_rounds` factorises);
+    ``cd_crb_sd`` finite in [0, :data:`CD_MAX`]; ``reference`` None or in (0, :data:`CD_MAX`];
+    ``covariance`` one of :data:`COVARIANCES`.
     A round's file is read back from its folder, which someone may have edited: a crafted one
-    must leave the round out of the pooling, not stop the campaign."""
+    must leave the round out of the pooling, not stop the campaign nor move its Cd."""
     if not isinstance(doc, dict):
         raise ValueError("not a JSON object")
     try:
@@ -149,12 +186,15 @@ def check_input(doc):
         m = np.asarray(doc["mach"], dtype=float)
         cd = np.asarray(doc["cd"], dtype=float)
         cov = np.asarray(doc["cov"], dtype=float)
+        crb_sd = np.asarray(doc["cd_crb_sd"], dtype=float)
         ref = None if doc.get("reference") is None else np.asarray(doc["reference"], dtype=float)
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"missing or not numbers: {type(exc).__name__} {exc}") from None
     if not isinstance(doc.get("name"), str) or doc.get("covariance") not in COVARIANCES \
             or not isinstance(doc.get("drag_model"), str):
         raise ValueError("name, covariance or drag_model missing or not of this version")
+    if len(doc["name"]) > MAX_TEXT or len(doc["drag_model"]) > MAX_TEXT:
+        raise ValueError(f"name or drag_model is longer than {MAX_TEXT} characters")
     if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi <= 10.0):
         raise ValueError("mach_range is not an interval of Mach numbers in (0, 10]")
     if m.ndim != 1 or not 1 <= m.size <= MAX_NODES or m.shape != mach_nodes(lo, hi).shape \
@@ -163,15 +203,114 @@ def check_input(doc):
     n = m.size
     if cd.shape != (n,) or not np.all(np.isfinite(cd)) or not np.all(cd > 0.0):
         raise ValueError("cd is not a positive finite value at every node")
+    if np.any(cd > CD_MAX):
+        i = int(np.argmax(cd))
+        raise ValueError(f"cd is {cd[i]:.6g} at Mach {m[i]:.2f}, outside the physical range (0, {CD_MAX:g}] of a "
+                         f"drag coefficient")
     if cov.shape != (n, n) or not np.all(np.isfinite(cov)) or not np.allclose(cov, cov.T, rtol=1e-9,
                                                                              atol=1e-12 * float(np.max(np.abs(cov)))):
         raise ValueError("cov is not a finite symmetric matrix of the nodes")
-    if ref is not None and (ref.shape != (n,) or not np.all(np.isfinite(ref)) or not np.all(ref > 0.0)):
-        raise ValueError("reference is not a positive finite value at every node")
+    var = np.diag(cov)
+    if np.any(var < 0.0) or np.any(var > CD_MAX ** 2):
+        raise ValueError(f"cov has a variance outside [0, {CD_MAX:g}^2] (a Cd standard deviation larger than any "
+                         f"drag coefficient)")
+    if np.linalg.eigvalsh(cov).min() < -PSD_RTOL * float(np.trace(cov)):
+        raise ValueError("cov is not a covariance (not positive semi-definite)")
+    if crb_sd.shape != (n,) or not np.all(np.isfinite(crb_sd)) or np.any(crb_sd < 0.0) or np.any(crb_sd > CD_MAX):
+        raise ValueError(f"cd_crb_sd is not a value in [0, {CD_MAX:g}] at every node")
+    if ref is not None and (ref.shape != (n,) or not np.all(np.isfinite(ref)) or not np.all(ref > 0.0)
+                            or np.any(ref > CD_MAX)):
+        raise ValueError(f"reference is not a value in (0, {CD_MAX:g}] at every node")
     try:
         np.linalg.cholesky(cov / np.outer(cd, cd) + REL_FLOOR ** 2 * np.eye(n))
     except np.linalg.LinAlgError:
         raise ValueError("cov is not a covariance (not positive semi-definite)") from None
+
+
+def check_against_result(doc, result):
+    """Raise :class:`ValueError` when the pooling input ``doc`` (checked by :func:`check_input`)
+    is not what the fit whose ``result.json`` is ``result`` wrote.
+
+    Both files are written from one Scheme 1 fit: the same drag model, the same Mach span, and
+    the same Cd curve, ``result.json``'s rows on the fit's grid (every <= 0.01 Mach) and
+    ``pooling.json`` on the campaign's nodes, which lie between those rows. At every node the
+    Cd and its Cramér-Rao sd must lie within the two rows around it, widened by the rows' own
+    local bulge (:data:`BULGE_FACTOR` x the largest second difference of the four rows around
+    it / 8: how far a smooth curve can leave the chord between two rows) and by
+    :data:`RESULT_RTOL`; the range, not an interpolation, so a curve with a jump (``poly2-split``
+    at its split Mach) passes too. The pooled covariance's sd must be the rows'
+    ``crb_sd_colored`` (``crb_sd`` for ``covariance = "crb"``) the same way, or below it where
+    the rows carry a model-error floor (which only raises them).
+
+    Parameters
+    ----------
+    doc : dict
+        A round's ``pooling.json``.
+    result : dict
+        The same round's ``result.json``.
+
+    Raises
+    ------
+    ValueError
+        Naming the first disagreement: another drag model or Mach span, rows that are not a Cd
+        table of the nodes, or a value at a node outside what the rows allow.
+    """
+    if not isinstance(result, dict) or result.get("scheme") != 1 or not isinstance(result.get("ml"), dict) \
+            or not isinstance(result.get("cd"), list):
+        raise ValueError("result.json is not a Scheme 1 result (scheme, ml and cd rows)")
+    if result.get("drag_model") != doc["drag_model"]:
+        raise ValueError(f"drag model {doc['drag_model']!r} in pooling.json, {result.get('drag_model')!r} in "
+                         f"result.json")
+    try:
+        span = np.asarray(result["ml"]["mach_range_data"], dtype=float)
+        rows = result["cd"]
+        g = np.array([r["mach"] for r in rows], dtype=float)
+        ml = np.array([r["ml"] for r in rows], dtype=float)
+        crb = np.array([r["crb_sd"] for r in rows], dtype=float)
+        key = "crb_sd_colored" if doc["covariance"] == "colored" else "crb_sd"
+        band = np.array([r[key] for r in rows], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"result.json's ml.mach_range_data or cd rows are missing or not numbers: "
+                         f"{type(exc).__name__} {exc}") from None
+    lo, hi = (float(v) for v in doc["mach_range"])
+    if span.shape != (2,) or not np.allclose(span, [lo, hi], rtol=RESULT_RTOL, atol=0.0):
+        raise ValueError(f"Mach range [{lo:.6g}, {hi:.6g}] in pooling.json, {span.tolist()} in result.json")
+    if g.size < 2 or not np.all(np.isfinite(np.concatenate([g, ml, crb, band]))) or np.any(np.diff(g) <= 0.0):
+        raise ValueError("result.json's cd rows are not a finite table of increasing Mach")
+    m = np.asarray(doc["mach"], dtype=float)
+    if m[0] < g[0] - ROW_MACH_TOL or m[-1] > g[-1] + ROW_MACH_TOL:
+        raise ValueError(f"the nodes Mach {m[0]:.2f}-{m[-1]:.2f} are not inside result.json's rows "
+                         f"(Mach {g[0]:.4f}-{g[-1]:.4f})")
+    cov_sd = np.sqrt(np.diag(np.asarray(doc["cov"], dtype=float)))
+    floored = any(isinstance(r, dict) and "model_error_floor" in r for r in rows)
+    checks = [("Cd", np.asarray(doc["cd"], dtype=float), ml, False),
+              ("Cramér-Rao sd of Cd", np.asarray(doc["cd_crb_sd"], dtype=float), crb, False),
+              (f"sd of Cd (its cov against the rows' {key})", cov_sd, band, floored)]
+    for what, value, table, only_below in checks:
+        low, high = _row_range(g, table, m)
+        bad = (value > high) if only_below else (value < low) | (value > high)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            allowed = f"at most {high[i]:.6g}" if only_below else f"{low[i]:.6g} to {high[i]:.6g}"
+            raise ValueError(f"{what} at Mach {m[i]:.2f} is {value[i]:.6g} in pooling.json, result.json's rows "
+                             f"allow {allowed} there")
+
+
+def _row_range(g, f, m):
+    """The range (low, high) at Mach ``m`` a curve sampled as ``f`` at rows ``g`` can take
+    between the rows around each node (:func:`check_against_result`)."""
+    j = np.clip(np.searchsorted(g, m, side="right") - 1, 0, g.size - 2)
+    a, b = f[j], f[j + 1]
+    d2 = np.zeros(g.size)
+    if g.size >= 3:
+        d2[1:-1] = np.abs(f[2:] - 2.0 * f[1:-1] + f[:-2])
+        d2[0], d2[-1] = d2[1], d2[-2]
+    near = np.max([d2[np.clip(j + k, 0, g.size - 1)] for k in (-1, 0, 1, 2)], axis=0)
+    # a node just outside the rows (their Mach rounded): the end interval's slope carries on
+    t = (m - g[j]) / (g[j + 1] - g[j])
+    beyond = np.abs(b - a) * np.maximum(np.maximum(-t, t - 1.0), 0.0)
+    slack = BULGE_FACTOR * near / 8.0 + beyond + RESULT_RTOL * np.maximum(np.abs(a), np.abs(b))
+    return np.minimum(a, b) - slack, np.maximum(a, b) + slack
 
 
 class _Stage2:

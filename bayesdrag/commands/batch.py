@@ -14,7 +14,17 @@ Decisions written down:
   inputs (SHA-256 of the track, the round file and the files it references) and of the
   options that change results. A rerun skips a job whose marker matches; a batch killed
   mid-way therefore resumes where it stopped, and a round whose inputs or options changed is
-  redone, not silently kept.
+  redone, not silently kept. The ``fit`` marker also records the SHA-256 of the outputs the
+  pooling reads (``result.json``, ``pooling.json``); a marker without them (an earlier
+  version) is redone.
+* **Pooling trusts no file of a round's folder** (:func:`pool_campaign`): ``pooling.json`` must
+  be a bounded pooling input (:func:`bayesdrag.campaign.pooling.check_input`: Cd in (0, 5],
+  a covariance, bounded sizes), name its own round, be byte for byte the file the round's fit
+  wrote, as ``result.json`` (the hashes in ``done.fit.json``), and agree with ``result.json``'s
+  Cd rows (:func:`bayesdrag.campaign.pooling.check_against_result`). A round failing any of
+  these is left out of the pooling with one line naming it and the file (a Cd of 1e300 pooled
+  to 9.7e151; both files edited by +5 % moved the campaign Cd by +5 %). A forger who rewrites
+  the marker's hashes and both files consistently is outside this check (``docs/security.md``).
 * **A failing round does not stop the others**: its exception is caught in the task and
   reported (name, error) at the end; the exit status is then 1 (outputs of the other rounds
   and the pooled campaign are still written).
@@ -46,6 +56,10 @@ __all__ = ["run_campaign", "round_task", "pool_campaign", "summarise", "fingerpr
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
               "MKL_NUM_THREADS": "1"}
 POOLING = "pooling.json"
+#: the fit's outputs whose SHA-256 its done marker records: what the pooling reads
+HASHED_OUTPUTS = ("result.json", POOLING)
+#: largest done marker read [bytes]
+MAX_MARKER_BYTES = 1 << 20
 
 
 def marker_path(outdir, job):
@@ -71,15 +85,34 @@ def fingerprint(track, round_path, job, options):
 
 
 def job_done(outdir, job, fp):
-    """True if the job's marker exists and its fingerprint equals ``fp``."""
+    """True if the job's marker exists and its fingerprint equals ``fp``; for ``fit`` it must
+    also record its outputs' hashes (a marker of an earlier version does not: the job is redone
+    rather than its outputs pooled unchecked)."""
     m = marker_path(outdir, job)
     if not m.is_file():
         return False
     try:
-        doc = read_json(m, "done marker", max_bytes=1 << 20)
+        doc = read_json(m, "done marker", max_bytes=MAX_MARKER_BYTES)
     except InputError:
         return False
-    return isinstance(doc, dict) and doc.get("fingerprint") == fp
+    if not isinstance(doc, dict) or doc.get("fingerprint") != fp:
+        return False
+    return job != "fit" or isinstance(_recorded_hashes(doc), dict)
+
+
+def output_hashes(folder, names=HASHED_OUTPUTS):
+    """``{name: SHA-256}`` of the outputs ``names`` present in ``folder`` (what a done marker
+    records)."""
+    return {n: sha256_file(Path(folder) / n) for n in names if (Path(folder) / n).is_file()}
+
+
+def _recorded_hashes(doc):
+    """The marker's ``outputs`` as ``{name: hex digest}``, or None when it holds none of that form."""
+    out = doc.get("outputs")
+    if not isinstance(out, dict) or "result.json" not in out or \
+            not all(isinstance(k, str) and isinstance(v, str) and len(v) == 64 for k, v in out.items()):
+        return None
+    return out
 
 
 def run_fit_job(track, round_path, outdir, options, covariance="colored", marker=None, resume=False):
@@ -99,7 +132,8 @@ def run_fit_job(track, round_path, outdir, options, covariance="colored", marker
                                                              result.round.reference_drag, covariance=covariance,
                                                              name=Path(outdir).name))
         if marker is not None:
-            write_json(Path(folder) / "done.fit.json", marker(result.message))
+            # the hashes of the files as staged, committed with them: an edit afterwards shows
+            write_json(Path(folder) / "done.fit.json", marker(result.message, output_hashes(folder)))
 
     partial = Path(outdir) / "chain.partial.h5"
     if partial.exists() and not resume and options.mcmc and options.scheme == 1:
@@ -213,8 +247,11 @@ def round_task(name, track, round_path, outdir, jobs=("fit",), options=None, cov
             if not checked:          # once, and only for a job that runs: a skipped round reads nothing
                 read_track(track, quote=False)
                 checked = True
-            def marker(msg, fp=fp, t0=t0):
-                return {"fingerprint": fp, "seconds": round(time.perf_counter() - t0, 3), "message": msg}
+            def marker(msg, outputs=None, fp=fp, t0=t0):
+                doc = {"fingerprint": fp, "seconds": round(time.perf_counter() - t0, 3), "message": msg}
+                if outputs is not None:
+                    doc["outputs"] = dict(outputs)
+                return doc
 
             if job == "fit":
                 msg = run_fit_job(track, round_path, out, options, covariance, marker, resume)
@@ -398,17 +435,21 @@ def _run_rounds(camp, run, jobs, options, executor, scheduler, workers, covarian
     reports.sort(key=lambda r: order.get(r["name"], len(order)))
     doc = None
     if "fit" in jobs:
-        doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo, into=run.staging)
-        if doc is not None:
-            failed = doc["failed"]           # with the rounds left out of the pooling
+        left_out = []
+        doc = pool_campaign(camp, out, failed, seed=pool_seed, echo=echo, into=run.staging, left_out=left_out)
+        # with the rounds left out of the pooling, also when none was left to pool
+        failed = failed + left_out
     return {"reports": reports, "failed": failed, "campaign": doc, "seconds": time.perf_counter() - t0}
 
 
-def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
+def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None, left_out=None):
     """Pool the rounds of ``camp`` whose ``pooling.json`` exists in ``out`` and write
     ``campaign.json``, ``campaign.html`` and the figures into ``into`` (default ``out``).
-    Returns the document or None when no round was fitted. A round whose ``pooling.json`` cannot
-    be read as a pooling input of this version is left out and reported in ``failed``."""
+    Returns the document or None when no round was fitted. A round whose ``pooling.json`` is not
+    a pooling input of this version, of this round, the file its fit wrote (with
+    ``result.json``: the hashes in ``done.fit.json``) and in agreement with its ``result.json``
+    is left out and reported in ``failed`` (:func:`_pooling_doc`), and appended to the list
+    ``left_out`` when one is given (the document's ``failed`` is lost when no round is left)."""
     import numpy as np
 
     from ..campaign.pooling import campaign_json, pool_rounds
@@ -419,9 +460,12 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
         p = Path(out) / r.name / POOLING
         if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
             try:
-                inputs.append(_pooling_doc(p))
+                inputs.append(_pooling_doc(p, r.name))
             except InputError as exc:   # reported with the failed rounds (summarise)
-                failed.append({"name": r.name, "job": "pool", "message": f"left out of the pooling: {exc}"})
+                entry = {"name": r.name, "job": "pool", "message": f"left out of the pooling: {exc}"}
+                failed.append(entry)
+                if left_out is not None:
+                    left_out.append(entry)
     if not inputs:
         echo("campaign: no fitted round to pool")
         return None
@@ -436,16 +480,48 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None):
     return doc
 
 
-def _pooling_doc(path):
-    """A round's ``pooling.json`` (bounded JSON, never evaluated), checked by
-    :func:`bayesdrag.campaign.pooling.check_input`."""
-    from ..campaign.pooling import check_input
+def _pooling_doc(path, name=None):
+    """A round's ``pooling.json`` (bounded JSON, never evaluated), checked in turn: a pooling
+    input of this version (:func:`bayesdrag.campaign.pooling.check_input`), of round ``name``,
+    with ``result.json`` the files the round's fit wrote (the SHA-256 its ``done.fit.json``
+    records), and agreeing with ``result.json``
+    (:func:`bayesdrag.campaign.pooling.check_against_result`).
 
+    Raises
+    ------
+    InputError
+        One line naming the file and what is wrong, and how to redo the round.
+    """
+    from ..campaign.pooling import check_against_result, check_input
+
+    path = Path(path)
+    folder = path.parent
+    marker = marker_path(folder, "fit")
+    redo = f"delete {marker} to refit the round"
     doc = read_json(path, "pooling input", max_bytes=16 << 20)
     try:
         check_input(doc)
     except ValueError as exc:
-        raise InputError(f"{path}: not a pooling input of this version ({exc}); refit the round") from None
+        raise InputError(f"{path}: not a pooling input of this version ({exc}); {redo}") from None
+    if name is not None and doc["name"] != name:
+        raise InputError(f"{path}: the pooling input of round {doc['name'][:64]!r}, not of round {name!r} (copied "
+                         f"from another round's folder?); {redo}")
+    mark = read_json(marker, "done marker", max_bytes=MAX_MARKER_BYTES)
+    recorded = _recorded_hashes(mark) if isinstance(mark, dict) else None
+    if recorded is None:
+        raise InputError(f"{marker}: records no hashes of the fit's outputs (an earlier version, or edited); {redo}")
+    for output in HASHED_OUTPUTS:
+        f = folder / output
+        if not f.is_file() or f.is_symlink():
+            raise InputError(f"{f}: missing or not a regular file, though the round's fit wrote it; {redo}")
+        if recorded.get(output) != sha256_file(f):
+            raise InputError(f"{f}: not the file the round's fit wrote (its SHA-256 differs from the one {marker.name} "
+                             f"records): the round's folder was edited after the fit; {redo}")
+    result = read_json(folder / "result.json", "result")
+    try:
+        check_against_result(doc, result)
+    except ValueError as exc:
+        raise InputError(f"{path}: disagrees with {folder / 'result.json'} ({exc}); {redo}") from None
     return doc
 
 
