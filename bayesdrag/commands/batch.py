@@ -159,12 +159,13 @@ def run_diagnose_job(track, round_path, outdir, marker=None):
 
 
 def _referenced_files(round_path):
-    """The files a round file names (``[projectile] reference_drag``, ``[atmosphere] profile``),
+    """The files a round file names (``[projectile] reference_drag``, ``[atmosphere] profile`` and
+    ``metcm_zones``),
     resolved as :func:`bayesdrag.io.rounds.read_round` resolves them, from its TOML alone: nothing
     they hold is read."""
     doc = read_toml(round_path, "round file", "a round file holds [projectile], [launch], ...")
     out = {}
-    for section, key in (("projectile", "reference_drag"), ("atmosphere", "profile")):
+    for section, key in (("projectile", "reference_drag"), ("atmosphere", "profile"), ("atmosphere", "metcm_zones")):
         table = doc.get(section)
         value = table.get(key) if isinstance(table, dict) else None
         if isinstance(value, str) and value.strip():

@@ -286,13 +286,15 @@ def read_table(path, what, required=(), allowed=None, header_check=None, quote=T
 
 
 def _checked_header(path, what, hline, header, required, allowed, header_check, quote):
-    """The names of the header line, checked (:func:`_header`, then ``header_check``)."""
+    """The names of the header line, checked (:func:`_header`, then ``header_check``). With
+    ``quote=False`` (a file another file names) a refusal says what is wrong, never what the line
+    holds: such a file may be anything its author can read (a key, a password file)."""
     try:
         names = _header(path, what, hline, header, required, allowed)
         if header_check is not None:
             header_check(path, hline, names)
     except InputError:
-        if quote or _plain_names(header):
+        if quote:
             raise
         need = f"the columns {','.join(required)}" if required else "column names"
         raise InputError(f"{path}: line {hline}: not a {what}: the first line that is not a comment must be a "
@@ -313,18 +315,9 @@ def _parse_block(path, body, body_no, names, quote):
         return _slow_parse(path, list(zip(body_no, body)), names, quote)
 
 
-_PLAIN_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_ .()\[\]/%-]{0,40}$")
-
-
-def _plain_names(header):
-    """True when a header line is a few plain column names (quoting them reveals nothing of a
-    file that is not a table: ``root:x:0:0:...`` or a key's first line are not)."""
-    names = [_clean_name(n) for n in header.split(",")]
-    return 0 < len(names) <= 16 and all(_PLAIN_NAME.match(n) for n in names)
-
-
 def _header(path, what, hline, header, required, allowed):
-    """The column names of the header line, checked."""
+    """The column names of the header line, checked (a refusal may show the line: the caller
+    replaces it for a file another file names)."""
     names = [_clean_name(s) for s in header.split(",")]
     if all(_is_number(s) for s in names):
         raise InputError(f"{path}: line {hline}: {what} has no header row; found numbers "

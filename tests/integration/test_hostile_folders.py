@@ -410,7 +410,7 @@ def opened(monkeypatch):
 
 
 @pytest.mark.parametrize("how", ["absolute", "relative escape", "link in the campaign folder",
-                                 "round names a table outside"])
+                                 "round names a table outside", "round names metcm zones outside"])
 def test_a_campaign_never_reads_a_file_outside_its_folder(case, tmp_path, capsys, opened, how):
     """Reproducer 4: ``track = "/etc/shadow"`` (or ``../../../etc/shadow``) printed the file's
     first line and saved it into campaign.json and campaign.html."""
@@ -423,8 +423,12 @@ def test_a_campaign_never_reads_a_file_outside_its_folder(case, tmp_path, capsys
     elif how == "link in the campaign folder":
         (case / "r1.csv").symlink_to(secret)
         _campaign(case, ["r1"], track="r1.csv")
-    else:
+    elif how == "round names a table outside":
         (case / "round.toml").write_text((case / "round.toml").read_text().replace('"cd_m101.csv"', f'"{secret}"'))
+        _campaign(case, ["r1"])
+    else:       # issue 44 item 3: only reference_drag and profile were confined
+        (case / "round.toml").write_text((case / "round.toml").read_text().replace(
+            'model = "icao"', f'model = "icao"\nmetcm_zones = "{secret}"'))
         _campaign(case, ["r1"])
     code, lines, _ = _cli(["fit", "camp.toml", "-o", "out", *QUICK[:2]], capsys)
     _one_line(code, lines, r"(outside the campaign's folder .*: move the file there, or pass --allow-outside-inputs)")
@@ -447,6 +451,29 @@ def test_an_allowed_outside_track_is_never_quoted(case, tmp_path, capsys):
     code, lines, _ = _cli(["fit", "camp.toml", "-o", "out", "--allow-outside-inputs", *QUICK[:2]], capsys)
     assert code == 1 and any("round r1 (fit) failed" in ln and "the line is not shown" in ln for ln in lines), lines
     _secret_nowhere(case, lines, case / "out")
+
+
+@pytest.mark.parametrize("key", ["reference_drag", "metcm_zones"])
+def test_a_named_file_is_never_quoted(case, tmp_path, capsys, key):
+    """Issue 44 item 3: a token file named as the drag table (or, in a campaign allowed to read
+    outside its folder, as the METCM zone table) had its first line quoted on stderr and into
+    campaign.json / campaign.html ("header has sk-..."), though it reads like column names."""
+    secret = tmp_path / "outside" / "token"
+    secret.write_text("sk-planted-0123456789abcdef\n")
+    text = (case / "round.toml").read_text()
+    if key == "reference_drag":
+        (case / "round.toml").write_text(text.replace('"cd_m101.csv"', f'"{secret}"'))
+    else:
+        (case / "met.txt").write_text("METCM1 345123 151200 0 000013\n00000000 28810013\n01000000 28780012\n")
+        (case / "round.toml").write_text(text.replace('model = "icao"',
+                                                      f'profile = "met.txt"\nmetcm_zones = "{secret}"'))
+    _campaign(case, ["r1"])
+    code, lines, _ = _cli(["fit", "camp.toml", "-o", "out", "--allow-outside-inputs", *QUICK[:2]], capsys)
+    assert code in (1, 2), lines
+    assert any("the line is not shown" in ln for ln in lines), lines
+    _secret_nowhere(case, lines, case / "out")
+    text = "\n".join(lines)
+    assert "sk-planted" not in text
 
 
 def test_an_allowed_outside_track_is_never_quoted_by_dask_workers(case, tmp_path):
