@@ -23,10 +23,40 @@ DESCRIPTION = ("Drag coefficient Cd(Mach) of projectiles from radar tracks: maxi
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports bad options as one line and exit status 2."""
+    """argparse that reports bad options as one line and exit status 2.
+
+    ``minus_valued`` names options whose value may start with a minus sign followed by a digit or
+    a point (``--radar-sites -40,25,2;0,-30,1``): such a value is joined to its option
+    (``--radar-sites=-40,...``) before parsing, since argparse would take it for an unknown option."""
+
+    minus_valued: tuple = ()
 
     def error(self, message):
         raise InputError(f"command line: {message} (see `{self.prog} --help`)")
+
+    def parse_known_args(self, args=None, namespace=None):
+        if self.minus_valued and args is not None:
+            args = _join_minus_values(list(args), self.minus_valued)
+        return super().parse_known_args(args, namespace)
+
+
+def _join_minus_values(args, options):
+    """``args`` with each of ``options`` followed by a negative-number-led value joined to it by
+    ``=``; everything after ``--`` left alone."""
+    out, k = [], 0
+    while k < len(args):
+        a = args[k]
+        if a == "--":
+            return out + args[k:]
+        nxt = args[k + 1] if k + 1 < len(args) else None
+        led = isinstance(nxt, str) and len(nxt) > 1 and nxt[0] == "-" and (nxt[1].isdigit() or nxt[1] == ".")
+        if a in options and led:
+            out.append(f"{a}={nxt}")
+            k += 2
+            continue
+        out.append(a)
+        k += 1
+    return out
 
 
 def _integer(minimum, label=None):
@@ -102,8 +132,15 @@ def _number_list(unit, lo, hi, hi_open=False):
     return parse
 
 
+#: how ``--radar-sites`` is written, for its messages: quoted (the shell ends a command at ';')
+RADAR_SITES_EXAMPLE = '--radar-sites "-40,25,2;0,-30,1"'
+
+
 def _radar_sites(value):
-    """An argparse type: radar sites ``x,y,z;x,y,z`` [m] in the gun frame."""
+    """An argparse type: radar sites ``x,y,z;x,y,z`` [m] in the gun frame, each at most the
+    radar's plausible distance from the muzzle (:data:`bayesdrag.round.RADAR_SITE_MAX`)."""
+    from .round import RADAR_SITE_MAX
+
     sites = []
     for part in value.split(";"):
         try:
@@ -112,7 +149,13 @@ def _radar_sites(value):
             xyz = ()
         if len(xyz) != 3 or not all(v == v and abs(v) != float("inf") for v in xyz):
             raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()!r} is not a site; use x,y,z [m] in the gun "
-                                             f"frame, sites separated by ';' (e.g. -40,25,2;0,-30,1)")
+                                             f"frame, sites separated by ';', the list quoted (e.g. "
+                                             f"{RADAR_SITES_EXAMPLE})")
+        far = (xyz[0] ** 2 + xyz[1] ** 2 + xyz[2] ** 2) ** 0.5
+        if far > RADAR_SITE_MAX:
+            raise argparse.ArgumentTypeError(f"{value!r}: the site {part.strip()} is {far:.0f} m from the muzzle, more "
+                                             f"than a radar's plausible {RADAR_SITE_MAX:g} m (x, y, z in metres in "
+                                             f"the gun frame)")
         sites.append(xyz)
     return tuple(sites)
 
@@ -126,6 +169,7 @@ def _non_negative_float(value):
 
 def _add_plan_parser(sub):
     from .options import PLAN_ELEVATION_RANGE, PLAN_VELOCITY_MAX, PlanOptions
+    from .round import RADAR_SITE_MAX
 
     po = PlanOptions()
     p = sub.add_parser("plan", help="predict, before firing, the Cd accuracy (sd by Mach) of planned cases "
@@ -152,10 +196,12 @@ def _add_plan_parser(sub):
                         "drag, else a generic 155 mm curve)")
     p.add_argument("--seed", type=_seed, default=po.seed,
                    help="seed of the noisy realisation that places the fit's knots (default 0)")
-    p.add_argument("--radar-sites", type=_radar_sites, default=None, metavar="X,Y,Z;...",
-                   help="candidate sites [m, gun frame] of a radar recording its own channels (range, azimuth, "
-                        "elevation, range_rate in [radar] sigma): every case from each; plan.json ranks them "
-                        "and names best_site")
+    p.add_argument("--radar-sites", type=_radar_sites, default=None, metavar='"X,Y,Z;..."',
+                   help=f"candidate sites [m, gun frame, each within {RADAR_SITE_MAX / 1000:g} km of the muzzle] of a "
+                        f"radar recording its own channels (range, azimuth, elevation, range_rate in [radar] "
+                        f"sigma): every case from each; plan.json ranks them and names best_site. Quote the list "
+                        f"(the shell ends a command at ';'), e.g. {RADAR_SITES_EXAMPLE}")
+    p.minus_valued = ("--radar-sites",)     # a site may start with a minus sign: -40,25,2
     _add_quiet(p)
 
 

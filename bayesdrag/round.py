@@ -12,11 +12,12 @@ from dataclasses import dataclass, field
 
 from .atmosphere import Atmosphere
 from .drag import ReferenceTable
-from .track import ALL_CHANNELS, UNITS
+from .track import ALL_CHANNELS, SAMPLE_SIGMA_FLOOR, UNITS
 from .validate import number, positive, type_name
 
 __all__ = ["Projectile", "Launch", "Radar", "Systematics", "Round", "DEFAULT_VELOCITY_SD",
-           "DEFAULT_ELEVATION_SD_DEG", "DEFAULT_POSITION_SD", "SYSTEMATIC_SOURCES"]
+           "DEFAULT_ELEVATION_SD_DEG", "DEFAULT_POSITION_SD", "SYSTEMATIC_SOURCES", "SIGMA_BOUNDS", "sigma_bounds",
+           "RADAR_SITE_MAX"]
 
 #: default a-priori sd of the launch velocity [m/s]: round-to-round muzzle-velocity dispersion of
 #: a lot is ~0.3-0.5 % (2.5-4 m/s at 800 m/s); 5 m/s also absorbs a nominal value taken from the
@@ -211,6 +212,32 @@ RANGE_BIAS_SD_MAX = 100.0
 #: largest plausible offset typed into a chronograph radar [m]: it stands beside the muzzle
 DEVICE_OFFSET_MAX = 10.0
 ANGLE_BIAS_SD_MAX = math.radians(1.0)
+#: plausible noise sd of one radar sample, by the channel's unit inside the code: (floor, ceiling).
+#: Below the floor no radar measures (0.1 mm, 0.1 mm/s, 0.2 arc seconds: a unit mistake); above the
+#: ceiling (1 km, 100 m/s, 10 deg) a radar tracks nothing, and 1 / sd^2 of the likelihood would
+#: overflow (1e308 m ended a fit in an OverflowError)
+SIGMA_BOUNDS = {"m": (SAMPLE_SIGMA_FLOOR["m"], 1e3), "m/s": (SAMPLE_SIGMA_FLOOR["m/s"], 1e2),
+                "rad": (SAMPLE_SIGMA_FLOOR["rad"], math.radians(10.0))}
+
+
+def sigma_bounds(channel):
+    """The plausible (floor, ceiling) of a channel's noise sd in its unit inside the code
+    (:data:`SIGMA_BOUNDS`: m, m/s, rad)."""
+    return SIGMA_BOUNDS[UNITS[channel]]
+
+
+def _check_sigma_bounds(sig):
+    """Refuse a noise sd outside :data:`SIGMA_BOUNDS`, naming the channel (angles also in deg)."""
+    for c, v in sig.items():
+        lo, hi = sigma_bounds(c)
+        if lo <= v <= hi:
+            continue
+        unit = UNITS[c]
+        shown = (lambda a: f"{a:g} rad ({math.degrees(a):g} deg)") if unit == "rad" else (lambda a: f"{a:g} {unit}")
+        why = ("no radar measures that precisely (a unit mistake?)" if v < lo else
+               "a radar that noisy tracks nothing (a unit mistake?)")
+        raise ValueError(f"sigma.{c} = {shown(v)} is outside the plausible {shown(lo)} .. {shown(hi)}: {why}; "
+                         f"give the noise sd of one sample")
 
 
 @dataclass(frozen=True, eq=False)
@@ -222,7 +249,8 @@ class Radar:
     sigma : dict of str -> float
         Noise sd per channel in the channel's unit inside the code (``x, y, z, range`` [m],
         ``v, range_rate`` [m/s], ``azimuth, elevation`` [rad]; the round file gives the angles
-        in degrees), each > 0; may be empty (then the fit estimates the noise).
+        in degrees), each within :data:`SIGMA_BOUNDS` (0.1 mm .. 1 km, 0.1 mm/s .. 100 m/s,
+        5e-5 .. 10 deg); may be empty (then the fit estimates the noise).
     position : tuple of 3 floats, m
         The radar's site in the gun's frame at launch (x downrange, y right, z up); default the
         muzzle (0, 0, 0). Used only by radar-native channels.
@@ -255,6 +283,7 @@ class Radar:
             raise ValueError(f"sigma has unknown channel(s) {', '.join(map(str, bad))}; "
                              f"allowed: {', '.join(ALL_CHANNELS)}")
         sig = {k: positive(f"sigma.{k}", self.sigma[k], UNITS[k]) for k in ALL_CHANNELS if k in self.sigma}
+        _check_sigma_bounds(sig)
         object.__setattr__(self, "sigma", sig)
         pos = self.position
         if isinstance(pos, dict):

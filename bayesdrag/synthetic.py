@@ -12,7 +12,8 @@ from .errors import InputError
 from .measure import channel_values, site_of
 from .track import GUN_CHANNELS, RadarTrack
 
-__all__ = ["simulate_round", "add_noise", "add_outliers", "drop_samples", "ar1_noise"]
+__all__ = ["simulate_round", "add_noise", "add_outliers", "drop_samples", "ar1_noise", "recordable",
+           "MIN_RECORDED_RANGE"]
 
 MODELS = ("pointmass", "6dof")
 
@@ -192,6 +193,45 @@ def add_noise(track, sigma, rng, rho=0.0):
         noise = ar1_noise(val.size, sd, rho, rng) if rho else rng.standard_normal(val.size) * sd
         ch[name] = (val + noise) % (2.0 * np.pi) if name == "azimuth" else val + noise
     return RadarTrack(track.t, ch, dict(track.extra), source=track.source)
+
+
+#: the smallest slant range [m] a radar records: a range is a distance, and noise that makes one
+#: negative (a radar at the muzzle, at launch) gives a row no radar writes and no reader accepts
+MIN_RECORDED_RANGE = 0.0
+
+
+def recordable(track):
+    """The samples of a (noisy) track that a radar can record: slant ``range`` at least
+    :data:`MIN_RECORDED_RANGE` and ``elevation`` within [-90, 90] deg, as the track reader
+    requires; the others (noise near the site, or straight above or below it, pushed them past
+    the limits) are left out, with a note.
+
+    Parameters
+    ----------
+    track : RadarTrack
+
+    Returns
+    -------
+    (RadarTrack, int)
+        The recordable samples (``track`` itself when all are) and how many were left out.
+    """
+    keep = np.ones(track.n, bool)
+    if "range" in track.channels:
+        keep &= track.channels["range"] >= MIN_RECORDED_RANGE
+    if "elevation" in track.channels:
+        keep &= np.abs(track.channels["elevation"]) <= 0.5 * np.pi
+    dropped = int(track.n - keep.sum())
+    if not dropped:
+        return track, 0
+    if keep.sum() < 2:
+        raise InputError(f"{track.source or 'track'}: {dropped} of {track.n} samples are not what a radar records "
+                         f"(a range below {MIN_RECORDED_RANGE:g} m or an elevation beyond +-90 deg after the noise): "
+                         f"too few remain; move the radar's site or lower its noise")
+    out = track.subset(keep)
+    note = (f"{track.source or 'track'}: {dropped} sample(s) left out that a radar does not record (the noise made "
+            f"the range negative or the elevation pass +-90 deg, near the radar's site or straight above or below "
+            f"it), first at t = {track.t[~keep][0]:g} s")
+    return RadarTrack(out.t, out.channels, out.extra, out.source, out.notes + (note,)), dropped
 
 
 def add_outliers(track, fraction, size, sigma, rng):

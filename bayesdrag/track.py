@@ -2,12 +2,13 @@
 track file (CSV) is read and written by :mod:`bayesdrag.io.tracks`."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 __all__ = ["CHANNELS", "ALL_CHANNELS", "GUN_CHANNELS", "NATIVE_CHANNELS", "ANGLE_CHANNELS", "UNITS", "FILE_UNITS",
-           "RadarTrack", "MAX_FIT_SAMPLES", "thin_for_fit"]
+           "RadarTrack", "MAX_FIT_SAMPLES", "SAMPLE_SIGMA_FLOOR", "thin_for_fit"]
 
 #: channels in the gun's frame: positions x, y, z [m] and ground speed v [m/s]
 GUN_CHANNELS = ("x", "y", "z", "v")
@@ -33,6 +34,11 @@ FILE_UNITS = {**UNITS, "azimuth": "deg", "elevation": "deg"}
 #: far denser than the drag changes, and samples that close are rarely independent (tracking
 #: filters correlate them), so thinning loses little the bands would honestly hold.
 MAX_FIT_SAMPLES = 10_000
+#: smallest noise sd one sample's ``sigma_<channel>`` column may give, by the channel's unit inside
+#: the code (the file's: 1e-4 m, 1e-4 m/s, 5e-5 deg): as ``[radar] sigma``'s floor, below which no
+#: radar measures. A sample claiming less would outweigh the whole track by its 1 / sd^2 (one
+#: ``sigma_v = 1e-300`` overflowed the fit, and 1e-6 beside 0.3 m/s kept it from converging)
+SAMPLE_SIGMA_FLOOR = {"m": 1e-4, "m/s": 1e-4, "rad": math.radians(5e-5)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,13 +55,17 @@ class RadarTrack:
         ``elevation`` [rad] and ``range_rate`` [m/s] (seen from the radar's site, which the
         round gives), stored in :data:`ALL_CHANNELS` order.
     extra : dict of str -> ndarray (N,)
-        Further columns of the file, kept but ignored by the fit.
+        Further columns of the file, kept but ignored by the fit; a ``sigma_<channel>`` column
+        of a present channel (each sample's noise sd, in the channel's unit inside the code)
+        weights the fit and must be at least :data:`SAMPLE_SIGMA_FLOOR` (1e-4 m, 1e-4 m/s,
+        5e-5 deg).
     source : str
         File path or description.
     notes : tuple of str
         One-line remarks found while reading (e.g. ignored extra columns), for the CLI to print.
 
-    Construction checks shapes and the time axis and raises ``ValueError``; :func:`read_track`
+    Construction checks shapes, the time axis and the per-sample noise floor and raises
+    ``ValueError`` (an :class:`~bayesdrag.errors.InputError` for the noise floor); :func:`read_track`
     performs the same checks first and raises :class:`~bayesdrag.errors.InputError` with line
     numbers.
     """
@@ -92,11 +102,39 @@ class RadarTrack:
         if clash:
             raise ValueError(f"{src}: extra columns may not be named like channels: {', '.join(clash)}")
         ex = {str(k): self._column(k, a, t.size, src) for k, a in self.extra.items()}
+        self._check_sample_sigma(ex, ch, t, src)
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "channels", ch)
         object.__setattr__(self, "extra", ex)
         object.__setattr__(self, "source", str(self.source))
         object.__setattr__(self, "notes", tuple(str(s) for s in self.notes))
+
+    @staticmethod
+    def _check_sample_sigma(extra, channels, t, src):
+        """Refuse a ``sigma_<channel>`` sample below :data:`SAMPLE_SIGMA_FLOOR` (of a channel the
+        track has: the fit weights each sample by it), naming the sample and its time.
+
+        Raises
+        ------
+        bayesdrag.errors.InputError
+            (a ``ValueError``) with the column, the sample, the value and the floor in the
+            file's unit (degrees for the angles).
+        """
+        from .errors import InputError
+
+        for c in channels:
+            a = extra.get(f"sigma_{c}")
+            if a is None:
+                continue
+            floor = SAMPLE_SIGMA_FLOOR[UNITS[c]]
+            low = np.flatnonzero(a < floor)          # NaN and <= 0 are the reader's to name
+            if low.size:
+                i = int(low[0])
+                angle = c in ANGLE_CHANNELS
+                v, lo = (np.degrees(a[i]), np.degrees(floor)) if angle else (a[i], floor)
+                raise InputError(f"{src}: sample {i + 1} (t = {t[i]:g} s): sigma_{c} = {v:g} {FILE_UNITS[c]} is below "
+                                 f"{lo:g} {FILE_UNITS[c]}, more precise than any radar measures (a unit mistake?); "
+                                 f"give each sample's noise sd in {FILE_UNITS[c]}, or leave the column out")
 
     @staticmethod
     def _column(name, a, n, src):

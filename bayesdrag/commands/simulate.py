@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.outputs import atomic_write
 from ..round import Round
-from ..synthetic import add_noise, simulate_round
+from ..synthetic import add_noise, recordable, simulate_round
 from ..track import ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 from ..options import SimulateOptions
 
@@ -33,6 +33,10 @@ def simulate(rnd: Round, options: SimulateOptions | None = None, **kwargs: Any) 
     Returns
     -------
     RadarTrack
+        With noise, only the samples a radar records (:func:`bayesdrag.synthetic.recordable`):
+        a noisy slant range below 0 m or an elevation past +-90 deg (a radar at the muzzle at
+        launch, a site straight above or below the flight) is left out, and ``notes`` says how
+        many; the file it is written to is one :func:`bayesdrag.io.tracks.read_track` reads.
     """
     opts = options if options is not None else SimulateOptions()
     if kwargs:
@@ -50,6 +54,8 @@ def simulate(rnd: Round, options: SimulateOptions | None = None, **kwargs: Any) 
                              f"channel; missing: {', '.join(missing)} (range [m], azimuth, elevation [deg], "
                              f"range_rate [m/s])")
         track = add_noise(track, rnd.radar.sigma, np.random.default_rng(opts.seed))
+        # a noisy range below 0 or elevation past +-90 deg is no radar's record: left out, noted
+        track, _ = recordable(track)
     return track
 
 
@@ -79,9 +85,13 @@ def run_simulate(round_path, output, options=None, *, echo=print):
         sig = {c: (f"{math.degrees(v):g} deg" if c in ANGLE_CHANNELS else f"{v:g}")
                for c, v in rnd.radar.sigma.items() if c in track.channels}
         comment += f"; Gaussian noise {sig}, seed {opts.seed}"
+    if track.notes:
+        comment += "; " + "; ".join(track.notes)
     atomic_write(output, lambda tmp: write_track(tmp, track, comment=comment))
-    echo(f"wrote {output}: {track.n} samples, t = 0 .. {track.t[-1]:.2f} s, range {track.x[-1]:.0f} m"
+    echo(f"wrote {output}: {track.n} samples, t = {track.t[0]:g} .. {track.t[-1]:.2f} s, range {track.x[-1]:.0f} m"
          if track.x is not None else
-         f"wrote {output}: {track.n} samples, t = 0 .. {track.t[-1]:.2f} s, last slant range "
+         f"wrote {output}: {track.n} samples, t = {track.t[0]:g} .. {track.t[-1]:.2f} s, last slant range "
          f"{track.channels['range'][-1]:.0f} m" if "range" in track.channels else f"wrote {output}")
+    for note in track.notes:
+        echo(f"note: {note}")
     return track

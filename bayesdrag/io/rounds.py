@@ -15,9 +15,9 @@ import tomli_w
 
 from ..atmosphere import Atmosphere, MetProfile
 from ..errors import InputError
-from ..track import ANGLE_CHANNELS, FILE_UNITS
-from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD, SYSTEMATIC_SOURCES,
-                     Launch, Projectile, Radar, Round, Systematics)
+from ..track import ALL_CHANNELS, ANGLE_CHANNELS, FILE_UNITS
+from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD,
+                     SIGMA_BOUNDS, SYSTEMATIC_SOURCES, Launch, Projectile, Radar, Round, Systematics, sigma_bounds)
 from ..validate import number, positive, type_name
 from .csv import read_toml
 from .drag_tables import read_drag_table
@@ -39,10 +39,10 @@ _SCHEMA = {
               "azimuth_bias_sd": "deg", "elevation_bias_sd": "deg", "position_sd": "m", "device_offset": "m"},
 }
 ATMOSPHERE_MODELS = ("icao", "profile")
-#: smallest radar noise sd a round file may state [m, m/s]
-MIN_SIGMA = 1e-4
+#: smallest radar noise sd a round file may state [m, m/s] (:data:`bayesdrag.round.SIGMA_BOUNDS`)
+MIN_SIGMA = SIGMA_BOUNDS["m"][0]
 #: smallest angle noise sd a round file may state [deg] (0.2 arc seconds)
-MIN_SIGMA_DEG = 5e-5
+MIN_SIGMA_DEG = math.degrees(SIGMA_BOUNDS["rad"][0])
 #: plausible range of ``pressure_ratio`` and ``density_ratio`` (the Warner site's 0.78 is inside)
 PLAUSIBLE_AIR_RATIO = (0.5, 2.0)
 #: how far [Mach] the launch Mach may exceed the reference table's last row before the round is
@@ -57,16 +57,30 @@ def _unknown(path, what, key, allowed):
     return InputError(f"{path}: unknown {what} {key!r}{hint}; allowed: {', '.join(allowed)}")
 
 
-def _check_sigma(path, radar):
-    for c, v in radar.sigma.items():
+def _check_sigma(path, tab):
+    """Refuse a ``[radar] sigma`` value outside the plausible range of its channel
+    (:func:`bayesdrag.round.sigma_bounds`), in the file's unit (degrees for the angles). Values
+    that are not positive finite numbers, or of unknown channels, are left to :class:`Radar`,
+    which names what is wrong with them."""
+    sigma = tab.get("sigma")
+    if not isinstance(sigma, dict):
+        return
+    for c, v in sigma.items():
+        if c not in ALL_CHANNELS or isinstance(v, bool) or not isinstance(v, (int, float)) \
+                or not math.isfinite(v) or v <= 0:
+            continue
+        lo, hi = sigma_bounds(c)
         if c in ANGLE_CHANNELS:
-            v, lo = math.degrees(v), MIN_SIGMA_DEG
-        else:
-            lo = MIN_SIGMA
+            lo, hi = math.degrees(lo), math.degrees(hi)
+        unit = FILE_UNITS[c]
         if v < lo:
-            raise InputError(f"{path}: [radar] sigma.{c} = {v:g} {FILE_UNITS[c]} is below "
-                             f"{lo:g}: no radar measures that precisely (a unit mistake?); give the "
+            raise InputError(f"{path}: [radar] sigma.{c} = {v:g} {unit} is below "
+                             f"{lo:g} {unit}: no radar measures that precisely (a unit mistake?); give the "
                              f"noise sd of one sample, or leave sigma out to estimate it from the track")
+        if v > hi:
+            raise InputError(f"{path}: [radar] sigma.{c} = {v:g} {unit} is above the plausible {hi:g} {unit}: a "
+                             f"radar that noisy tracks nothing (a unit mistake?); give the noise sd of one sample "
+                             f"(allowed {lo:g} .. {hi:g} {unit}), or leave sigma out to estimate it from the track")
 
 
 def _radar(tab):
@@ -87,8 +101,10 @@ def _radar(tab):
         ang[k] = v
     pos = tab.get("position", (0.0, 0.0, 0.0))
     off = tab.get("device_offset")
-    if "position" not in tab and isinstance(off, (int, float)) and not isinstance(off, bool):
-        pos = (0.0, float(off), 0.0)     # a chronograph radar beside the muzzle, to the right, at its offset
+    if "position" not in tab and isinstance(off, (int, float)) and not isinstance(off, bool) and math.isfinite(off):
+        # a chronograph radar beside the muzzle, to the right, at its offset (a non-finite offset is
+        # left at the muzzle, so that Radar names device_offset, not the position it would give)
+        pos = (0.0, float(off), 0.0)
     return Radar(sigma, pos, tab.get("range_bias_sd"), ang["azimuth_bias_sd"],
                  ang["elevation_bias_sd"], tab.get("position_sd"), tab.get("device_offset"))
 
@@ -200,7 +216,9 @@ def read_round(path: str | os.PathLike[str]) -> Round:
       (applied on top of a profile too), wind_sd [m/s] (how well the winds are known per
       layer, :attr:`bayesdrag.round.Systematics.wind_profile`)
     - ``[radar]`` sigma = {x, y, z [m], v [m/s], range [m], azimuth [deg], elevation [deg],
-      range_rate [m/s]} (the angles' sd held in radians inside), position = {x, y, z} [m] (the
+      range_rate [m/s]} (the angles' sd held in radians inside; each within
+      :data:`bayesdrag.round.SIGMA_BOUNDS`: 1e-4 .. 1000 m, 1e-4 .. 100 m/s, 5e-5 .. 10 deg),
+      position = {x, y, z} [m] (the
       radar's site in the gun's frame at launch, default the muzzle), range_bias_sd [m],
       azimuth_bias_sd [deg], elevation_bias_sd [deg], position_sd [m] (how well the site is
       known), device_offset [m] (a chronograph radar's offset as typed into the device; its
@@ -281,8 +299,8 @@ def read_round(path: str | os.PathLike[str]) -> Round:
 
     atmosphere = build("atmosphere", lambda: _read_atmosphere(path, tables["atmosphere"], lt, launch))
     _check_reference_reach(path, pt, ref, launch, atmosphere)
+    _check_sigma(path, tables["radar"])     # in the file's units, before Radar checks them in SI
     radar = build("radar", lambda: _radar(tables["radar"]))
-    _check_sigma(path, radar)
     sds = {stem: tables[sec].get(f"{stem}_sd") for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items()}
     for stem, (sec, _, _) in SYSTEMATIC_SOURCES.items():     # each error names its own section
         build(sec, lambda: Systematics(**{stem: sds[stem]}))

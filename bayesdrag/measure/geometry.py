@@ -32,7 +32,8 @@ from ..track import ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, GUN_CHANNELS, NATI
 
 __all__ = ["RadarSite", "site_of", "chronograph_factor", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
            "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS", "SITE_ERRORS",
-           "site_error_missing", "check_site_errors"]
+           "site_error_missing", "check_site_errors", "VERTICAL_LINE_OF_SIGHT", "MIN_ANGLE_RANGE",
+           "angle_blind_samples"]
 
 #: mean Earth radius [m], for the curvature figure x^2 / (2 Re) of the docs
 EARTH_RADIUS = 6_371_000.0
@@ -195,6 +196,38 @@ def _parts(state, site):
         d = np.where(at[..., None], d + AT_SITE * u / np.maximum(np.linalg.norm(u, axis=-1), 1e-300)[..., None], d)
         R2 = _norm2(d)
     return d, u, R2
+
+
+#: a line of sight within this angle of the site's vertical [rad] has no azimuth to plan with:
+#: straight above or below the site the azimuth is undefined, and the angles' derivatives divide
+#: by the horizontal distance (a radar's mount cannot follow through its zenith either)
+VERTICAL_LINE_OF_SIGHT = math.radians(0.1)
+#: nearer than this to the site [m] the shell has no angles a radar measures: at the antenna
+#: itself (a site at the muzzle at launch) the angles' derivatives grow as 1 / range
+MIN_ANGLE_RANGE = 1.0
+
+
+def angle_blind_samples(state, site=RadarSite()):
+    """The samples whose azimuth and elevation a radar at ``site`` cannot measure: the shell
+    within :data:`MIN_ANGLE_RANGE` of the site (a site at the muzzle, at launch) or straight
+    above or below it (the line of sight within :data:`VERTICAL_LINE_OF_SIGHT` of the vertical:
+    a site on the vertical of the muzzle).
+
+    Parameters
+    ----------
+    state : array_like, shape (N, 6)
+        Position [m] and velocity [m/s] in the gun's frame.
+    site : RadarSite
+
+    Returns
+    -------
+    ndarray of int
+        Their indices, increasing (empty when the angles are defined at every sample).
+    """
+    d = np.asarray(state, float)[..., :3] - np.asarray(site.position)
+    R = np.sqrt(_norm2(d))
+    rho = np.hypot(d[..., 0], d[..., 1])
+    return np.flatnonzero((R < MIN_ANGLE_RANGE) | (rho <= math.tan(VERTICAL_LINE_OF_SIGHT) * R))
 
 
 def _norm2(a):

@@ -87,10 +87,11 @@ from ..dynamics.trajectory import initial_state
 from ..effect_inputs import ExtraParam, SimInputs
 from ..errors import InputError
 from ..io.drag_tables import load_m101
-from ..measure import channel_values, site_of
+from ..measure import angle_blind_samples, channel_values, site_of
+from ..measure.geometry import MIN_ANGLE_RANGE, VERTICAL_LINE_OF_SIGHT
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
-from ..track import ALL_CHANNELS, MAX_FIT_SAMPLES, NATIVE_CHANNELS, RadarTrack
+from ..track import ALL_CHANNELS, ANGLE_CHANNELS, MAX_FIT_SAMPLES, NATIVE_CHANNELS, RadarTrack
 from ..estimate.scheme1.launch import launch_state_priors
 from ..estimate.cd.budget import LEVEL_SOURCES
 from ..estimate.model.layout import ParameterLayout
@@ -254,6 +255,39 @@ def _radar_times(t_imp, dt):
     the impact (as :meth:`PointMassModel.simulate` gives them with ``dt``)."""
     t = np.arange(0.0, t_imp, dt)
     return np.append(t, t_imp) if t_imp - t[-1] > 1e-9 else t
+
+
+def _check_line_of_sight(rc, chans, site, t, state, elevation_deg, velocity):
+    """Refuse angle channels from a site whose line of sight to the shell is undefined at a
+    planned sample (:func:`~bayesdrag.measure.geometry.angle_blind_samples`: a site at the muzzle,
+    or on the vertical of the line of fire): there the angles' sensitivities divide by zero,
+    which no planned case can hold.
+
+    Raises
+    ------
+    InputError
+        Naming the site, the case, the time and the geometry, and what to change.
+    """
+    angles = [c for c in chans if c in ANGLE_CHANNELS]
+    blind = angle_blind_samples(state, site) if angles else ()
+    if len(blind) == 0:
+        return
+    i = int(blind[0])
+    pos = [float(v) for v in rc.radar.position]
+    launch = " (the muzzle at launch)" if i == 0 else ""
+    R = float(np.linalg.norm(state[i, :3] - np.asarray(pos)))
+    if R < MIN_ANGLE_RANGE:
+        how = (f"is {R:.2g} m from it at t = {t[i]:.3g} s{launch}, nearer than {MIN_ANGLE_RANGE:g} m, where a "
+               f"radar has no angles" + (" (the site is the muzzle, the default when the round gives no [radar] "
+                                         "position)" if not any(pos) else ""))
+        fix = "give the radar's own site ([radar] position or --radar-sites)"
+    else:
+        where = "below" if state[i, 2] < pos[2] else "above"
+        how = (f"passes straight {where} it at t = {t[i]:.3g} s{launch}, its line of sight within "
+               f"{math.degrees(VERTICAL_LINE_OF_SIGHT):g} deg of the vertical, where the azimuth is undefined")
+        fix = "move the site off the vertical of the line of fire (a few metres aside)"
+    raise InputError(f"radar site {pos} m: QE {elevation_deg:g} deg, {velocity:g} m/s {how}: {' and '.join(angles)} "
+                     f"cannot be planned from there; {fix}, or plan range and range_rate only")
 
 
 def _outputs(state, chans, site):
@@ -595,7 +629,9 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     rc = case_round(rnd, elevation_deg, velocity)
     t, state, mach, t_imp = nominal_flight(rc, truth, dt, lock_on, loss)
     thinned = int(round((t[1] - t[0]) / dt))          # k > 1: every k-th radar sample (nominal_flight)
-    out = _outputs(state, chans, site_of(rc, chans))
+    site = site_of(rc, chans)
+    _check_line_of_sight(rc, chans, site, t, state, elevation_deg, velocity)
+    out = _outputs(state, chans, site)
     flat = [c for c in chans if c in NATIVE_CHANNELS
             and np.ptp(out[c]) <= 1e-12 * max(1.0, float(np.max(np.abs(out[c]))))]
     if len(flat) == len(chans):

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..round import SYSTEMATIC_SOURCES
 from ..errors import InputError
-from ..track import NATIVE_CHANNELS
+from ..track import ANGLE_CHANNELS, NATIVE_CHANNELS
 from .case import (ASSUMPTIONS, PLAN_MACH_STEP, PLAN_SOURCES, declared_sources, drag_assumption, plan_case,
                    radar_channels, site_round)
 
@@ -347,8 +347,15 @@ def _planned(n):
     return "the planned case" if n == 1 else f"the {n} planned cases"
 
 
-def _case_name(c):
-    return f"QE {c.elevation_deg:g}° at {c.velocity:g} m/s"
+def _case_name(c, sites=False):
+    """``QE 45° at 818 m/s``, with the radar's site when the plan compares sites."""
+    where = f" from {[float(f'{v:g}') for v in c.radar['position']]} m" if sites and c.radar is not None else ""
+    return f"QE {c.elevation_deg:g}° at {c.velocity:g} m/s{where}"
+
+
+def _sigma_text(sigma):
+    """The radar's noise in the round file's units: ``range 2 m, azimuth 0.03 deg``."""
+    return ", ".join(f"{c} {math.degrees(s):g} deg" if c in ANGLE_CHANNELS else f"{c} {s:g}" for c, s in sigma.items())
 
 
 def _pct(x):
@@ -362,13 +369,14 @@ def summary_paragraph(plan):
     for c in cs:
         rel = c.sd / c.cd
         k = int(np.argmin(rel))
-        parts.append(f"{_case_name(c)} flies Mach {c.mach_range[0]:.2f}-{c.mach_range[1]:.2f} and reaches "
-                     f"{_pct(rel[k])} at Mach {c.mach[k]:.2f} ({_pct(rel.max())} at worst)")
+        parts.append(f"{_case_name(c, bool(plan.radar_sites))} flies Mach {c.mach_range[0]:.2f}-"
+                     f"{c.mach_range[1]:.2f} and reaches {_pct(rel[k])} at Mach {c.mach[k]:.2f} "
+                     f"({_pct(rel.max())} at worst)")
     n = f"{plan.rounds} round{'s' if plan.rounds > 1 else ''} per case"
     if plan.scatter > 0:
         n += f" and a round-to-round scatter of Cd of {_pct(plan.scatter)}"
-    text = (f"Predicted relative sd of Cd with {n}, radar sigma "
-            f"{', '.join(f'{c} {s:g}' for c, s in plan.sigma.items())} every {plan.dt:g} s: " + "; ".join(parts) + ".")
+    text = (f"Predicted relative sd of Cd with {n}, radar sigma {_sigma_text(plan.sigma)} every {plan.dt:g} s: "
+            + "; ".join(parts) + ".")
     if plan.declared:
         floor = max(float(np.max(c.systematic / c.cd)) for c in cs)
         text += (f" The declared systematic sources ({', '.join(plan.declared)}) contribute up to {_pct(floor)}, "
@@ -384,7 +392,7 @@ def summary_paragraph(plan):
 def target_paragraph(plan):
     """The recommendation for ``plan.target`` in one paragraph."""
     b, cs, t = plan.best, plan.cases, plan.target
-    names = [_case_name(cs[i]) for i in b["cases"]]
+    names = [_case_name(cs[i], bool(plan.radar_sites)) for i in b["cases"]]
     rounds = f"{plan.rounds} round{'s' if plan.rounds > 1 else ''}" + (" each" if len(b["cases"]) > 1 else "")
     if b["mach_range"] is not None:
         lo, hi = b["mach_range"]
@@ -393,7 +401,7 @@ def target_paragraph(plan):
                 f"{_pct(b['worst_relative_sd'])}).")
         others = [i for i in range(len(cs)) if i not in b["cases"]]
         if others:
-            text += f" Adding {_join(_case_name(cs[i]) for i in others)} does not widen it."
+            text += f" Adding {_join(_case_name(cs[i], bool(plan.radar_sites)) for i in others)} does not widen it."
     else:
         who = f"no combination of {_planned(len(cs))} reaches" if len(cs) > 1 else "the planned case does not reach"
         text = (f"Target {100 * t:g} %: {who} it anywhere; the closest is {_pct(b['best_relative_sd'])} at Mach "

@@ -1,6 +1,11 @@
 """Figures of a sampling run: corner plot of chosen quantities and walker traces."""
 from __future__ import annotations
 
+import contextlib
+import logging
+import os
+import warnings
+
 import numpy as np
 
 from .common import Margins, fixed_figure, new_figure
@@ -38,9 +43,10 @@ def plot_corner(samples, truths=None, fig=None):
         dim = 1.0 + 2.0 * K + 2.0 * (K - 1) * 0.05 + 0.4
         fig = new_figure((dim, dim), layout=None)
         fig.subplots(K, K)
-    fig = corner.corner(X, labels=[_label(n) for n in names], truths=tv, fig=fig, quantiles=(0.05, 0.5, 0.95),
-                        show_titles=False, label_kwargs={"fontsize": CORNER_LABEL_PT}, max_n_ticks=3,
-                        labelpad=0.15)
+    with _quiet_corner():
+        fig = corner.corner(X, labels=[_label(n) for n in names], truths=tv, fig=fig, quantiles=(0.05, 0.5, 0.95),
+                            show_titles=False, label_kwargs={"fontsize": CORNER_LABEL_PT}, max_n_ticks=3,
+                            labelpad=0.15)
     K = len(names)
     axes = np.array(fig.axes).reshape(K, K)
     for i in range(K):   # no "+2.126e2" offsets, no tick labels touching the next panel
@@ -56,6 +62,43 @@ def plot_corner(samples, truths=None, fig=None):
         axes[i, i].set_title(f"{med:.5g} ± {sd:.2g}", fontsize=CORNER_TITLE_PT)
     fig.subplots_adjust(left=0.1, bottom=0.1, right=0.98, top=0.96, wspace=0.06, hspace=0.06)
     return fig
+
+
+class _CornerRecords(logging.Filter):
+    """Drops the log records corner itself makes (its module's file lies in corner's package)."""
+
+    def __init__(self, folder):
+        super().__init__()
+        self.folder = folder
+
+    def filter(self, record):
+        return not str(record.pathname).startswith(self.folder)
+
+
+@contextlib.contextmanager
+def _quiet_corner():
+    """Silence what corner says while it draws: it logs "Too few points to create valid contours"
+    through the root logger (``logging.warning``, which also installs a stderr handler on a
+    logger without one) when a quantity's draws are few or nearly constant, as on a short or
+    resumed chain; the figure is drawn all the same, and a run with ``-q`` must stay quiet. The
+    root logger gets a filter for corner's records and, while it has no handler, a null one;
+    matplotlib's contour warnings are ignored for the call."""
+    import corner
+
+    root = logging.getLogger()
+    quiet = _CornerRecords(os.path.dirname(os.path.abspath(corner.__file__)))
+    null = logging.NullHandler() if not root.handlers else None
+    root.addFilter(quiet)
+    if null is not None:
+        root.addHandler(null)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*contour.*", category=UserWarning)
+            yield
+    finally:
+        root.removeFilter(quiet)
+        if null is not None:
+            root.removeHandler(null)
 
 
 #: font sizes of the corner plot [pt]: a K = 8 plot is ~18 in wide and shown ~9 in wide in the
