@@ -317,6 +317,96 @@ HPA_SUSPECT = 2000.0
 #: (a wrong altitude, a pressure typed in the wrong row, mixed units).
 HYDROSTATIC_NOTE = 0.005
 HYDROSTATIC_ERROR = 0.03
+#: range of a level's pressure over the ICAO standard pressure at its altitude [-], checked on
+#: the levels below :data:`DATUM_CHECK_CEILING`. Real weather near the ground spans 0.86 (a
+#: typhoon's centre, 870 hPa) to 1.07 (the highest sea-level pressure recorded, 1085 hPa); a
+#: profile whose altitudes sit on another datum moves every level by exp(dz / 8 km): 1 km too
+#: high reads 1.13, 1 km too low 0.88 (a datum 600 m too low, 0.93, is inside real weather: the
+#: fit finds such air unlike the track's, and says so).
+DATUM_PRESSURE_RATIO = (0.85, 1.10)
+#: levels above this geometric altitude [m] are not checked against the standard pressure: the
+#: polar winter's stratosphere reads 0.75 of it at 20 km
+DATUM_CHECK_CEILING = 5000.0
+#: farthest the gun may lie below the lowest or above the highest level of a met profile [m]:
+#: the air there is the profile's end level carried on at the ICAO lapse rate, which a few
+#: hundred metres keep within real weather; beyond it the profile is another place's (or on
+#: another datum) and is refused
+GUN_OUTSIDE_LEVELS_MAX = 500.0
+
+
+#: default sd [m/s] of a met file's wind at any height, per component, where the round declares no
+#: ``[atmosphere] wind_sd``: a message's wind is a zone's mean in whole knots (0.15 m/s of
+#: rounding) of a sounding that the flight meets within its zone's spread and some minutes later;
+#: 1 m/s holds the flight's wind in 90 % bands (docs/fitting.md, "A met file's own error"). A
+#: message of another hour or place is known worse: declare wind_sd.
+MET_WIND_SD_DEFAULT = 1.0
+
+
+@dataclass(frozen=True)
+class MetError:
+    """What a met file states of its own error: the sds the round's air carries into the band
+    when the round declares none of its own (``[atmosphere] wind_sd``, ``temperature_sd``,
+    ``density_sd``).
+
+    Attributes
+    ----------
+    wind_sd : float or None, m/s
+        Per component, at any height (None: the file has no winds).
+    temperature_sd : float, K
+        Of the whole profile: the temperatures' resolution (a uniform rounding, resolution / sqrt 12).
+    density_sd : float, relative
+        Of the air density: the pressures' resolution over the pressure at the lowest level.
+    why : str
+        Where the numbers come from, in words (the report and ``uncertainty_budget`` say it).
+    """
+
+    wind_sd: float | None
+    temperature_sd: float
+    density_sd: float
+    why: str = ""
+
+
+def rounding_sd(resolution):
+    """sd of a value rounded to ``resolution`` (uniform over one step) [same unit]."""
+    return float(resolution) / math.sqrt(12.0)
+
+
+def _check_datum(za, pa, z):
+    """Refuse (ValueError) a level whose pressure is unlike any real weather's at its altitude
+    (:data:`DATUM_PRESSURE_RATIO`): the profile's altitudes are on another datum, or in other
+    units. ``za``, ``pa``: the levels' altitudes [m] and pressures [Pa]; ``z``: as given."""
+    low = za <= DATUM_CHECK_CEILING
+    if not np.any(low):
+        return
+    ratio = pa[low] / standard_atmosphere(za[low]).pressure
+    lo, hi = DATUM_PRESSURE_RATIO
+    bad = np.flatnonzero((ratio < lo) | (ratio > hi))
+    if bad.size:
+        i = int(bad[0])          # the lowest: nearest the gun, where the scale height is best known
+        dz = 8000.0 * math.log(ratio[i])      # the shift of datum that explains it, at an 8 km scale height
+        raise ValueError(
+            f"pressure {pa[low][i]:g} Pa at altitude {z[int(np.flatnonzero(low)[i])]:g} m is {ratio[i]:.3f} times the "
+            f"standard pressure there, beyond real weather ({lo:g}-{hi:g}); the altitudes look about "
+            f"{abs(dz):.0f} m too {'high' if dz > 0 else 'low'}: give them above mean sea level (a METCM's datum "
+            f"height is in tens of metres)")
+
+
+def _gun_outside(gun, za):
+    """A note when the gun at ``gun`` [m] lies outside the profile's levels ``za`` [m] by up to
+    :data:`GUN_OUTSIDE_LEVELS_MAX` (the air there extrapolated); ValueError beyond it; ``""``
+    inside."""
+    below, above = za[0] - gun, gun - za[-1]
+    off = max(below, above)
+    if off <= 0.0:
+        return ""
+    where = (f"below the profile's lowest level {za[0]:g} m" if below > 0
+             else f"above the profile's highest level {za[-1]:g} m")
+    if off > GUN_OUTSIDE_LEVELS_MAX:
+        raise ValueError(f"the gun at {gun:g} m above sea level ([launch] altitude) lies {off:.0f} m {where}; at "
+                         f"most {GUN_OUTSIDE_LEVELS_MAX:g} m is extrapolated: give levels down to the gun, or check "
+                         f"the profile's altitudes and the gun's (both above mean sea level)")
+    return (f"the gun at {gun:g} m lies {off:.0f} m {where}: the air there is the end level's carried on at the "
+            f"ICAO lapse rate")
 
 
 def _layer_integral(Ti, L, dH):
@@ -372,8 +462,9 @@ class MetProfile:
     wind_x, wind_y : tuple of float or None, m/s
         Wind components at the levels in the track frame (x downrange, y right, z up;
         docs/formats.md) (``wind_x`` > 0 tailwind, ``wind_y`` > 0 toward +y), or None; a missing
-        component is zero. They make :attr:`wind` (linear in altitude between levels), which the
-        point-mass kernel and its scipy reference fly.
+        component is zero. Constructor inputs only: they make :attr:`wind` (linear in altitude
+        between levels), which the point-mass kernel and its scipy reference fly, and are then
+        None on the value, so that the wind is held once.
     gun_altitude : float, m
         Geometric altitude of the gun above sea level; heights ``z`` are relative to it.
     temperature_offset, pressure_ratio, density_ratio : float
@@ -390,6 +481,10 @@ class MetProfile:
     notes : tuple of str
         Remarks found in validation (e.g. a layer slightly off hydrostatic balance); not part
         of equality.
+    stated_error : MetError or None
+        The file's own error (its resolution, and :data:`MET_WIND_SD_DEFAULT` for its winds), set
+        by the readers; the round carries it into the band where it declares no sd of its own.
+        Not part of equality.
 
     Raises
     ------
@@ -412,6 +507,7 @@ class MetProfile:
     source: str = field(default="", compare=False)
     zones: str = field(default="", compare=False)
     notes: tuple = field(default=(), compare=False)
+    stated_error: MetError | None = field(default=None, compare=False)
 
     def __post_init__(self):
         z = _float_tuple("altitude", self.altitude)
@@ -464,6 +560,7 @@ class MetProfile:
             i = int(np.argmax(dp >= 0)) + 1
             raise ValueError(f"pressure {p[i]:g} Pa at altitude {z[i]:g} m is not below the pressure "
                              f"{p[i - 1]:g} Pa of the level beneath; pressure must fall with altitude")
+        _check_datum(za, pa, z)
         winds = {}
         z_all = steps if steps is not None else z
         for name in ("wind_x", "wind_y"):
@@ -486,12 +583,14 @@ class MetProfile:
                 raise ValueError("give the profile's wind either per level (wind_x, wind_y) or as wind, not both")
             zero = (0.0,) * len(z_all)
             wind = WindProfile("altitude", z_all, winds["wind_x"] or zero, winds["wind_y"] or zero)
-            if steps is not None:  # per-level winds cannot hold a step: they live in ``wind``
-                winds = {"wind_x": None, "wind_y": None}
+            # one wind, held once: per-level winds beside the wind made of them were two states that
+            # a shifted copy (``dataclasses.replace``) could not hold both of
+            winds = {"wind_x": None, "wind_y": None}
         elif wind is not None and not isinstance(wind, WindProfile):
             raise ValueError(f"wind must be a WindProfile or None, got {type(wind).__name__}")
         _check_params(self.temperature_offset, self.pressure_ratio, self.density_ratio)
         _check_altitude(self.gun_altitude)
+        outside = _gun_outside(float(self.gun_altitude), za)
         for k, v in dict(altitude=z, temperature=T, pressure=p, **winds, wind=wind,
                          gun_altitude=float(self.gun_altitude),
                          temperature_offset=float(self.temperature_offset),
@@ -505,6 +604,8 @@ class MetProfile:
         J = _layer_integral(Ta[:-1], L, np.diff(H))
         resid = np.diff(np.log(pa)) + G0 / R_AIR * J  # measured minus hydrostatic ln-p drop
         notes = list(self.notes)
+        if outside and not any(n.startswith("the gun at ") for n in notes):
+            notes.append(outside)
         worst = int(np.argmax(np.abs(resid)))
         if abs(resid[worst]) > HYDROSTATIC_ERROR:
             raise ValueError(

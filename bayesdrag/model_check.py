@@ -16,7 +16,7 @@ from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
 
-__all__ = ["model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
+__all__ = ["air_contradiction", "air_measured", "own_table", "model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
            "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
@@ -52,6 +52,10 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             rec["diagnosis_failed"] = d["failed"]
     keep, skipped = plan_effects(verdict, rnd)
     rec["verdict"], rec["skipped"] = verdict, skipped
+    if "radar_position" in keep and not any(rnd.radar.position) and rnd.radar.position_sd is None:
+        # the site defaulted to the muzzle: the fitted site's own Cd shift cannot size what the
+        # wrong site did to every radar channel, so the reason says the site is missing instead
+        rec["site_not_given"] = True
     rec["conditional_air"] = [n for n in verdict if n in ("temperature", "density")]
     carried = tuple(f1.effects) if diagnose_effects else ()
     if carried:
@@ -479,12 +483,24 @@ def _part_problem(quality, rows, gap, part, words):
         quality["ok"] = False
 
 
+#: the reason a native track fitted from the default site (the muzzle) is not clean
+SITE_NOT_GIVEN = ("the round gives no [radar] position (the site defaults to the muzzle) but the track is not seen from "
+                  "there: every radar channel, and the Cd with them, may be off by more than the bands hold, which the "
+                  "fitted site's own Cd shift does not size")
+
+
 def note_model_error(gap, quality, grid, rows):
     """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do."""
     quality["model_error"] = gap
     me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
     ml = np.array([r["ml"] for r in rows], float)
-    if gap["effects"] and "effects" in gap["parts"]:
+    if gap.get("site_not_given"):
+        for r in rows:            # unsized, as an effect whose shift could not be sized: no row is claimed
+            r["determined"] = False
+        quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
+        quality["problems"].append(SITE_NOT_GIVEN)
+        quality["ok"] = False
+    if gap["effects"] and "effects" in gap["parts"] and not gap.get("site_not_given"):
         eff, them = ", ".join(gap["effects"]), "it" if len(gap["effects"]) == 1 else "them"
         quality["problems"].append(
             f"the diagnosis finds {eff} that the round does not declare: "
@@ -522,9 +538,11 @@ def note_model_error(gap, quality, grid, rows):
         quality["ok"] = False
     why = gap.get("diagnosis_skipped") or gap.get("diagnosis_failed")
     if why:
-        quality.setdefault("notes", []).append(
+        # a check that could not run cannot vouch for the answer: not clean, with the reason
+        quality["problems"].append(
             f"the model check could not run the diagnosis ({why}): the bands hold no model error for an undeclared "
-            f"effect")
+            f"effect, so no row's band is known to hold one")
+        quality["ok"] = False
     if gap["conditional_air"]:
         quality.setdefault("notes", []).append(
             f"the diagnosis finds air unlike the round's ({', '.join(gap['conditional_air'])}): Cd is conditional "
@@ -574,6 +592,42 @@ def air(f1, gap):
     return {"contradicted": contradicted, "undeclared": undeclared, "found": found, "line": line}
 
 
+def air_measured(rnd):
+    """True when the round's air was measured on the day (a met profile or message), so that a
+    track contradicting it is news rather than a confound."""
+    from .atmosphere import MetProfile
+
+    return isinstance(rnd.atmosphere, MetProfile)
+
+
+def own_table(rnd):
+    """True when the round's reference drag is the projectile's own table (a file the round names),
+    not absent: a table of another shell differs from the track in drag level by design."""
+    return rnd.projectile.reference_drag is not None and bool(rnd.projectile.reference_drag_path)
+
+
+def air_contradiction(rnd, air_record, quality):
+    """The one rule for air the track contradicts (docs/fitting.md, "Air the track contradicts"):
+    an implied air unlike the stated one makes the answer not clean only when the air was
+    measured (:func:`air_measured`) and the reference is the projectile's own table
+    (:func:`own_table`): then the met data or the table is wrong, and the Cd carries it. Otherwise
+    drag level and air are one signature the answer names, without blame (``air_record["line"]``).
+    Adds the problem line to ``quality`` and sets ``air_record["rule"]``."""
+    found = list(air_record.get("found") or []) + [c["source"] for c in air_record.get("contradicted") or []]
+    if not found:
+        air_record["rule"] = None
+        return
+    if air_measured(rnd) and own_table(rnd):
+        air_record["rule"] = "contradicted"      # measured air, the projectile's own table: not clean
+        quality["problems"].append(
+            f"the track contradicts the measured air (the diagnosis finds {', '.join(dict.fromkeys(found))} unlike the "
+            f"met profile's) although the reference is this projectile's own table: the met data (its datum, time "
+            f"or place) or the table is wrong, and Cd carries the difference")
+        quality["ok"] = False
+    else:
+        air_record["rule"] = "confound"          # air not measured, or another projectile's table: named
+
+
 #: an estimated noise sd below this [m or m/s] is no radar's: the track is (nearly) noise-free,
 #: and residuals above it are the simulator's or the integrator's, not a missed effect
 NOISE_FREE_SD = 1e-3
@@ -610,12 +664,23 @@ def why_not_clean(quality):
     if me.get("unsized"):
         return (f"the diagnosis finds {', '.join(me['unsized'])}, whose Cd shift could not be sized: no row is "
                 f"claimed; next: `bayesdrag diagnose TRACK ROUND -o DIR`")
+    if me.get("site_not_given"):
+        return SITE_NOT_GIVEN + "; next: give [radar] position (and position_sd)"
     if me.get("effects"):
         eff = ",".join(me["effects"])
         rel = 100 * me.get("effects_max_rel", 0.0)
         nxt = (f"`bayesdrag fit ... --with {eff}` fits it" if "effects_from" not in me else
                "`bayesdrag diagnose TRACK ROUND -o DIR` (the fit with it failed)")
         return f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); next: {nxt}"
+    air_rec = quality.get("air") or {}
+    if air_rec.get("rule") == "contradicted":
+        names = air_rec.get("found") or [c["source"] for c in air_rec.get("contradicted") or []]
+        return (f"the track contradicts the measured air ({', '.join(names)} unlike the met "
+                f"profile's); next: check the met data's datum, time and place (`bayesdrag diagnose TRACK ROUND -o "
+                f"DIR` writes the air the track implies as a met file)")
+    why = me.get("diagnosis_failed") or me.get("diagnosis_skipped")
+    if why:
+        return f"the model check could not run ({why}); next: `bayesdrag diagnose TRACK ROUND -o DIR`"
     chans = quality.get("channels") or {}
     bad = {c: f for c, f in chans.items()
            if f["chi2_per_sample"] > CHI2_LIMIT or (f["lag1"] > ACF_LIMIT and f["n"] > 20)}

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, fields
 from .drag import DRAG_MODEL_NAMES
 from .errors import InputError
 from .estimate.model.likelihood import LIKELIHOODS, STUDENT_T_NU
+from .round import RADAR_SITE_MAX
 from .track import ALL_CHANNELS, CHANNELS
 
 __all__ = ["FitOptions", "SimulateOptions", "DiagnoseOptions", "BatchOptions", "PlanOptions", "LIKELIHOODS", "MOVES",
@@ -373,8 +374,8 @@ PLAN_VELOCITY_MAX = 3000.0
 PLAN_SCATTER_MAX = 0.5
 #: most cases (elevations x velocities) one plan may hold
 PLAN_MAX_CASES = 64
-#: farthest candidate radar site from the gun [m]
-PLAN_SITE_MAX = 50_000.0
+#: farthest candidate radar site from the gun [m]: the radar's own limit
+PLAN_SITE_MAX = RADAR_SITE_MAX
 
 
 def _number_list(name, values, lo, hi, unit, lo_open=True):
@@ -444,7 +445,7 @@ class PlanOptions:
                 sites = tuple(tuple(float(v) for v in p) for p in self.radar_sites)
             except (TypeError, ValueError):
                 sites = None
-            if not sites or any(len(p) != 3 or not all(math.isfinite(v) and abs(v) <= PLAN_SITE_MAX for v in p)
+            if not sites or any(len(p) != 3 or not all(math.isfinite(v) for v in p) or math.hypot(*p) > PLAN_SITE_MAX
                                 for p in sites):
                 _bad("radar_sites", self.radar_sites,
                      f"give sites as x,y,z [m] in the gun frame, each within {PLAN_SITE_MAX:g} m (e.g. -40,25,2;0,-30,1)")

@@ -25,7 +25,7 @@ from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_
 from .estimate.scheme1.effect_sizes import effect_sizes
 from .estimate.scheme1.fit import fit_scheme1, noise_record
 from .estimate.scheme2 import fit_scheme2, windows_table
-from .model_check import (LEVEL_EFFECTS, air, alternative_error, clock_note, diagnosis_record, model_error, note_model_error,
+from .model_check import (LEVEL_EFFECTS, air, air_contradiction, alternative_error, clock_note, diagnosis_record, model_error, note_model_error,
                           why_not_clean)
 from .options import DiagnoseOptions, FitOptions
 from .results import DiagnosisResult, FitResult
@@ -176,6 +176,7 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
     if gap is not None:
         note_model_error(gap, quality, grid, rows)
     quality["air"] = air(f1, gap)
+    air_contradiction(rnd, quality["air"], quality)
     if dm.name != "spline":
         if ml_progress is not None:
             ml_progress("the flexible fit the rigid model is checked against")
@@ -184,6 +185,12 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         ml_progress.done()
     summary = _ml_summary(f1, rows, quality, lo, hi, opts)
     summary["uncertainty_budget"] = budget
+    stated = getattr(rnd.atmosphere, "stated_error", None)
+    if stated is not None and rnd.systematics.from_met_file:
+        # the sds the met file carried into the band, and why (docs/fitting.md)
+        budget["met_file"] = {"sources": list(rnd.systematics.from_met_file), "why": stated.why,
+                              "wind_sd": stated.wind_sd, "temperature_sd": float(f"{stated.temperature_sd:.4g}"),
+                              "density_sd": float(f"{stated.density_sd:.4g}")}
     if with_note is not None or "wind_profile" in f1.effects:
         if sizes is None:
             made = _effect_sizes_record(track, rnd, opts, chans, f1)

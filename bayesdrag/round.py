@@ -363,6 +363,9 @@ class Systematics:
         budget key ``wind_profile``. Stored on the round; the diagnosis takes it as the prior of
         a wind's level. (Not yet a source of :data:`SYSTEMATIC_SOURCES`: the fit adds it with
         ``--with wind_profile``.)
+    from_met_file : tuple of str
+        The stems whose sd is the round's met file's own error (its resolution, the default wind
+        sd: :meth:`with_met_error`), not a declaration of the round file.
     """
 
     mass: float | None = None
@@ -373,8 +376,10 @@ class Systematics:
     velocity_scale: float | None = None
     time_offset: float | None = None
     wind_profile: float | None = None
+    from_met_file: tuple = ()
 
     def __post_init__(self):
+        object.__setattr__(self, "from_met_file", tuple(self.from_met_file))
         wsd = number("wind_sd", self.wind_profile, "m/s", optional=True)
         if wsd is not None:
             wsd = positive("wind_sd", wsd, "m/s")
@@ -391,8 +396,22 @@ class Systematics:
                                      + (" (it is a fraction: 0.003 means 0.3 %)" if unit == "relative" else ""))
             object.__setattr__(self, stem, val)
 
+    def with_met_error(self, stated):
+        """These sds with the met file's own error (:class:`bayesdrag.atmosphere.MetError`, or
+        None) in the places the round left open: ``density``, ``temperature`` and
+        ``wind_profile`` (where the file has winds). The round's own declarations stand."""
+        if stated is None:
+            return self
+        fill = {"density": stated.density_sd, "temperature": stated.temperature_sd, "wind_profile": stated.wind_sd}
+        fill = {k: v for k, v in fill.items() if v is not None and v > 0 and getattr(self, k) is None}
+        if not fill:
+            return self
+        values = {k: getattr(self, k) for k in (*SYSTEMATIC_SOURCES, "wind_profile")}
+        return Systematics(**{**values, **fill}, from_met_file=tuple(self.from_met_file) + tuple(fill))
+
     def declared(self):
-        """The declared sources as ``{stem: sd}``, in :data:`SYSTEMATIC_SOURCES` order."""
+        """The declared sources as ``{stem: sd}``, in :data:`SYSTEMATIC_SOURCES` order (the met
+        file's stated error among them, :attr:`from_met_file`)."""
         return {k: getattr(self, k) for k in SYSTEMATIC_SOURCES if getattr(self, k) is not None}
 
     def undeclared(self):

@@ -290,11 +290,11 @@ def _checked_header(path, what, hline, header, required, allowed, header_check, 
     ``quote=False`` (a file another file names) a refusal says what is wrong, never what the line
     holds: such a file may be anything its author can read (a key, a password file)."""
     try:
-        names = _header(path, what, hline, header, required, allowed)
+        names = _header(path, what, hline, header, required, allowed, quote)
         if header_check is not None:
             header_check(path, hline, names)
-    except InputError:
-        if quote:
+    except InputError as exc:
+        if quote or getattr(exc, "content_free", False):
             raise
         need = f"the columns {','.join(required)}" if required else "column names"
         raise InputError(f"{path}: line {hline}: not a {what}: the first line that is not a comment must be a "
@@ -302,6 +302,13 @@ def _checked_header(path, what, hline, header, required, allowed, header_check, 
                          + (f" (allowed: {','.join(allowed)})" if allowed else "")
                          + "; the line is not shown") from None
     return names
+
+
+def _content_free(message):
+    """An InputError whose message holds nothing of the file (only the names the reader asks for)."""
+    exc = InputError(message)
+    exc.content_free = True
+    return exc
 
 
 def _parse_block(path, body, body_no, names, quote):
@@ -315,9 +322,9 @@ def _parse_block(path, body, body_no, names, quote):
         return _slow_parse(path, list(zip(body_no, body)), names, quote)
 
 
-def _header(path, what, hline, header, required, allowed):
-    """The column names of the header line, checked (a refusal may show the line: the caller
-    replaces it for a file another file names)."""
+def _header(path, what, hline, header, required, allowed, quote=True):
+    """The column names of the header line, checked. ``quote=False``: a refusal names only what
+    the reader asked for (the caller replaces any other by a line that shows nothing)."""
     names = [_clean_name(s) for s in header.split(",")]
     if all(_is_number(s) for s in names):
         raise InputError(f"{path}: line {hline}: {what} has no header row; found numbers "
@@ -344,6 +351,9 @@ def _header(path, what, hline, header, required, allowed):
         near = [f"{lower[m.lower()]!r}" for m in missing if m.lower() in lower]
         if near:
             hint = f" (column names are case-sensitive: found {', '.join(near)})"
+        if not quote:
+            raise _content_free(f"{path}: line {hline}: {what} needs column(s) {', '.join(required)}; missing "
+                                f"{', '.join(missing)}; the header is not shown")
         raise InputError(f"{path}: line {hline}: {what} needs column(s) {', '.join(required)}; "
                          f"missing {', '.join(missing)}; header has {', '.join(names)}{hint}")
     if allowed is not None:

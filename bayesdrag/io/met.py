@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atmosphere import Atmosphere, MetProfile
+from ..atmosphere import MET_WIND_SD_DEFAULT, Atmosphere, MetError, MetProfile, rounding_sd
 from ..wind import WindProfile
 from ..errors import InputError
 from .csv import read_bytes, read_table
@@ -32,16 +32,21 @@ __all__ = ["read_met_profile", "write_met_profile", "write_wind_profile", "met_f
 #: columns of a met profile CSV: required, then optional
 PROFILE_COLUMNS = ("altitude", "temperature", "pressure")
 PROFILE_OPTIONAL_COLUMNS = ("wind_x", "wind_y")
+#: most levels of a met CSV a fit flies: a denser sounding is thinned (:func:`_thinned`) [-]
+MAX_MET_LEVELS = 400
+#: closest spacing of the levels kept from a dense sounding [m]: a shell crosses it in a few
+#: hundredths of a second, and no fitted wind layer is finer
+MIN_LEVEL_SPACING = 10.0
 #: columns of a wind CSV by downrange distance
 WIND_COLUMNS = ("downrange", "wind_x", "wind_y")
-#: bytes read to tell the forms apart
-_SNIFF_BYTES = 64 << 10
 
 
 def met_file_kind(path):
     """``"metcm"``, ``"downrange"`` (a wind CSV by downrange distance) or ``"csv"`` (a met CSV by
     altitude), from the file's first line that is neither blank nor a comment."""
-    head = read_bytes(path, "met profile", _SNIFF_BYTES, head=True).decode("utf-8", "replace")
+    # up to the met profile's own size bound: a message may follow any length of comments, and a
+    # fixed sniffing window took a METCM after 64 kB of them for a met CSV
+    head = read_bytes(path, "met profile", head=True).decode("utf-8", "replace")
     if is_metcm(head):
         return "metcm"
     for ln in head.splitlines():
@@ -97,13 +102,61 @@ def read_met_profile(path, gun_altitude=0.0, *, azimuth_deg=None, zones=None, **
         path, "met profile", required=PROFILE_COLUMNS,
         allowed=PROFILE_COLUMNS + PROFILE_OPTIONAL_COLUMNS, quote=False)
     cols = {n: data[:, k] for k, n in enumerate(names)}
+    stated = _stated_error(cols)
+    cols, line_no, thin_note = _thinned(cols, line_no)
     try:
         return MetProfile(tuple(cols["altitude"]), tuple(cols["temperature"]), tuple(cols["pressure"]),
                           None if "wind_x" not in cols else tuple(cols["wind_x"]),
                           None if "wind_y" not in cols else tuple(cols["wind_y"]),
-                          gun_altitude=gun_altitude, source=str(Path(path)), **offsets)
+                          gun_altitude=gun_altitude, source=str(Path(path)), stated_error=stated,
+                          notes=(f"met profile {path}: {thin_note}",) if thin_note else (), **offsets)
     except ValueError as exc:
         raise InputError(f"{path}: {_where(exc, cols['altitude'], line_no)}{exc}") from None
+
+
+def _thinned(cols, line_no):
+    """A dense sounding's levels thinned to what a flight resolves: at most :data:`MAX_MET_LEVELS`
+    levels, none closer than :data:`MIN_LEVEL_SPACING` to the last kept, the first and last always
+    kept, a wind step's two rows together. The kept rows are the file's own (their pressures stay
+    hydrostatically consistent with each other). Returns ``(cols, line_no, note)``; the note is
+    "" when nothing was dropped."""
+    z = np.asarray(cols["altitude"], float)
+    n = z.size
+    if n <= MAX_MET_LEVELS:
+        return cols, line_no, ""
+    spacing = max(MIN_LEVEL_SPACING, (z[-1] - z[0]) / (MAX_MET_LEVELS - 2)) if z[-1] > z[0] else MIN_LEVEL_SPACING
+    keep = [0]
+    for i in range(1, n - 1):
+        if z[i] == z[keep[-1]] or z[i] - z[keep[-1]] >= spacing:
+            keep.append(i)      # a repeated altitude is a wind step: kept with its pair
+    keep.append(n - 1)
+    keep = np.array(sorted(set(keep)))
+    out = {k: np.asarray(v)[keep] for k, v in cols.items()}
+    return out, [line_no[i] for i in keep], (f"{n} levels thinned to {keep.size}, at least {spacing:.0f} m apart "
+                                              f"(what a flight resolves; the kept rows are the file's own)")
+
+
+def _resolution(values):
+    """The step a column's numbers were written to [its unit]: the finest last decimal they show
+    (a float's shortest repr is the decimal it was read from, less its trailing zeros, so one
+    level's 296.2 of a column written to 0.01 K does not make it 0.1 K)."""
+    def decimals(v):
+        mant = repr(float(v)).lower().split("e")
+        exp = int(mant[1]) if len(mant) > 1 else 0
+        frac = mant[0].split(".")[1] if "." in mant[0] else ""
+        return (0 if frac == "0" else len(frac)) - exp
+    return 10.0 ** -max(decimals(v) for v in values)
+
+
+def _stated_error(cols):
+    """A met CSV's own error (:class:`bayesdrag.atmosphere.MetError`): the resolution its
+    temperatures and pressures were written to, and the default wind sd where it has winds."""
+    has_wind = "wind_x" in cols or "wind_y" in cols
+    t_res, p_res = _resolution(cols["temperature"]), _resolution(cols["pressure"])
+    return MetError(wind_sd=MET_WIND_SD_DEFAULT if has_wind else None, temperature_sd=rounding_sd(t_res),
+                    density_sd=rounding_sd(p_res) / float(cols["pressure"][0]),
+                    why=(f"a met CSV: temperatures to {t_res:g} K, pressures to {p_res:g} Pa"
+                         + (f", winds to {MET_WIND_SD_DEFAULT:g} m/s by default" if has_wind else "")))
 
 
 def _where(exc, levels, line_no):

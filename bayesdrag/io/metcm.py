@@ -44,8 +44,8 @@ import re
 from importlib.resources import files
 from pathlib import Path
 
-from ..atmosphere import MAX_ALTITUDE, MetProfile
-from ..wind import WindProfile
+from ..atmosphere import MAX_ALTITUDE, MET_WIND_SD_DEFAULT, MetError, MetProfile, rounding_sd
+from ..wind import PROFILE_WIND_MAX, WindProfile
 from ..errors import InputError
 from .csv import read_table, read_text
 
@@ -55,6 +55,9 @@ __all__ = ["read_metcm", "read_metcm_zones", "is_metcm", "ZONES_FILE", "KNOT", "
 ZONES_FILE = "metcm_zones.csv"
 #: one knot [m/s]
 KNOT = 1852.0 / 3600.0
+#: a METCM's resolution: temperature in tenths of a kelvin [K], pressure in whole hPa [Pa]
+TEMPERATURE_RESOLUTION = 0.1
+PRESSURE_RESOLUTION = 100.0
 #: NATO mils in a full circle
 MILS_PER_CIRCLE = 6400.0
 #: largest difference [Pa] between the header's and line 00's pressure at the met datum plane
@@ -182,6 +185,9 @@ def read_metcm(path, azimuth_deg, zones=None, gun_altitude=0.0, **offsets):
                              f"mils of a circle (ddd is in tens of mils, 000-640)")
         if pres <= 0:
             raise InputError(f"{path}: line {ln}: pressure {pres:g} hPa must be > 0")
+        if speed * KNOT > PROFILE_WIND_MAX:
+            raise InputError(f"{path}: line {ln}: wind speed {speed} knots (FFF, in knots) is beyond the plausible "
+                             f"{PROFILE_WIND_MAX / KNOT:.0f} knots; check the zone line's digits")
         rows.append((zone, dmils, speed, temp, pres, ln))
     if mdp is None:
         raise InputError(f"{path}: no METCM header line ('METCM...') found")
@@ -218,9 +224,14 @@ def read_metcm(path, azimuth_deg, zones=None, gun_altitude=0.0, **offsets):
         wy.append(r[2] * KNOT * math.sin(to))
     try:
         wind = WindProfile.layered("altitude", edges, wx, wy) if layers else None
+        stated = MetError(wind_sd=MET_WIND_SD_DEFAULT if layers else None,
+                          temperature_sd=rounding_sd(TEMPERATURE_RESOLUTION),
+                          density_sd=rounding_sd(PRESSURE_RESOLUTION) / (rows[0][4] * 100.0),
+                          why=f"a METCM message: winds to {MET_WIND_SD_DEFAULT:g} m/s (whole knots, zone means), "
+                              f"temperatures in tenths of a kelvin, pressures in whole hPa")
         return MetProfile(tuple(mid), tuple(r[3] for r in rows), tuple(r[4] * 100.0 for r in rows),
                           gun_altitude=gun_altitude, wind=wind, source=str(path), notes=tuple(notes),
-                          zones="" if zones is None else str(zones), **offsets)
+                          zones="" if zones is None else str(zones), stated_error=stated, **offsets)
     except ValueError as exc:
         msg = str(exc)
         m = re.search(r"altitude (-?[0-9.e+]+) m", msg)

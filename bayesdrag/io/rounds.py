@@ -20,14 +20,16 @@ from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITI
                      SIGMA_BOUNDS, SYSTEMATIC_SOURCES, Launch, Projectile, Radar, Round, Systematics, sigma_bounds)
 from ..validate import number, positive, type_name
 from .csv import read_toml
-from .drag_tables import read_drag_table
+from .drag_tables import (STANDARD_DRAG_FUNCTIONS, is_standard_drag, read_drag_table, read_standard_drag,
+                          standard_drag_name)
 from .met import met_file_kind, read_met_profile, write_met_profile, write_wind_profile
 
 __all__ = ["read_round", "write_round", "round_files"]
 
 
 _SCHEMA = {
-    "projectile": {"name": "text", "mass": "kg", "diameter": "m", "reference_drag": "CSV path",
+    "projectile": {"name": "text", "mass": "kg", "diameter": "m",
+                   "reference_drag": "CSV path, or G1, G2, G5, G6, G7, G8, GI, GS",
                    "reference_extrapolate": "boolean", "mass_sd": "kg", "diameter_sd": "m"},
     "launch": {"elevation": "deg", "velocity": "m/s", "azimuth": "deg", "latitude": "deg",
                "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
@@ -198,7 +200,10 @@ def read_round(path: str | os.PathLike[str]) -> Round:
     optional):
 
     - ``[projectile]`` name, mass [kg], diameter [m], reference_drag (CSV ``mach,cd``, path
-      relative to the TOML file, read with :func:`bayesdrag.io.drag_tables.read_drag_table`)
+      relative to the TOML file, read with :func:`bayesdrag.io.drag_tables.read_drag_table`; or
+      the bare name of a standard drag function, ``"G1"``, ``"G2"``, ``"G5"``, ``"G6"``, ``"G7"``,
+      ``"G8"``, ``"GI"``, ``"GS"``, case-insensitive, read with
+      :func:`bayesdrag.io.drag_tables.read_standard_drag`; a file called ``G7`` is ``"./G7"``)
       and reference_extrapolate (boolean, default false: the table must reach the launch Mach,
       ``velocity`` over the speed of sound at the gun, to within :data:`REFERENCE_MACH_SLACK`;
       true holds Cd at the table's last value beyond it, e.g. for a published curve that
@@ -280,13 +285,19 @@ def read_round(path: str | os.PathLike[str]) -> Round:
     if "reference_drag" in pt:
         rel = pt["reference_drag"]
         if not isinstance(rel, str) or not rel.strip():
-            raise InputError(f"{path}: [projectile] reference_drag must be a CSV file path (string), "
-                             f"got {type_name(rel)}")
-        ref_path = Path(os.path.normpath(path.parent / rel))
+            raise InputError(f"{path}: [projectile] reference_drag must be a CSV file path or a standard drag "
+                             f"function ({', '.join(STANDARD_DRAG_FUNCTIONS)}), got {type_name(rel)}")
         try:
-            ref = read_drag_table(ref_path)
+            if is_standard_drag(rel):       # the bare name only: "G7.csv" or "./G7" is a file
+                ref = read_standard_drag(rel)
+            else:
+                ref_path = Path(os.path.normpath(path.parent / rel))
+                ref = read_drag_table(ref_path)
         except InputError as exc:
-            raise InputError(f"{path}: [projectile] reference_drag = {rel!r}: {exc}") from None
+            hint = ""
+            if ref_path is not None and not ref_path.exists() and Path(rel).name == rel and not Path(rel).suffix:
+                hint = f" (or name a standard drag function: {', '.join(STANDARD_DRAG_FUNCTIONS)})"
+            raise InputError(f"{path}: [projectile] reference_drag = {rel!r}: {exc}{hint}") from None
     projectile = build("projectile", lambda: Projectile(
         pt.get("name", path.stem), pt["mass"], pt["diameter"], ref,
         None if ref_path is None else str(ref_path), pt.get("reference_extrapolate", False) is True))
@@ -306,7 +317,8 @@ def read_round(path: str | os.PathLike[str]) -> Round:
         build(sec, lambda: Systematics(**{stem: sds[stem]}))
     wind_sd = tables["atmosphere"].get("wind_sd")
     build("atmosphere", lambda: Systematics(wind_profile=wind_sd))
-    systematics = Systematics(**sds, wind_profile=wind_sd)
+    # a met file carries its own error into the band where the round declares none (docs/fitting.md)
+    systematics = Systematics(**sds, wind_profile=wind_sd).with_met_error(getattr(atmosphere, "stated_error", None))
     return build("projectile", lambda: Round(projectile, launch, atmosphere, radar, str(path), systematics))
 
 
@@ -342,8 +354,9 @@ def round_files(path, rnd):
 def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = None) -> None:
     """Write a round as TOML that :func:`read_round` reads back to the same values.
 
-    ``reference_drag`` is written relative to the new file's directory. A reference table
-    without ``reference_drag_path`` is first written next to it as ``<stem>_reference_drag.csv``.
+    ``reference_drag`` is written relative to the new file's directory; a standard drag function
+    is written as its name (``"G7"``). Any other reference table without ``reference_drag_path``
+    is first written next to it as ``<stem>_reference_drag.csv``.
 
     Parameters
     ----------
@@ -355,7 +368,13 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
     path = Path(path)
     p, la, at = rnd.projectile, rnd.launch, rnd.atmosphere
     proj = {"name": p.name, "mass": p.mass, "diameter": p.diameter}
-    if p.reference_drag is not None or p.reference_drag_path is not None:
+    std = None if p.reference_drag_path is not None or p.reference_drag is None else \
+        standard_drag_name(p.reference_drag)
+    if std is not None:
+        proj["reference_drag"] = std
+        if p.reference_extrapolate:
+            proj["reference_extrapolate"] = True
+    elif p.reference_drag is not None or p.reference_drag_path is not None:
         ref = p.reference_drag_path
         if ref is None:
             ref = path.with_name(f"{path.stem}_reference_drag.csv")
@@ -408,9 +427,11 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
             radar[key] = math.degrees(val) if key in ("azimuth_bias_sd", "elevation_bias_sd") else val
     if radar:
         doc["radar"] = radar
+    from_file = rnd.systematics.from_met_file    # the met file states them again when it is read
     for stem, sd in rnd.systematics.declared().items():
-        doc.setdefault(SYSTEMATIC_SOURCES[stem][0], {})[f"{stem}_sd"] = float(sd)
-    if rnd.systematics.wind_profile is not None:
+        if stem not in from_file:
+            doc.setdefault(SYSTEMATIC_SOURCES[stem][0], {})[f"{stem}_sd"] = float(sd)
+    if rnd.systematics.wind_profile is not None and "wind_profile" not in from_file:
         doc["atmosphere"]["wind_sd"] = float(rnd.systematics.wind_profile)
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in str(comment).splitlines()) if comment else ""
     head += "# units: kg, m, deg, m/s, K\n"

@@ -271,8 +271,6 @@ sigma = {{range_rate = 0.1}}
 """
 
 
-@pytest.mark.xfail(strict=True, reason="the sentence is bayesdrag/model_check.py's (why_not_clean, note_model_error): "
-                                       "it must say that the site was not given instead of sizing the fitted site's shift")
 def test_a_native_track_without_its_site_does_not_understate(folder):
     """A Doppler radar 10 m behind the gun, the round without its site (the muzzle by default):
     the answer is not clean, and its reason must not size the missing site by the fitted site's own
