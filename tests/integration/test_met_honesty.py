@@ -183,3 +183,22 @@ def test_a_met_files_own_error_is_stated(tmp_path):
     rnd = read_round(M.write_round(tmp_path, M.write_met_csv(tmp_path, FILE_DT, wind=False)))
     err = rnd.atmosphere.stated_error
     assert err.wind_sd is None and err.temperature_sd == pytest.approx(0.01 / 12 ** 0.5)
+
+
+def test_a_metcms_own_error_is_in_the_band(tmp_path):
+    """Item 13: a head wind growing with height, fitted with the day's METCM and no wind_sd. The
+    band carries the message's winds (1 m/s), temperatures and pressures (its resolution), and
+    holds the truth (the slow suite, run_met_bands.py, measures its coverage)."""
+    def growing(alt):
+        h = min(max(alt - M.GUN_ALTITUDE, 0.0), 3000.0)
+        return (-2.0 - 10.0 * (1.0 - np.cos(np.pi * h / 3000.0)) / 2.0, 1.0)
+
+    t, pos, v, mach, cd = M.fly(growing, FILE_DT, qe=40.0, dt=FLIGHT_DT)
+    M.write_track(tmp_path, t, pos, v, np.random.default_rng(4))
+    rnd = read_round(M.write_round(tmp_path, M.write_metcm(tmp_path, growing, FILE_DT), qe=40.0))
+    res = bayesdrag.fit(read_track(tmp_path / "track.csv"), rnd, mcmc=False)
+    budget = res.to_dict()["uncertainty_budget"]
+    assert {"wind_profile", "density", "temperature"} <= set(budget["by_source"]), budget["by_source"].keys()
+    assert budget["met_file"]["sources"] == ["density", "temperature", "wind_profile"]
+    assert not set(budget["met_file"]["sources"]) & set(budget["conditional_on"])
+    assert not wrong_rows(res.cd, M.Truth(), keep=res.cd.determined)
