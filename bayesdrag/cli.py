@@ -288,6 +288,7 @@ def build_parser():
     f.add_argument("--allow-outside-inputs", action="store_true",
                    help="a campaign: read tracks, round files and tables outside the campaign file's folder")
     _add_columns(f)
+    _add_format(f)
     _add_quiet(f)
 
     b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
@@ -318,6 +319,7 @@ def build_parser():
     g.add_argument("--material-end-sd", type=_positive_float, default=None, metavar="N",
                    help="... or move the track's end by more than N noise sd (default 3)")
     _add_columns(g)
+    _add_format(g)
     _add_quiet(g)
 
     _add_plan_parser(sub)
@@ -348,6 +350,12 @@ def _add_columns(p):
     p.add_argument("--columns", type=_columns, default=None, metavar="t=NAME,v=NAME",
                    help="which header column holds t, x, y, z or v (e.g. t=time,v=velocity); without it the "
                         "names t, x, y, z, v and the aliases of docs/formats.md are read")
+
+
+def _add_format(p):
+    p.add_argument("--format", default="auto", metavar="NAME",
+                   help="the track file's format: auto (default: sniffed from the file), csv (bayesdrag's track "
+                        "CSV) or a device's export (labradar); docs/radar.md")
 
 
 def _add_quiet(p):
@@ -411,7 +419,7 @@ def cmd_fit(args):
     if args.channels is not None and args.round is not None:
         from .io.tracks import read_track
 
-        track = read_track(args.track, columns=args.columns)
+        track = read_track(args.track, columns=args.columns, format=args.format)
         ch = [c.strip() for c in args.channels.split(",") if c.strip()]
         bad = [c for c in ch if c not in track.names]
         if bad or not ch:
@@ -435,7 +443,7 @@ def cmd_fit(args):
     from .commands.fit import run_fit
 
     run_fit(args.track, args.round, args.output, opts, resume=args.resume, verbosity=args.quiet,
-            echo=_stdout(args), columns=args.columns)
+            echo=_stdout(args), columns=args.columns, track_format=args.format)
     return 0
 
 
@@ -465,7 +473,7 @@ def cmd_diagnose(args):
     if args.material_end_sd is not None:
         kw["material_end_sd"] = args.material_end_sd
     run_diagnose(args.track, args.round, args.output, DiagnoseOptions(**kw), quiet=args.quiet > 0,
-                 echo=_stdout(args), columns=args.columns)
+                 echo=_stdout(args), columns=args.columns, track_format=args.format)
     return 0
 
 

@@ -12,7 +12,8 @@ from ..track import thin_for_fit
 __all__ = ["run_diagnose"]
 
 
-def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None, columns=None):
+def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo=print, also=None, columns=None,
+                 track_format="auto"):
     """Read a track and a round, diagnose them, write ``DIR/diagnosis.json``, the figures and
     ``diagnosis.html`` as one consistent set (``manifest.json``; an earlier diagnosis's files
     moved to ``DIR/superseded/``; the folder checked and locked before the work).
@@ -29,7 +30,7 @@ def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo
     from ..io.tracks import read_track
     from .runs import output_run
 
-    track = thin_for_fit(read_track(track_path, columns=columns))
+    track = thin_for_fit(read_track(track_path, columns=columns, format=track_format))
     rnd = read_round(round_path)
     if not quiet:
         for note in track.notes:

@@ -24,7 +24,7 @@ def _echo_err(msg):
 
 
 def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print, run=None,
-            also=None, verbosity=None, columns=None):
+            also=None, verbosity=None, columns=None, track_format="auto"):
     """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
 
     Outputs: ``result.json``, ``report.html`` and figures; with sampling also
@@ -47,6 +47,8 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     columns : dict, optional
         ``{channel: header name}`` of the track file (``--columns``;
         :func:`bayesdrag.io.tracks.read_track`).
+    track_format : str
+        The track file's format (``--format``: ``"auto"`` sniffs it; :mod:`bayesdrag.io.formats`).
     run : OutputRun, optional
         An open run to write into (the demo's), instead of one of its own.
     also : callable, optional
@@ -64,7 +66,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     level = (2 if quiet else 0) if verbosity is None else int(verbosity)
     talk, warn = level == 0, level <= 1
     opts = options if options is not None else FitOptions()
-    track = thin_for_fit(read_track(track_path, columns=columns))
+    track = thin_for_fit(read_track(track_path, columns=columns, format=track_format))
     rnd = read_round(round_path)
     if talk:
         for note in track.notes:

@@ -8,6 +8,7 @@ The cases that would exhaust memory or block with an unguarded reader (``/dev/ze
 instead of stalling the machine."""
 import hashlib
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -335,3 +336,26 @@ def test_the_refusals_are_quick(tmp_path):
     with pytest.raises(InputError):
         bayesdrag.read_track(p)
     assert time.monotonic() - t0 < QUICK_S
+
+
+@real_data
+def test_fit_and_diagnose_take_a_labradar_export_and_format(tmp_path, capsys):
+    """``bayesdrag fit "Shot0001 Track.csv" ROUND`` reads the export directly (issue 50); ``--format``
+    names the reader, an unknown name exits 2 listing the valid ones."""
+    from bayesdrag.cli import main
+
+    shot = LABRADAR / "2020-2021" / "SR0047" / "TRK" / "Shot0001 Track.csv"
+    rnd = tmp_path / "r.toml"
+    rnd.write_text('[projectile]\nmass = 0.009201\ndiameter = 0.006706\nreference_drag = "G7"\n[launch]\n'
+                   'elevation = 0.0\nvelocity = 830.0\n[radar]\ndevice_offset = 0.3\nposition_sd = 0.3\n')
+    for fmt, code_want, pattern in (("nope", 2, r"unknown track format 'nope'; allowed: auto, csv, labradar"),
+                                    ("csv", 2, r"separated by ';'")):
+        capsys.readouterr()
+        code = main(["diagnose", str(shot), str(rnd), "-o", str(tmp_path / "d"), "--format", fmt])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == code_want and len(err) == 1 and re.search(pattern, err[0]), err
+    capsys.readouterr()
+    code = main(["fit", str(shot), str(rnd), "-o", str(tmp_path / "f"), "--no-mcmc", "--with", "none", "-qq",
+                 "--format", "labradar"])
+    assert code == 0, capsys.readouterr().err
+    assert (tmp_path / "f" / "result.json").exists()
