@@ -220,3 +220,64 @@ def test_commands_call_the_pipeline_not_the_estimators():
     bad = [f"{name}:{line} imports {mod}" for name, f in MODULES.items() if name.startswith("bayesdrag.commands")
            for mod, _, line in _imports(name, f) if mod.startswith("bayesdrag.estimate")]
     assert not bad, bad
+
+
+#: the effect library's names (bayesdrag.effects.EFFECTS), as literals
+def _effect_names():
+    from bayesdrag.effects import EFFECTS
+
+    return set(EFFECTS)
+
+
+#: modules that hold the effect concept (their literals of effect names are its own)
+EFFECT_MODULES = ("bayesdrag.effects", "bayesdrag.effect_inputs", "bayesdrag.wind_layers")
+#: literals of effect names compared or used as keys outside the effect concept
+#: (:func:`effect_name_literals`): 175 at 697b642, 181 with the met file's stated error (its sds
+#: filled by source stem) and the missing radar site's check (issue 44; two of them a met CSV's
+#: column name ``temperature``). A ratchet: it may only fall; issue 50 takes it to at most 10.
+EFFECT_NAME_LITERALS_MAX = 181
+
+
+def effect_name_literals():
+    """``[(module, line, name)]``: string literals equal to an effect's name that package code
+    outside :data:`EFFECT_MODULES` *compares or uses as a key*: an operand of a comparison or a
+    membership test (or an element of the tuple tested), a subscript's key, a dict literal's key,
+    or an element of a tuple, list or set of two or more effect names (the effect-name tuples).
+    Each one is code that tests an effect by its name instead of asking the effect. Run
+    ``python3 -c "import test_architecture as t; print(len(t.effect_name_literals()))"`` from
+    tests/unit for the count."""
+    names = _effect_names()
+    out = []
+    for name, f in MODULES.items():
+        if name.startswith(EFFECT_MODULES):
+            continue
+        tree = ast.parse(f.read_text(encoding="utf-8"))
+        parent = {id(c): n for n in ast.walk(tree) for c in ast.iter_child_nodes(n)}
+
+        def used_as_name(node):
+            up = parent.get(id(node))
+            if isinstance(up, ast.Compare):
+                return True
+            if isinstance(up, ast.Subscript) and up.slice is node:
+                return True
+            if isinstance(up, ast.Dict) and any(k is node for k in up.keys):
+                return True
+            if isinstance(up, (ast.Tuple, ast.List, ast.Set)):
+                if isinstance(parent.get(id(up)), ast.Compare):
+                    return True
+                peers = [e for e in up.elts if isinstance(e, ast.Constant) and e.value in names]
+                return len(peers) >= 2
+            return False
+
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Constant) and isinstance(n.value, str) and n.value in names and used_as_name(n):
+                out.append((name, n.lineno, n.value))
+    return out
+
+
+def test_effect_names_are_not_spread_as_literals():
+    found = effect_name_literals()
+    print(f"string literals of effect names outside the effect modules: {len(found)}")
+    assert len(found) <= EFFECT_NAME_LITERALS_MAX, (
+        f"{len(found)} literals of effect names outside {EFFECT_MODULES} (at most {EFFECT_NAME_LITERALS_MAX}): "
+        f"ask the Effect for its traits instead of testing its name; new ones: {found[-5:]}")
