@@ -33,10 +33,10 @@ __all__ = ["read_met_profile", "write_met_profile", "write_wind_profile", "met_f
 PROFILE_COLUMNS = ("altitude", "temperature", "pressure")
 PROFILE_OPTIONAL_COLUMNS = ("wind_x", "wind_y")
 #: most levels of a met CSV a fit flies: a denser sounding is thinned (:func:`_thinned`) [-]
-MAX_MET_LEVELS = 400
+MAX_MET_LEVELS = 100
 #: closest spacing of the levels kept from a dense sounding [m]: a shell crosses it in a few
 #: hundredths of a second, and no fitted wind layer is finer
-MIN_LEVEL_SPACING = 10.0
+MIN_LEVEL_SPACING = 25.0
 #: columns of a wind CSV by downrange distance
 WIND_COLUMNS = ("downrange", "wind_x", "wind_y")
 
