@@ -21,7 +21,7 @@ function that reads a written folder back into an equal value.
 Names are imported on first use (PEP 562), so ``import bayesdrag`` is fast and a script that
 only reads a track does not load the compiled kernel. Importing changes nothing outside the
 package: no environment variable, no folder; numba's settings are made where the kernel is first
-needed (:mod:`bayesdrag._numba_setup`).
+needed (:mod:`bayesdrag._runtime.numba_setup`).
 """
 from __future__ import annotations
 

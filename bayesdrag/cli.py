@@ -614,7 +614,7 @@ def _unexpected(exc):
         with contextlib.suppress(OSError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
-    from ._signals import caused_by_interrupt
+    from ._runtime.signals import caused_by_interrupt
 
     if caused_by_interrupt(exc):  # Ctrl-C inside compiled code (numba wraps it)
         print("bayesdrag: interrupted", file=sys.stderr)

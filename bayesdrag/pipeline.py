@@ -15,8 +15,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._beside import computed_beside, started_beside
-from ._threads import single_blas
+from ._runtime.beside import computed_beside, started_beside
+from ._runtime.threads import single_blas
 from .errors import FitError, InputError
 from .estimate.cd.headline import headline
 from .estimate.cd.model_error import add_in_squares, fold_into_budget
@@ -244,7 +244,7 @@ def _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)
 
 def _effect_sizes_record(track, rnd, opts, chans, f1):
     """The added effects' sizes (:func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes`)
-    and their ``seconds``, JSON-ready (for :func:`~bayesdrag._beside.computed_beside`)."""
+    and their ``seconds``, JSON-ready (for :func:`~bayesdrag._runtime.beside.computed_beside`)."""
     t0 = time.perf_counter()
     return {"sizes": effect_sizes(track, rnd, opts, chans, f1), "seconds": time.perf_counter() - t0}
 

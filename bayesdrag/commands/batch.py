@@ -308,7 +308,7 @@ class _Dask:
 
         from distributed import Client, LocalCluster, as_completed
 
-        from .._numba_setup import ensure
+        from .._runtime.numba_setup import ensure
 
         cluster = None
         # distributed logs every closed connection at INFO, also while the cluster shuts down

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._gc import paused_gc
-from .._numba_cache import compile_summary
+from .._runtime.garbage import paused_gc
+from .._runtime.numba_cache import compile_summary
 from ..errors import InputError
 from ..io.outputs import write_figure, write_json
 from .fit import run_fit

@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._threads import single_blas
+from .._runtime.threads import single_blas
 from ..effects import EFFECTS, check_radar_effects, radar_effect_missing
 from ..errors import FitError
 from ..track import NATIVE_CHANNELS

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._threads import single_blas
+from .._runtime.threads import single_blas
 from ..drag import Constant
 from ..dynamics.pointmass import PointMassModel
 from ..errors import InputError

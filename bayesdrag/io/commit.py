@@ -11,7 +11,7 @@ kernel's cache index), so a plan is carried out only when:
   ``superseded/<run>/<the same name>``, a staged file of *this plan's* staging folder in to the
   same name, or one name of ``DIR`` to another (the finished chain adopted);
 * it is signed (:func:`signature`, HMAC-SHA256) with the user's key kept in the private cache
-  folder (:func:`bayesdrag._user_cache.user_key`), bound to the folder's device and inode and to
+  folder (:func:`bayesdrag._runtime.user_cache.user_key`), bound to the folder's device and inode and to
   the staging folder's name: a plan written by someone else, or copied from another folder, does
   not verify. Where the user has no private folder, plans are unsigned and only their shapes and
   files are checked;

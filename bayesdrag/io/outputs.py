@@ -74,7 +74,7 @@ import time
 from fnmatch import fnmatch
 from pathlib import Path
 
-from .._user_cache import user_key
+from .._runtime.user_cache import user_key
 from ..errors import InputError, OutputError
 from .commit import (NAME_RE, PLAN, PLAN_FORMAT, STAGING_PREFIX, SUPERSEDED, check_signature, execute,
                      not_own_folder, plan_moves, safe_rel, signature)

@@ -80,7 +80,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._threads import single_blas
+from .._runtime.threads import single_blas
 from ..drag import ReferenceTable
 from ..dynamics.pointmass import PointMassModel
 from ..dynamics.trajectory import initial_state

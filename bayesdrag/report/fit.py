@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._gc import paused_gc
+from .._runtime.garbage import paused_gc
 from ..errors import MissingDataError
 from ..io.outputs import OutputRun, atomic_write, ensure_space, write_bytes, write_json
 from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,

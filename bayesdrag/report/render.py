@@ -13,8 +13,8 @@ import warnings
 from importlib.resources import files
 from pathlib import Path
 
-from .._beside import free_core
-from .._gc import paused_gc
+from .._runtime.beside import free_core
+from .._runtime.garbage import paused_gc
 from ..io.outputs import atomic_write, write_bytes
 
 __all__ = ["figure_png", "png_base64", "versions", "fmt", "render_report", "rendered_elsewhere"]
@@ -38,7 +38,7 @@ def rendered_elsewhere(jobs, out, *, meanwhile=None):
     nothing to draw). The ``with`` yields a dict that holds, once the body has finished,
     ``{file name: PNG bytes or None}``, each also written to ``out/<file name>``. The process
     is forked (it inherits the computed arrays: nothing is pickled or computed twice) only on
-    Linux when a core is free (:func:`bayesdrag._beside.free_core`), and the child only draws with matplotlib
+    Linux when a core is free (:func:`bayesdrag._runtime.beside.free_core`), and the child only draws with matplotlib
     (no compiled kernel, no threads). Without a fork, or when the child fails, the figures are
     drawn here after the body: the same files either way. ``meanwhile()``, when given, is
     called after the body if the child still draws (time this process would wait anyway).

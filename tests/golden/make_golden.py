@@ -121,7 +121,7 @@ def fit_cases_loaded(names, root=None):
 
 
 def _print(names):
-    from bayesdrag._numba_cache import compile_summary
+    from bayesdrag._runtime.numba_cache import compile_summary
 
     out = {name: fit_case(name) for name in names}
     out["_compiled"] = compile_summary()["compiled"]

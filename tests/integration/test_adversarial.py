@@ -514,7 +514,7 @@ def test_the_first_kernel_use_caches_in_the_private_folder(tmp_path, first):
     settings = json.loads(r.stdout.strip().splitlines()[-1])
     cache = tmp_path / "cache" / "bayesdrag" / "numba"
     assert settings["NUMBA_CACHE_DIR"] == str(cache) and settings["OMP_WAIT_POLICY"] == "PASSIVE"
-    assert settings["NUMBA_CACHE_LOCATOR_CLASSES"].split(",")[0] == "bayesdrag._numba_cache.PackageCacheLocator"
+    assert settings["NUMBA_CACHE_LOCATOR_CLASSES"].split(",")[0] == "bayesdrag._runtime.numba_cache.PackageCacheLocator"
     assert stat.S_IMODE(cache.stat().st_mode) == 0o700 and stat.S_IMODE(cache.parent.stat().st_mode) == 0o700
     assert [p for p in cache.rglob("colored.*.nbi")], _files_under(cache)
     assert not r.stderr.strip(), r.stderr

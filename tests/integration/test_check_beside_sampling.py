@@ -10,7 +10,7 @@ import sys
 import pytest
 
 import bayesdrag
-from bayesdrag import _beside
+from bayesdrag._runtime import beside as _beside
 from bayesdrag.options import FitOptions
 
 #: a forked process can run the check on this platform

@@ -14,8 +14,7 @@ MAX_FUNCTION_LINES = 150
 
 #: the layers, lowest first: a module may import only from its own layer or lower ones
 LAYERS = [
-    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._threads", "bayesdrag._signals", "bayesdrag._beside", "bayesdrag._gc", "bayesdrag._numba_cache",
-     "bayesdrag._numba_setup", "bayesdrag._user_cache"],
+    ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._runtime"],
     ["bayesdrag.wind", "bayesdrag.atmosphere", "bayesdrag.station_air", "bayesdrag.drag"],
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],

@@ -1,4 +1,4 @@
-"""Work computed in a forked process beside the caller (bayesdrag._beside): the same answer
+"""Work computed in a forked process beside the caller (bayesdrag._runtime.beside): the same answer
 forked or not, nothing lost when the child fails, the child killed when the caller fails."""
 import os
 import time
@@ -6,8 +6,8 @@ import time
 import numpy as np
 import pytest
 
-from bayesdrag import _beside
-from bayesdrag._beside import computed_beside, plain_json, started_beside
+from bayesdrag._runtime import beside as _beside
+from bayesdrag._runtime.beside import computed_beside, plain_json, started_beside
 
 forks = pytest.mark.skipif(not hasattr(os, "fork") or not os.sys.platform.startswith("linux"),
                            reason="fork on Linux only")

@@ -8,12 +8,12 @@ import pytest
 
 numba = pytest.importorskip("numba")
 
-from bayesdrag import _numba_cache  # noqa: E402
+from bayesdrag._runtime import numba_cache as _numba_cache  # noqa: E402
 from bayesdrag.dynamics import kernel  # noqa: E402
 
 
 def test_bayesdrag_registers_its_locator_first():
-    assert os.environ["NUMBA_CACHE_LOCATOR_CLASSES"].split(",")[0] == "bayesdrag._numba_cache.PackageCacheLocator"
+    assert os.environ["NUMBA_CACHE_LOCATOR_CLASSES"].split(",")[0] == "bayesdrag._runtime.numba_cache.PackageCacheLocator"
 
 
 def test_cache_folder_does_not_depend_on_the_install_folder(tmp_path, monkeypatch):

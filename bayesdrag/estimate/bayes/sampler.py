@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 import emcee
 import numpy as np
 
-from ..._threads import single_blas
-from ..._signals import deferred_interrupt
+from ..._runtime.threads import single_blas
+from ..._runtime.signals import deferred_interrupt
 from ...errors import InputError
 from ...io.chain import ChainFile
 from .chain_diagnostics import ess, integrated_time, split_rank_rhat, summarize

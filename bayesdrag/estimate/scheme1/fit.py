@@ -50,7 +50,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..._threads import single_blas
+from ..._runtime.threads import single_blas
 from ...drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default_spline_knots, make_drag_model
 from ...dynamics.pointmass import PointMassModel
 from ...dynamics.trajectory import initial_state

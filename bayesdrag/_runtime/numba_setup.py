@@ -8,7 +8,7 @@ only reads a track sets no variable and creates no folder.
 What it sets, each only when the user has not (a user's own value is respected):
 
 * ``NUMBA_CACHE_DIR``: the per-user private folder ``<user cache>/numba``
-  (:func:`bayesdrag._user_cache.user_cache_dir`). numba pickles its cache and loads it when a
+  (:func:`bayesdrag._runtime.user_cache.user_cache_dir`). numba pickles its cache and loads it when a
   function is compiled: the one file bayesdrag lets be unpickled, so it is kept where only the
   user can write, never beside the installed package (which other users may share) and never
   in an output folder. When that folder, or a ``NUMBA_CACHE_DIR`` the user set, is writable by
@@ -16,7 +16,7 @@ What it sets, each only when the user has not (a user's own value is respected):
   workers) compile into a fresh private temporary folder removed at exit, and one note on the
   ``bayesdrag`` logger says why.
 * ``NUMBA_CACHE_LOCATOR_CLASSES``: bayesdrag's locator first
-  (:class:`bayesdrag._numba_cache.PackageCacheLocator`: one cache per source, wherever it is
+  (:class:`bayesdrag._runtime.numba_cache.PackageCacheLocator`: one cache per source, wherever it is
   installed), then numba's own.
 * ``OMP_WAIT_POLICY=PASSIVE``: the kernel's threads sleep when idle instead of spinning. A
   sampler calls the kernel a few thousand times with 16-64 trajectories each; with spinning
@@ -38,11 +38,11 @@ import shutil
 import sys
 import tempfile
 
-from ._user_cache import checked_folder, user_cache_dir
+from .user_cache import checked_folder, user_cache_dir
 
 __all__ = ["ensure", "cache_note"]
 
-_LOCATOR = "bayesdrag._numba_cache.PackageCacheLocator"
+_LOCATOR = "bayesdrag._runtime.numba_cache.PackageCacheLocator"
 _NUMBA_LOCATORS = ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator",
                    "IPythonCacheLocator", "ZipCacheLocator")
 _state = {"done": False, "note": None}

@@ -17,7 +17,7 @@ import os
 from numba.core import caching, config
 
 #: the folder holding the ``bayesdrag`` package
-_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 _PKG = os.path.join(_ROOT, "bayesdrag")
 
 class PackageCacheLocator(caching.UserProvidedCacheLocator):
