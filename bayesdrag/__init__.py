@@ -45,8 +45,8 @@ _API = {
     "Projectile": "bayesdrag.round",
     "Launch": "bayesdrag.round",
     "Radar": "bayesdrag.round",
-    "Atmosphere": "bayesdrag.atmosphere",
-    "MetProfile": "bayesdrag.atmosphere",
+    "Atmosphere": "bayesdrag.air.atmosphere",
+    "MetProfile": "bayesdrag.air.atmosphere",
     "ReferenceTable": "bayesdrag.drag",
     # the work
     "fit": "bayesdrag.pipeline",
@@ -78,7 +78,7 @@ __all__ = sorted(_API) + ["__version__"]
 from typing import TYPE_CHECKING, Any  # noqa: E402  (here, beside the names it types)
 
 if TYPE_CHECKING:
-    from .atmosphere import Atmosphere, MetProfile
+    from .air.atmosphere import Atmosphere, MetProfile
     from .pipeline import diagnose
     from .pipeline import fit
     from .options import FitOptions, PlanOptions, SimulateOptions

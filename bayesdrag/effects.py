@@ -74,7 +74,7 @@ Decisions (and why):
   (:func:`drag_shape_free`). It needs a reference table: without one the diagnosis' nuisance
   spline *is* the drag shape.
 * ``wind_profile`` is horizontal wind in a few layers, each ``(wx_k, wy_k)`` constant over its
-  layer (steps spread over 100 m, :data:`bayesdrag.wind.WIND_STEP_WIDTH`), the layers either by
+  layer (steps spread over 100 m, :data:`bayesdrag.air.wind.WIND_STEP_WIDTH`), the layers either by
   height above the gun (met practice) or along the path by downrange distance (how small-arms
   tools and py-ballisticcalc zone winds). Neighbouring layers are tied by a random-walk prior
   (their difference has sd :data:`WIND_STEP_SD`), so a layer the data hardly see follows its
@@ -99,7 +99,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .atmosphere import Atmosphere
+from .air.atmosphere import Atmosphere
 from .drag import DragModel, ReferenceTable, Spline
 from .dynamics import kernel as K
 from .dynamics.forces import LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter

@@ -595,7 +595,7 @@ def air(f1, gap):
 def air_measured(rnd):
     """True when the round's air was measured on the day (a met profile or message), so that a
     track contradicting it is news rather than a confound."""
-    from .atmosphere import MetProfile
+    from .air.atmosphere import MetProfile
 
     return isinstance(rnd.atmosphere, MetProfile)
 

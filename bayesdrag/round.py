@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .atmosphere import Atmosphere
+from .air.atmosphere import Atmosphere
 from .drag import ReferenceTable
 from .track import ALL_CHANNELS, SAMPLE_SIGMA_FLOOR, UNITS
 from .validate import number, positive, type_name
@@ -397,7 +397,7 @@ class Systematics:
             object.__setattr__(self, stem, val)
 
     def with_met_error(self, stated):
-        """These sds with the met file's own error (:class:`bayesdrag.atmosphere.MetError`, or
+        """These sds with the met file's own error (:class:`bayesdrag.air.atmosphere.MetError`, or
         None) in the places the round left open: ``density``, ``temperature`` and
         ``wind_profile`` (where the file has winds). The round's own declarations stand."""
         if stated is None:

@@ -32,7 +32,7 @@ def _launch_or_fail(rnd, what):
 
 def _above_the_air(rnd, z, model):
     """Refuse a simulated flight that rises above the atmosphere model (32 km above sea level)."""
-    from .atmosphere import MAX_ALTITUDE
+    from .air.atmosphere import MAX_ALTITUDE
 
     top = float(np.max(z)) + rnd.atmosphere.gun_altitude if np.size(z) else 0.0
     if top > MAX_ALTITUDE - 1.0:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .wind import WindProfile
+from .air.wind import WindProfile
 
 __all__ = ["WindLayers", "WindProfileModel", "wind_profile_free", "path_layers", "equal_edges", "WIND_LAYERS_MAX",
            "WIND_STEP_SD",

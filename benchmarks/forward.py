@@ -91,8 +91,8 @@ def main(argv=None):
     # wind by height (6 layers of constant wind, steps spread over 100 m) and with a wind by
     # downrange distance, timed alike (one thread, CPU time, best of the repeats, interleaved
     # so that load on the shared machine hits all three)
-    from bayesdrag.atmosphere import Atmosphere
-    from bayesdrag.wind import WindProfile
+    from bayesdrag.air.atmosphere import Atmosphere
+    from bayesdrag.air.wind import WindProfile
 
     const = model.with_(wind=(-4.0, 3.0, 0.0))
     by_height = model.with_(atmosphere=Atmosphere(wind=WindProfile.layered(
@@ -172,11 +172,11 @@ def compile_cpu_seconds():
 def compile_child():
     """Compile the kernels a first demo uses (calm and with a wind table; batches of 16 and 1)
     and print the CPU seconds it took."""
-    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.air.atmosphere import Atmosphere
     from bayesdrag.dynamics.pointmass import PointMassModel
     from bayesdrag.dynamics.trajectory import initial_state
     from bayesdrag.io.drag_tables import load_m101
-    from bayesdrag.wind import WindProfile
+    from bayesdrag.air.wind import WindProfile
 
     calm = PointMassModel(42.6, 0.155, load_m101())
     windy = calm.with_(atmosphere=Atmosphere(wind=WindProfile.layered("altitude", (0.0, 500.0, 1000.0),

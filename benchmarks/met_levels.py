@@ -37,7 +37,7 @@ profile = "met.csv"
 
 def write_met(folder, n):
     """A met CSV of ``n`` levels from the gun (150 m) to 8 km: ICAO + 8 K, a wind growing with height."""
-    from bayesdrag.atmosphere import standard_atmosphere
+    from bayesdrag.air.atmosphere import standard_atmosphere
 
     z = np.linspace(150.0, 8000.0, n)
     s = standard_atmosphere(z, temperature_offset=8.0, gun_altitude=150.0)

@@ -27,8 +27,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..atmosphere import Atmosphere, MetProfile
-from ..wind import WindProfile
+from ..air.atmosphere import Atmosphere, MetProfile
+from ..air.wind import WindProfile
 
 __all__ = ["found_atmosphere", "LEVEL_STEP", "TOP_MARGIN", "AIR_EFFECTS"]
 

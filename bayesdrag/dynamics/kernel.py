@@ -32,7 +32,7 @@ Per-trajectory parameters live in the rows of ``par`` with the column layout ``P
 (``P_HAS_COR`` is not read: the Coriolis terms are always evaluated, branch-free).
 
 Wind: ``w = (P_WX, P_WY, P_WZ)`` plus, horizontally, the trajectory's wind table (a wind that
-changes along the flight, :class:`bayesdrag.wind.WindProfile`), linear on a uniform grid of the
+changes along the flight, :class:`bayesdrag.air.wind.WindProfile`), linear on a uniform grid of the
 coordinate ``s = x P_WIND_AX_X + z P_WIND_AX_Z`` (height, or downrange distance). The table is
 read at the second and fourth RK4 stages and at each output row; the third stage and the step's
 end take the wind along the cell's line read there (:func:`_wind_near`: they lie centimetres

@@ -45,10 +45,10 @@ import numba
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..atmosphere import G0, Atmosphere
+from ..air.atmosphere import G0, Atmosphere
 from ..drag import DragModel, MachGrid
 from ..errors import FitError
-from ..wind import same_shape, tables_at
+from ..air.wind import same_shape, tables_at
 from . import kernel as K
 from .forces import (LIFT_MACH_RISE, LIFT_MACH_SAT, LIFT_VERTICAL_FRACTION, LIFT_VERTICAL_MACH_SAT,
                      SPIN_DECAY, coriolis_matrix, lift_parameter)
@@ -91,7 +91,7 @@ class PointMassModel:
     wind : (3,) tuple, m/s
         Constant wind ``(wx, wy, wz)`` in the track frame (x downrange, y right, z up;
         docs/formats.md) (direction the air moves). It adds to the atmosphere's wind profile
-        (``atmosphere.wind``, a :class:`~bayesdrag.atmosphere.WindProfile` by height or by
+        (``atmosphere.wind``, a :class:`~bayesdrag.air.atmosphere.WindProfile` by height or by
         downrange distance), which the model flies when the atmosphere carries one.
     coriolis : (latitude_deg, azimuth_deg) or None
         Earth rotation on when given.

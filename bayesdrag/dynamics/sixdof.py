@@ -106,7 +106,7 @@ Aerodynamic data
 Numerics
 --------
 The right-hand side is compiled with numba (``cache=True``); the atmosphere is tabulated once
-per run on a 25 m height grid (:meth:`bayesdrag.atmosphere.Atmosphere.table`, relative error
+per run on a 25 m height grid (:meth:`bayesdrag.air.atmosphere.Atmosphere.table`, relative error
 < 1e-6) and ``C_D0`` is evaluated from the exact cubic-cell form of the PCHIP reference table
 (:meth:`bayesdrag.drag.ReferenceTable.kernel_table`), so the model's drag is the same function
 as ``load_m101().value``. The other coefficients are interpolated linearly between the table
@@ -123,7 +123,7 @@ import numpy as np
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from ..atmosphere import G0, MAX_ALTITUDE, MIN_ALTITUDE, Atmosphere
+from ..air.atmosphere import G0, MAX_ALTITUDE, MIN_ALTITUDE, Atmosphere
 from ..drag import MachGrid
 from .shell import MAX_VALID_YAW, Shell, default_spin_rate, gyroscopic_stability
 

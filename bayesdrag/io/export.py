@@ -75,7 +75,7 @@ def density_match(pbc_atmo, atmosphere):
     ----------
     pbc_atmo : py_ballisticcalc.Atmo
         The atmosphere the py-ballisticcalc shot will use (its ``density_ratio`` at the gun).
-    atmosphere : bayesdrag.atmosphere.Atmosphere or MetProfile
+    atmosphere : bayesdrag.air.atmosphere.Atmosphere or MetProfile
         bayesdrag's atmosphere of the round (heights relative to the gun).
 
     Returns

@@ -1,6 +1,6 @@
 """Met profile files: the air a round flew through, level by level, read into
-:class:`bayesdrag.atmosphere.MetProfile` (or, for a file of winds by downrange distance, an
-:class:`bayesdrag.atmosphere.Atmosphere` carrying that wind).
+:class:`bayesdrag.air.atmosphere.MetProfile` (or, for a file of winds by downrange distance, an
+:class:`bayesdrag.air.atmosphere.Atmosphere` carrying that wind).
 
 Three forms, told apart by the file's first line that is not a comment:
 
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atmosphere import MET_WIND_SD_DEFAULT, Atmosphere, MetError, MetProfile, rounding_sd
-from ..wind import WindProfile
+from ..air.atmosphere import MET_WIND_SD_DEFAULT, Atmosphere, MetError, MetProfile, rounding_sd
+from ..air.wind import WindProfile
 from ..errors import InputError
 from .csv import read_bytes, read_table
 from .metcm import is_metcm, read_metcm
@@ -149,7 +149,7 @@ def _resolution(values):
 
 
 def _stated_error(cols):
-    """A met CSV's own error (:class:`bayesdrag.atmosphere.MetError`): the resolution its
+    """A met CSV's own error (:class:`bayesdrag.air.atmosphere.MetError`): the resolution its
     temperatures and pressures were written to, and the default wind sd where it has winds."""
     has_wind = "wind_x" in cols or "wind_y" in cols
     t_res, p_res = _resolution(cols["temperature"]), _resolution(cols["pressure"])

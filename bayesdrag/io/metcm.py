@@ -1,5 +1,5 @@
 """Computer met messages (METCM text, NATO STANAG 4082), the met a range receives, read into a
-:class:`bayesdrag.atmosphere.MetProfile` whose winds are layers of constant wind by height.
+:class:`bayesdrag.air.atmosphere.MetProfile` whose winds are layers of constant wind by height.
 
 Format read (one message per file; blank lines and lines starting with ``#`` are skipped)::
 
@@ -44,8 +44,8 @@ import re
 from importlib.resources import files
 from pathlib import Path
 
-from ..atmosphere import MAX_ALTITUDE, MET_WIND_SD_DEFAULT, MetError, MetProfile, rounding_sd
-from ..wind import PROFILE_WIND_MAX, WindProfile
+from ..air.atmosphere import MAX_ALTITUDE, MET_WIND_SD_DEFAULT, MetError, MetProfile, rounding_sd
+from ..air.wind import PROFILE_WIND_MAX, WindProfile
 from ..errors import InputError
 from .csv import read_table, read_text
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import tomli_w
 
-from ..atmosphere import Atmosphere, MetProfile
+from ..air.atmosphere import Atmosphere, MetProfile
 from ..errors import InputError
 from ..track import ALL_CHANNELS, ANGLE_CHANNELS, FILE_UNITS
 from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD,

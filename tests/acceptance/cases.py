@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
@@ -142,7 +142,7 @@ def truth_track(case):
     if "shear" in p:
         return _shear_track(case, ref, atm)
     if "levels" in p:  # a wind by height (met practice) flown by the point mass, scipy reference
-        from bayesdrag.wind import WindProfile
+        from bayesdrag.air.wind import WindProfile
 
         prof = (WindProfile.layered("altitude", p["levels"], p["wx"], p["wy"]) if p.get("layered")
                 else WindProfile("altitude", p["levels"], p["wx"], p["wy"]))

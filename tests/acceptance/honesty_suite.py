@@ -238,7 +238,7 @@ def _layered_states(p, t_out=None):
     """Point mass in a wind interpolated in altitude (solve_ivp, DOP853): (t, states, airspeed)."""
     from scipy.integrate import solve_ivp
 
-    from bayesdrag.atmosphere import standard_atmosphere
+    from bayesdrag.air.atmosphere import standard_atmosphere
     from bayesdrag.dynamics.trajectory import initial_state
 
     sh = SHELLS[p["shell"]]
@@ -275,7 +275,7 @@ def _layered_states(p, t_out=None):
 
 def make(case):
     """(track, round, truth) of a case; ``truth`` has ``cd(mach)`` and the flown ``mach_span``."""
-    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.air.atmosphere import Atmosphere
 
     if case.kind == "withheld":
         c = case.withheld

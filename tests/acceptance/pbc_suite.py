@@ -44,7 +44,7 @@ of it. The truth is always the unscaled table: "a table 10 % off" is the *round'
 (``scaled:1.10`` = the truth table times 1.10) while the track is flown with the truth.
 
 The Mach span of a case is the air-relative speed of the truth trajectory at the *tracked* samples
-(after lock-on, before loss) over the ICAO speed of sound (``bayesdrag.atmosphere``) at the
+(after lock-on, before loss) over the ICAO speed of sound (``bayesdrag.air.atmosphere``) at the
 sample's height, min to max; the air speed is the ground speed when there is no wind and |dr/dt -
 w| otherwise (dr/dt from a cubic spline of the simulator's 0.02 s rows). The evaluation span is
 that span less ``SPAN_TRIM`` = 5 % of its width at each end.
@@ -504,7 +504,7 @@ def generate(case, folder):
     import tomli_w
     from scipy.interpolate import CubicSpline
 
-    from bayesdrag.atmosphere import standard_atmosphere
+    from bayesdrag.air.atmosphere import standard_atmosphere
 
     d = Path(folder) / case.name
     tj = d / "truth.json"

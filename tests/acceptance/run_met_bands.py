@@ -8,7 +8,7 @@ seen by a tracking radar (x, y, z every 0.05 s at 1 m, v at 0.3 m/s), and fitted
 met file as a user would have it -- a METCM message (zone means, whole knots, tens of mils,
 tenths of a kelvin, whole hPa) for even seeds, a met CSV at the message's six levels for odd
 ones -- and no ``wind_sd``: the round carries the file's stated error (its resolution and the
-default wind sd, bayesdrag.atmosphere.MET_WIND_SD_DEFAULT). Per wind profile, seeds 0..N-1.
+default wind sd, bayesdrag.air.atmosphere.MET_WIND_SD_DEFAULT). Per wind profile, seeds 0..N-1.
 
 Judged (DESIGN "How a fit is judged"): no determined row wrong (truth within +-0.01 Mach); the
 90 % total band (``ml +- 1.645 band_sd``) holds the true Cd at five fixed Mach points

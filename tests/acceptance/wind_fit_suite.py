@@ -121,7 +121,7 @@ def _reference(case):
 
 
 def _height_wind(case, factor=1.0):
-    from bayesdrag.wind import WindProfile
+    from bayesdrag.air.wind import WindProfile
 
     wx, wy = tuple(factor * v for v in case.wx), tuple(factor * v for v in case.wy)
     if case.layered:
@@ -131,7 +131,7 @@ def _height_wind(case, factor=1.0):
 
 def truth_track(case):
     """The noise-free track of a case (launch to impact, every :data:`DT` s)."""
-    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.air.atmosphere import Atmosphere
     from bayesdrag.dynamics.pointmass import PointMassModel
     from bayesdrag.dynamics.trajectory import initial_state
     from bayesdrag.track import RadarTrack
@@ -156,7 +156,7 @@ def truth_track(case):
 def round_of(case):
     """The round the fit sees: the right table, the launch, the radar noise; calm standard air
     unless the case states a (wrong) wind by height with its ``wind_sd``."""
-    from bayesdrag.atmosphere import Atmosphere
+    from bayesdrag.air.atmosphere import Atmosphere
     from bayesdrag.round import Launch, Projectile, Radar, Round, Systematics
 
     atm = Atmosphere(wind=_height_wind(case, case.stated)) if case.stated is not None else Atmosphere()

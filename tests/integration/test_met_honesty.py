@@ -140,7 +140,7 @@ def test_a_dense_sounding_is_thinned_to_what_a_flight_resolves(tmp_path):
     """Structural: whatever the file holds, at most MAX_MET_LEVELS levels are flown."""
     for n in (20_000, 200_000):
         z = np.linspace(150.0, 5000.0, n)
-        from bayesdrag.atmosphere import standard_atmosphere
+        from bayesdrag.air.atmosphere import standard_atmosphere
         s = standard_atmosphere(z, temperature_offset=FILE_DT, gun_altitude=150.0)
         body = "".join(f"{a:.2f},{b:.2f},{c:.1f},-3,1\n" for a, b, c in zip(z, s.temperature, s.pressure))
         (tmp_path / "met.csv").write_text("altitude,temperature,pressure,wind_x,wind_y\n" + body)
@@ -173,7 +173,7 @@ def test_a_metcm_wind_of_999_knots_is_refused_in_knots(tmp_path, capsys):
 def test_a_met_files_own_error_is_stated(tmp_path):
     """A METCM states its resolution and the default wind sd; a met CSV the resolution its
     numbers were written to."""
-    from bayesdrag.atmosphere import MET_WIND_SD_DEFAULT
+    from bayesdrag.air.atmosphere import MET_WIND_SD_DEFAULT
 
     rnd = read_round(M.write_round(tmp_path, M.write_metcm(tmp_path, M.linear_wind(), FILE_DT)))
     err = rnd.atmosphere.stated_error

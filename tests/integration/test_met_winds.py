@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.interpolate import PchipInterpolator
 
-from bayesdrag.atmosphere import standard_atmosphere
+from bayesdrag.air.atmosphere import standard_atmosphere
 from bayesdrag.cli import main
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.io.rounds import read_round, write_round

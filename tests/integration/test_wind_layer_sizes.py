@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 import bayesdrag
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.estimate.scheme1.winds import within_layer_sd
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round
-from bayesdrag.wind import WindProfile
+from bayesdrag.air.wind import WindProfile
 
 #: a layer's fitted wind lies within this many of its reported sd of the truth
 TOL_SD = 3.0

@@ -15,7 +15,8 @@ MAX_FUNCTION_LINES = 150
 #: the layers, lowest first: a module may import only from its own layer or lower ones
 LAYERS = [
     ["bayesdrag.errors", "bayesdrag.constants", "bayesdrag.validate", "bayesdrag._runtime"],
-    ["bayesdrag.wind", "bayesdrag.atmosphere", "bayesdrag.station_air", "bayesdrag.drag"],
+    # (bayesdrag.atmosphere, .wind, .station_air: deprecated re-exports of air/ until release 0.3)
+    ["bayesdrag.air", "bayesdrag.atmosphere", "bayesdrag.wind", "bayesdrag.station_air", "bayesdrag.drag"],
     ["bayesdrag.track", "bayesdrag.round"],
     ["bayesdrag.io"],
     ["bayesdrag.dynamics"],

@@ -7,7 +7,7 @@ ICAO value at geopotential 11 000 m (geometric 11 019 m).
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import (Atmosphere, geopotential_altitude, standard_atmosphere,
+from bayesdrag.air.atmosphere import (Atmosphere, geopotential_altitude, standard_atmosphere,
                                   R_EARTH)
 
 # relative tolerance against the published 5-significant-digit table values (half a unit in

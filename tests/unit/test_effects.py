@@ -2,13 +2,13 @@
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.effects import (DRAG_SHAPE_MAX, EFFECTS, K_YAW, EffectContext, ShapedTable, drag_shape_knots,
                                drag_shape_model, get_effect, level_free_offsets, simulate_with_effects)
-from bayesdrag.wind import WindProfile
+from bayesdrag.air.wind import WindProfile
 from bayesdrag.wind_layers import WIND_LAYERS_MAX, WindLayers
 
 V0, EL = 818.0, 30.0

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from bayesdrag.estimate.scheme1.winds import layer_free, wind_layer_priors
-from bayesdrag.wind import WindProfile
+from bayesdrag.air.wind import WindProfile
 from bayesdrag.wind_layers import PROFILE_LAYERS, WIND_STEP_SD, path_layers
 
 #: a layer edge is rounded to 10 m; its place is checked within this [m]

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from numba import njit
 
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.dynamics import kernel as K
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state, output_schedule
-from bayesdrag.wind import WindProfile
+from bayesdrag.air.wind import WindProfile
 
 
 def _kernel_function_ir(fn):

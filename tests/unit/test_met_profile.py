@@ -1,13 +1,13 @@
 """Tabulated meteorological profiles (``[atmosphere] profile = "met.csv"``).
 
-Reference: the ICAO standard atmosphere of :mod:`bayesdrag.atmosphere` (itself checked against
+Reference: the ICAO standard atmosphere of :mod:`bayesdrag.air.atmosphere` (itself checked against
 US76 tables in test_atmosphere.py): a profile sampled from it must reproduce it.
 """
 
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere, geopotential_altitude, MetProfile, R_AIR, R_EARTH, standard_atmosphere
+from bayesdrag.air.atmosphere import Atmosphere, geopotential_altitude, MetProfile, R_AIR, R_EARTH, standard_atmosphere
 from bayesdrag.io.met import read_met_profile, write_met_profile
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state

@@ -3,7 +3,7 @@ consistency, and an independent cross-check against py-ballisticcalc 3.x."""
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.drag import make_drag_model
 from bayesdrag.dynamics import kernel as K
 from bayesdrag.dynamics.forces import LIFT_REF_FRACTION, LIFT_VERTICAL_FRACTION, coriolis_matrix, lift_parameter
@@ -344,7 +344,7 @@ def test_vector_and_scalar_kernels_have_separate_disk_caches():
 def test_threads_split_blocks_without_changing_a_bit(B, m101):
     """The helper threads integrate disjoint blocks with the same code: 1, 2 and 3 threads give
     identical states and Mach numbers (calm and with a wind by height)."""
-    from bayesdrag.wind import WindProfile
+    from bayesdrag.air.wind import WindProfile
 
     base = PointMassModel(42.6, 0.155, m101)
     windy = base.with_(atmosphere=Atmosphere(wind=WindProfile.layered(

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from bayesdrag.atmosphere import G0, Atmosphere
+from bayesdrag.air.atmosphere import G0, Atmosphere
 from bayesdrag.dynamics.shell import Shell, gyroscopic_stability, linear_theory, m107_aero, table1_shell
 from bayesdrag.dynamics.sixdof import simulate_6dof
 

@@ -6,8 +6,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import R_AIR
-from bayesdrag.station_air import (StationAir, compressibility, enhancement_factor, humidity_density_ratio,
+from bayesdrag.air.atmosphere import R_AIR
+from bayesdrag.air.station import (StationAir, compressibility, enhancement_factor, humidity_density_ratio,
                                    moist_air_density, saturation_vapour_pressure, vapour_mole_fraction,
                                    virtual_temperature)
 

@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.dynamics.pointmass import atmosphere_table
 from bayesdrag.estimate.cd.budget import uncertainty_budget
 from bayesdrag.estimate.scheme1 import systematics as S

@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere
+from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.drag import ReferenceTable
 from bayesdrag.io.drag_tables import read_drag_table
 from bayesdrag.errors import InputError

@@ -1,10 +1,10 @@
-"""Wind profiles made and tabulated at once (bayesdrag.wind: ``WindProfile.layered_many``,
+"""Wind profiles made and tabulated at once (bayesdrag.air.wind: ``WindProfile.layered_many``,
 ``tables_at``; a fit's perturbed trajectories each fly their own profile) give the numbers the
 one-at-a-time path gives, bit for bit."""
 import numpy as np
 import pytest
 
-from bayesdrag.wind import WindProfile, same_shape, tables_at
+from bayesdrag.air.wind import WindProfile, same_shape, tables_at
 
 EDGES = (0.0, 400.0, 900.0, 2500.0, 6000.0)
 

@@ -3,8 +3,8 @@ distance, flown by the point-mass kernel and its scipy reference alike."""
 import numpy as np
 import pytest
 
-from bayesdrag.atmosphere import Atmosphere, MetProfile
-from bayesdrag.wind import WIND_STEP_WIDTH, WindProfile
+from bayesdrag.air.atmosphere import Atmosphere, MetProfile
+from bayesdrag.air.wind import WIND_STEP_WIDTH, WindProfile
 from bayesdrag.dynamics import kernel as K
 from bayesdrag.dynamics.pointmass import PointMassModel, wind_tables
 from bayesdrag.dynamics.trajectory import initial_state

@@ -300,7 +300,7 @@ def origin_offset(track, rnd, model, res, P, vals, start=None, sigma=None):
 def _density_offset(rnd, heights, dz):
     """Largest relative density difference between the fitted flight's ``heights`` [m] and the
     same heights moved by ``-dz`` (the heights above the muzzle)."""
-    from ...atmosphere import MAX_ALTITUDE, MIN_ALTITUDE
+    from ...air.atmosphere import MAX_ALTITUDE, MIN_ALTITUDE
 
     atm = rnd.atmosphere
     lo = MIN_ALTITUDE - atm.gun_altitude + 1.0

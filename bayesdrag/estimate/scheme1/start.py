@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...atmosphere import G0
+from ...air.atmosphere import G0
 from ...errors import InputError
 from ..model.noise import hf_noise_sd
 from .gcv_spline import gcv_smoothing_spline
