@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
+import math
 import os
 import sys
 from pathlib import Path
@@ -151,7 +152,7 @@ def _radar_sites(value):
             raise argparse.ArgumentTypeError(f"{value!r}: {part.strip()!r} is not a site; use x,y,z [m] in the gun "
                                              f"frame, sites separated by ';', the list quoted (e.g. "
                                              f"{RADAR_SITES_EXAMPLE})")
-        far = (xyz[0] ** 2 + xyz[1] ** 2 + xyz[2] ** 2) ** 0.5
+        far = math.hypot(*xyz)      # no overflow of a square (1e200 m is refused, not a crash)
         if far > RADAR_SITE_MAX:
             raise argparse.ArgumentTypeError(f"{value!r}: the site {part.strip()} is {far:.0f} m from the muzzle, more "
                                              f"than a radar's plausible {RADAR_SITE_MAX:g} m (x, y, z in metres in "

@@ -324,8 +324,8 @@ HYDROSTATIC_ERROR = 0.03
 #: high reads 1.13, 1 km too low 0.88 (a datum 600 m too low, 0.93, is inside real weather: the
 #: fit finds such air unlike the track's, and says so).
 DATUM_PRESSURE_RATIO = (0.85, 1.10)
-#: levels above this geometric altitude [m] are not checked against the standard pressure: the
-#: polar winter's stratosphere reads 0.75 of it at 20 km
+#: levels above this geometric altitude [m] are not checked against the standard pressure (the
+#: polar winter's stratosphere reads 0.75 of it at 20 km), but for the lowest level, the gun's
 DATUM_CHECK_CEILING = 5000.0
 #: farthest the gun may lie below the lowest or above the highest level of a met profile [m]:
 #: the air there is the profile's end level carried on at the ICAO lapse rate, which a few
@@ -376,8 +376,7 @@ def _check_datum(za, pa, z):
     (:data:`DATUM_PRESSURE_RATIO`): the profile's altitudes are on another datum, or in other
     units. ``za``, ``pa``: the levels' altitudes [m] and pressures [Pa]; ``z``: as given."""
     low = za <= DATUM_CHECK_CEILING
-    if not np.any(low):
-        return
+    low[0] = True       # the lowest level always: the gun is within GUN_OUTSIDE_LEVELS_MAX of it
     ratio = pa[low] / standard_atmosphere(za[low]).pressure
     lo, hi = DATUM_PRESSURE_RATIO
     bad = np.flatnonzero((ratio < lo) | (ratio > hi))
@@ -385,7 +384,7 @@ def _check_datum(za, pa, z):
         i = int(bad[0])          # the lowest: nearest the gun, where the scale height is best known
         dz = 8000.0 * math.log(ratio[i])      # the shift of datum that explains it, at an 8 km scale height
         raise ValueError(
-            f"pressure {pa[low][i]:g} Pa at altitude {z[int(np.flatnonzero(low)[i])]:g} m is {ratio[i]:.3f} times the "
+            f"pressure {pa[low][i]:g} Pa at altitude {z[int(np.flatnonzero(low)[i])]:g} m is {ratio[i]:.4g} times the "
             f"standard pressure there, beyond real weather ({lo:g}-{hi:g}); the altitudes look about "
             f"{abs(dz):.0f} m too {'high' if dz > 0 else 'low'}: give them above mean sea level (a METCM's datum "
             f"height is in tens of metres)")
@@ -402,7 +401,7 @@ def _gun_outside(gun, za):
     where = (f"below the profile's lowest level {za[0]:g} m" if below > 0
              else f"above the profile's highest level {za[-1]:g} m")
     if off > GUN_OUTSIDE_LEVELS_MAX:
-        raise ValueError(f"the gun at {gun:g} m above sea level ([launch] altitude) lies {off:.0f} m {where}; at "
+        raise ValueError(f"the gun at {gun:g} m above sea level ([launch] altitude) lies {off:.6g} m {where}; at "
                          f"most {GUN_OUTSIDE_LEVELS_MAX:g} m is extrapolated: give levels down to the gun, or check "
                          f"the profile's altitudes and the gun's (both above mean sea level)")
     return (f"the gun at {gun:g} m lies {off:.0f} m {where}: the air there is the end level's carried on at the "

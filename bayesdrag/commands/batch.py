@@ -450,15 +450,20 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None, left_out=
     a pooling input of this version, of this round, the file its fit wrote (with
     ``result.json``: the hashes in ``done.fit.json``) and in agreement with its ``result.json``
     is left out and reported in ``failed`` (:func:`_pooling_doc`), and appended to the list
-    ``left_out`` when one is given (the document's ``failed`` is lost when no round is left)."""
+    ``left_out`` when one is given (the document's ``failed`` is lost when no round is left). A
+    round whose fit is among ``failed`` (it failed in this run) is not pooled at all."""
     import numpy as np
 
     from ..campaign.pooling import campaign_json, pool_rounds
     from ..report.campaign import write_campaign_report
 
     inputs, failed = [], list(failed)
+    # a round whose fit failed in this run is not pooled from an earlier fit of other inputs
+    failed_now = {f["name"] for f in failed if f.get("job") in ("fit", "?")}
     for r in camp.rounds:
         p = Path(out) / r.name / POOLING
+        if r.name in failed_now:
+            continue
         if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
             try:
                 inputs.append(_pooling_doc(p, r.name))

@@ -14,6 +14,7 @@ Three forms, told apart by the file's first line that is not a comment:
 """
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -37,6 +38,10 @@ MAX_MET_LEVELS = 100
 #: closest spacing of the levels kept from a dense sounding [m]: a shell crosses it in a few
 #: hundredths of a second, and no fitted wind layer is finer
 MIN_LEVEL_SPACING = 25.0
+#: finest resolution a met CSV's numbers are taken to have, whatever digits they show: what a
+#: radiosonde's sensors resolve [K], [Pa] (a file written at full float precision claims 1e-14 K)
+TEMPERATURE_RESOLUTION_MIN = 0.01
+PRESSURE_RESOLUTION_MIN = 1.0
 #: columns of a wind CSV by downrange distance
 WIND_COLUMNS = ("downrange", "wind_x", "wind_y")
 
@@ -116,35 +121,46 @@ def read_met_profile(path, gun_altitude=0.0, *, azimuth_deg=None, zones=None, **
 
 def _thinned(cols, line_no):
     """A dense sounding's levels thinned to what a flight resolves: at most :data:`MAX_MET_LEVELS`
-    levels, none closer than :data:`MIN_LEVEL_SPACING` to the last kept, the first and last always
-    kept, a wind step's two rows together. The kept rows are the file's own (their pressures stay
-    hydrostatically consistent with each other). Returns ``(cols, line_no, note)``; the note is
-    "" when nothing was dropped."""
+    rows, the level nearest each of evenly spaced heights at least :data:`MIN_LEVEL_SPACING`
+    apart, the first and last always kept, a wind step's two rows together (and counted as two).
+    The kept rows are the file's own (their pressures stay hydrostatically consistent with each
+    other). Returns ``(cols, line_no, note)``; the note is "" when nothing was dropped."""
     z = np.asarray(cols["altitude"], float)
     n = z.size
     if n <= MAX_MET_LEVELS:
         return cols, line_no, ""
-    spacing = max(MIN_LEVEL_SPACING, (z[-1] - z[0]) / (MAX_MET_LEVELS - 2)) if z[-1] > z[0] else MIN_LEVEL_SPACING
-    keep = [0]
-    for i in range(1, n - 1):
-        if z[i] == z[keep[-1]] or z[i] - z[keep[-1]] >= spacing:
-            keep.append(i)      # a repeated altitude is a wind step: kept with its pair
-    keep.append(n - 1)
-    keep = np.array(sorted(set(keep)))
+    steps = np.flatnonzero(np.diff(z) == 0)           # row i and i + 1 are a wind step
+    budget = MAX_MET_LEVELS // 2 if steps.size else MAX_MET_LEVELS
+    span = float(z[-1] - z[0])
+    count = max(2, min(budget, int(span // MIN_LEVEL_SPACING) + 1))
+    targets = np.linspace(z[0], z[-1], count)
+    first = np.searchsorted(z, targets)               # the first row at or above each target
+    lower = np.clip(first - 1, 0, n - 1)
+    upper = np.clip(first, 0, n - 1)
+    pick = np.where(np.abs(z[lower] - targets) <= np.abs(z[upper] - targets), lower, upper)
+    keep = set(pick.tolist()) | {0, n - 1}
+    partner = {int(i): int(i) + 1 for i in steps} | {int(i) + 1: int(i) for i in steps}
+    keep |= {partner[i] for i in list(keep) if i in partner}
+    keep = np.array(sorted(keep))
     out = {k: np.asarray(v)[keep] for k, v in cols.items()}
-    return out, [line_no[i] for i in keep], (f"{n} levels thinned to {keep.size}, at least {spacing:.0f} m apart "
+    spacing = span / max(count - 1, 1)
+    return out, [line_no[i] for i in keep], (f"{n} levels thinned to {keep.size}, about {spacing:.0f} m apart "
                                               f"(what a flight resolves; the kept rows are the file's own)")
 
 
 def _resolution(values):
-    """The step a column's numbers were written to [its unit]: the finest last decimal they show
+    """The step a column's numbers were written to [its unit]: the finest last digit they show
     (a float's shortest repr is the decimal it was read from, less its trailing zeros, so one
-    level's 296.2 of a column written to 0.01 K does not make it 0.1 K)."""
+    level's 296.2 of a column written to 0.01 K does not make it 0.1 K; whole numbers that all end
+    in zeros were written to tens or hundreds, as 9.954e+04 Pa is to 10 Pa)."""
     def decimals(v):
         mant = repr(float(v)).lower().split("e")
         exp = int(mant[1]) if len(mant) > 1 else 0
-        frac = mant[0].split(".")[1] if "." in mant[0] else ""
-        return (0 if frac == "0" else len(frac)) - exp
+        whole, _, frac = mant[0].partition(".")
+        if frac in ("", "0"):       # a whole number: its trailing zeros are steps (9.954e+04 -> 10 Pa)
+            digits = whole.lstrip("-")
+            return -(len(digits) - len(digits.rstrip("0"))) - exp if digits.strip("0") else 0
+        return len(frac) - exp
     return 10.0 ** -max(decimals(v) for v in values)
 
 
@@ -152,9 +168,12 @@ def _stated_error(cols):
     """A met CSV's own error (:class:`bayesdrag.air.atmosphere.MetError`): the resolution its
     temperatures and pressures were written to, and the default wind sd where it has winds."""
     has_wind = "wind_x" in cols or "wind_y" in cols
-    t_res, p_res = _resolution(cols["temperature"]), _resolution(cols["pressure"])
+    t_res = max(_resolution(cols["temperature"]), TEMPERATURE_RESOLUTION_MIN)
+    p_res = max(_resolution(cols["pressure"]), PRESSURE_RESOLUTION_MIN)
+    p0 = float(cols["pressure"][0])
     return MetError(wind_sd=MET_WIND_SD_DEFAULT if has_wind else None, temperature_sd=rounding_sd(t_res),
-                    density_sd=rounding_sd(p_res) / float(cols["pressure"][0]),
+                    # a pressure that is no pressure is refused by MetProfile, naming its line
+                    density_sd=rounding_sd(p_res) / p0 if p0 > 0 and math.isfinite(p0) else 0.0,
                     why=(f"a met CSV: temperatures to {t_res:g} K, pressures to {p_res:g} Pa"
                          + (f", winds to {MET_WIND_SD_DEFAULT:g} m/s by default" if has_wind else "")))
 

@@ -187,7 +187,7 @@ def read_metcm(path, azimuth_deg, zones=None, gun_altitude=0.0, **offsets):
             raise InputError(f"{path}: line {ln}: pressure {pres:g} hPa must be > 0")
         if speed * KNOT > PROFILE_WIND_MAX:
             raise InputError(f"{path}: line {ln}: wind speed {speed} knots (FFF, in knots) is beyond the plausible "
-                             f"{PROFILE_WIND_MAX / KNOT:.0f} knots; check the zone line's digits")
+                             f"{PROFILE_WIND_MAX / KNOT:.1f} knots; check the zone line's digits")
         rows.append((zone, dmils, speed, temp, pres, ln))
     if mdp is None:
         raise InputError(f"{path}: no METCM header line ('METCM...') found")

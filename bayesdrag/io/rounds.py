@@ -287,6 +287,11 @@ def read_round(path: str | os.PathLike[str]) -> Round:
         if not isinstance(rel, str) or not rel.strip():
             raise InputError(f"{path}: [projectile] reference_drag must be a CSV file path or a standard drag "
                              f"function ({', '.join(STANDARD_DRAG_FUNCTIONS)}), got {type_name(rel)}")
+        if is_standard_drag(rel) and os.path.lexists(path.parent / rel):
+            # a file of that name beside the round: which one is meant is the user's to say
+            raise InputError(f"{path}: [projectile] reference_drag = {rel!r} names the standard drag function "
+                             f"{rel.upper()} and a file beside the round; write './{rel}' for the file, or rename it "
+                             f"to use the standard function")
         try:
             if is_standard_drag(rel):       # the bare name only: "G7.csv" or "./G7" is a file
                 ref = read_standard_drag(rel)

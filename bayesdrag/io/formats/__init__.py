@@ -205,7 +205,9 @@ def resolve(path: str | os.PathLike[str], format: str = AUTO) -> str:
     InputError
         An unknown format name (before the file is touched), or what :func:`detect` raises.
     """
-    name = format.strip().lower() if isinstance(format, str) else format
+    if not isinstance(format, str):        # a list or a dict is no name (and cannot be looked up)
+        raise InputError(_unknown(format, path))
+    name = format.strip().lower()
     if name == AUTO:
         return detect(path)
     if name == PLAIN or name in _REGISTRY:

@@ -302,8 +302,10 @@ def read_labradar(path: str | os.PathLike[str], *, keep_extrapolated: bool = Fal
         extra["snr"] = np.nan_to_num(snr, nan=0.0)
         if np.any(np.isnan(snr)):  # kept extrapolated rows are flagged, their SNR written as 0
             extra["extrapolated"] = np.isnan(snr).astype(float)
-    notes = [f"{path}: LabRadar track (device {meta.get('device id', '?')}, series {meta.get('series no', '?')}, "
-             f"shot {meta.get('shot no', '?')}): velocity from {units['vel'][1]} to m/s as the range rate from the "
+    # a file another file names is never quoted, not even its header's device, series and shot
+    which = (f" (device {meta.get('device id', '?')}, series {meta.get('series no', '?')}, shot "
+             f"{meta.get('shot no', '?')})") if quote else ""
+    notes = [f"{path}: LabRadar track{which}: velocity from {units['vel'][1]} to m/s as the range rate from the "
              f"device's site (give [radar] device_offset and position in the round)"
              + (f", distance from {units['dist'][1]} to m as extra column range_m" if "dist" in units else "")
              + (", time from ms to s" if units["time"][1] == "ms" else "")]
