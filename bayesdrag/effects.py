@@ -191,12 +191,31 @@ class Effect:
     units : tuple of str
     explanation : str
         One or two sentences of physics for the report.
+    acts_on : {"air", "drag", "flight", "measurement"}
+        What it changes: the air the shell flies through, its drag, its flight otherwise (forces
+        other than drag, Earth rotation), or only what the radar records.
+    drag_change : {None, "level", "shape", "partly"}
+        How it trades with the Cd a fit estimates: a constant factor on the drag (``"level"``: the
+        Cd level itself), a change of the drag's shape in Mach (``"shape"``), a part of it that
+        does (``"partly"``: a temperature's density part, a decaying yaw's early drag), or none.
+    source : str or None
+        The declared systematic source (round key stem ``<source>_sd``) that is the same quantity.
+    needs : tuple of str
+        What the round or the fit must give for the effect to be formed (``"latitude"``,
+        ``"reference"``: a firing table, ``"wind_layers"``, ``"radar_channels"``).
+    seen_by : {"all", "cross_range"}
+        The channels that see it (``"cross_range"``: only a drift across the line of fire).
     """
 
     name: str
     params: tuple
     units: tuple
     explanation: str
+    acts_on: str = "flight"
+    drag_change: str | None = None
+    source: str | None = None
+    needs: tuple = ()
+    seen_by: str = "all"
 
     @property
     def k(self):
@@ -298,62 +317,126 @@ def _make_effects():
         Effect("wind", (ExtraParam("wx", 0.0, -60.0, 60.0, 0.02), ExtraParam("wy", 0.0, -60.0, 60.0, 0.02)),
                ("m/s", "m/s"),
                "A constant horizontal wind changes the airspeed: a headwind (wx < 0) adds drag and "
-               "shortens the range, a crosswind (wy) drifts the shell downwind."),
+               "shortens the range, a crosswind (wy) drifts the shell downwind.", acts_on="air"),
         Effect("temperature", (ExtraParam("dT", 0.0, -60.0, 60.0, 0.05),), ("K",),
                "A warmer day (dT > 0) at the same pressure at the gun thins the air (less drag, "
-               "longer range) and raises the speed of sound, moving Cd(M) along the flight."),
+               "longer range) and raises the speed of sound, moving Cd(M) along the flight.",
+               acts_on="air", drag_change="partly", source="temperature"),
         Effect("density", (ExtraParam("ratio", 1.0, 0.5, 1.6, 1e-4),), ("-",),
                "Air density differs from the model's by a constant factor (pressure or humidity "
-               "error); drag scales with it, the speed of sound does not."),
+               "error); drag scales with it, the speed of sound does not.",
+               acts_on="air", drag_change="level", source="density"),
         Effect("coriolis", (), (),
                "Earth rotation: a Coriolis acceleration -2 Omega x v deflects the shell to the right "
-               "in the northern hemisphere and changes range with the firing azimuth."),
+               "in the northern hemisphere and changes range with the firing azimuth.", needs=("latitude",)),
         Effect("yaw_drag", (ExtraParam("yaw_amp", 0.0, -0.5, YAW_AMP_MAX, 1e-3),
                             ExtraParam("decay", 0.5, YAW_DECAY_MIN, 5.0, 1e-3)), ("rad", "1/s"),
                "A launch disturbance leaves the shell yawing; the yaw damps out but adds induced "
-               "drag Cd k delta^2 early in the flight, a range loss concentrated after launch."),
+               "drag Cd k delta^2 early in the flight, a range loss concentrated after launch.",
+               acts_on="drag", drag_change="partly"),
         Effect("lift", (ExtraParam("factor", 0.0, -10.0, 10.0, 0.01),), ("-",),
                "Lift on the yaw of repose of a spinning shell (modified point mass): a drift to the "
                "right for a right-hand twist, growing with time of flight, and a small rise from the "
-               "Magnus force on the same yaw; factor 1 is a typical shell."),
+               "Magnus force on the same yaw; factor 1 is a typical shell.", seen_by="cross_range"),
         Effect("radar_time", (ExtraParam("dt", 0.0, -0.2, 2.0, 1e-4),), ("s",),
                "The radar clock is late by dt: every sample shows the shell where it was dt later, "
-               "so the track does not start at the muzzle at t = 0."),
+               "so the track does not start at the muzzle at t = 0.", acts_on="measurement", source="time_offset"),
         Effect("drag_scale", (ExtraParam("factor", 1.0, 0.2, 5.0, 1e-4),), ("-",),
                "This shell's drag is a constant factor times the firing table (lot, fuze, driving "
-               "band or form differences); identical in its signature to a density ratio."),
+               "band or form differences); identical in its signature to a density ratio.",
+               acts_on="drag", drag_change="level"),
         Effect("wind_profile", tuple(ExtraParam(f"{c}_{k + 1}", 0.0, -60.0, 60.0, 0.02)
                                      for k in range(WIND_LAYERS_MAX) for c in ("wx", "wy")),
                ("m/s",) * (2 * WIND_LAYERS_MAX),
                "A horizontal wind that changes along the flight, in layers of constant wind by height "
                "or by downrange distance: a wind that turns from tail to head, or strengthens with "
-               "height, changes the airspeed differently in each part of the flight."),
+               "height, changes the airspeed differently in each part of the flight.",
+               acts_on="air", source="wind_profile", needs=("wind_layers",)),
         Effect("drag_shape", tuple(ExtraParam(f"s{i + 1}", 0.0, -DRAG_SHAPE_BOUND, DRAG_SHAPE_BOUND, 1e-4)
                                    for i in range(DRAG_SHAPE_MAX)),
                ("-",) * DRAG_SHAPE_MAX,
                "The firing table has the wrong shape for this shell (a table of another shell: its "
                "drag rise earlier, later, higher or lower): the table times a smooth correction in "
-               "Mach that carries no overall level (the level is drag_scale)."),
+               "Mach that carries no overall level (the level is drag_scale).",
+               acts_on="drag", drag_change="shape", needs=("reference",)),
         Effect("range_bias", (ExtraParam("bias", 0.0, -RANGE_BIAS_MAX, RANGE_BIAS_MAX, 0.01),), ("m",),
                "The radar's range is off by a constant (a calibration or cable delay): every range it "
-               "records is the true one plus the bias."),
+               "records is the true one plus the bias.", acts_on="measurement", source="range_bias",
+               needs=("radar_channels",)),
         Effect("azimuth_bias", (ExtraParam("bias", 0.0, -ANGLE_BIAS_MAX, ANGLE_BIAS_MAX, 1e-6),), ("rad",),
                "The radar's azimuth is off by a constant (its north alignment or encoder): the shell "
-               "appears turned sideways by the bias, more metres the further it flies."),
+               "appears turned sideways by the bias, more metres the further it flies.", acts_on="measurement",
+               source="azimuth_bias", needs=("radar_channels",)),
         Effect("elevation_bias", (ExtraParam("bias", 0.0, -ANGLE_BIAS_MAX, ANGLE_BIAS_MAX, 1e-6),), ("rad",),
                "The radar's elevation is off by a constant (levelling or boresight): the shell appears "
-               "higher or lower by the bias, more metres the further it flies."),
+               "higher or lower by the bias, more metres the further it flies.", acts_on="measurement",
+               source="elevation_bias", needs=("radar_channels",)),
         Effect("radar_position", tuple(ExtraParam(c, 0.0, -SITE_OFFSET_MAX, SITE_OFFSET_MAX, 0.01) for c in "xyz"),
                ("m", "m", "m"),
                "The radar stands elsewhere than the round says (x downrange, y right, z up of its "
                "stated site): its range, angles and range rate are seen from another place, which "
-               "the track shows as a start away from the muzzle and lines of sight that turn wrongly."),
+               "the track shows as a start away from the muzzle and lines of sight that turn wrongly.",
+               acts_on="measurement", source="radar_position", needs=("radar_channels",)),
     ]
     return {e.name: e for e in E}
 
 
 #: the effect library by name (the order of diagnosis.json)
 EFFECTS = _make_effects()
+
+
+def effects_where(test):
+    """Names of the library's effects for which ``test(effect)`` holds, in the library's order:
+    the one way code outside this module asks which effects share a trait, instead of keeping a
+    tuple of their names."""
+    return tuple(n for n, e in EFFECTS.items() if test(e))
+
+
+def confounded_with_cd():
+    """Effects that *are* Cd when fitted beside it without a declared sd: a constant factor on
+    the drag or a change of its shape (``density``, ``drag_scale``, ``drag_shape``)."""
+    return effects_where(lambda e: e.drag_change in ("level", "shape"))
+
+
+def partly_trading_with_cd():
+    """Effects fitted beside Cd of which a part trades with it (``temperature``, ``yaw_drag``)."""
+    return effects_where(lambda e: e.drag_change == "partly")
+
+
+def air_effects():
+    """Effects on the air the shell flies through (``wind``, ``wind_profile``, ``temperature``,
+    ``density``)."""
+    return effects_where(lambda e: e.acts_on == "air")
+
+
+def wind_effects():
+    """The winds: air effects that leave the drag law alone (``wind``, ``wind_profile``)."""
+    return effects_where(lambda e: e.acts_on == "air" and e.drag_change is None)
+
+
+def drag_along_the_flight():
+    """Effects that change the drag along the whole flight as a wind changing along it does
+    (``temperature``, ``density``, ``drag_scale``, ``drag_shape``): a wind profile's partners in
+    trade."""
+    return effects_where(lambda e: e.drag_change in ("level", "shape")
+                         or (e.drag_change == "partly" and e.acts_on == "air"))
+
+
+def not_alternatives():
+    """Effects that never stand as a close alternative to a verdict (their shift is Cd's own or
+    is sized apart): those partly trading with Cd and the air's level (``temperature``,
+    ``density``, ``yaw_drag``)."""
+    return effects_where(lambda e: e.drag_change == "partly" or (e.acts_on == "air" and e.drag_change == "level"))
+
+
+def cross_range_effects():
+    """Effects only a drift across the line of fire shows (``lift``)."""
+    return effects_where(lambda e: e.seen_by == "cross_range")
+
+
+def effect_sources(stems):
+    """``{effect: source stem}`` of the effects that are a declared source among ``stems``."""
+    return {n: e.source for n, e in EFFECTS.items() if e.source in stems}
 
 
 def get_effect(name):
