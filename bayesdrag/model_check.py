@@ -15,6 +15,7 @@ from .estimate.cd.model_error import add_in_squares, check_sd, combine, describe
 from .estimate.cd.quality import assess
 from .estimate.cd.table import cd_table, model_error_floor
 from .estimate.scheme1.fit import fit_scheme1
+from .effects import not_alternatives, partly_trading_with_cd
 
 __all__ = ["air_contradiction", "air_measured", "own_table", "model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
            "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
@@ -161,7 +162,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
 ALTERNATIVE_GAP_RATIO = 1.5
 #: effects never taken as an alternative: the air (its Cd is conditional on the stated air, said
 #: apart) and those that trade with the Cd level (LEVEL_EFFECTS: sized by the diagnosis, level_shift)
-NOT_ALTERNATIVES = ("temperature", "density", "yaw_drag")
+NOT_ALTERNATIVES = not_alternatives()
 
 
 #: a yaw fit that stands for a launch yaw: its decay above this many times the slowest allowed
@@ -343,7 +344,7 @@ def gross_outliers(track, f1, sigma=None):
 #: factor on the drag, and the induced drag of a decaying yaw is a change of the drag's shape over
 #: the Mach numbers flown first (measured on the honesty suite's yaw flight: the fit with it
 #: moved Cd by 3 % where the yaw had moved it by 12 %)
-LEVEL_EFFECTS = ("temperature", "yaw_drag")
+LEVEL_EFFECTS = partly_trading_with_cd()
 
 
 def level_shift(grid, ml, profiles, names):

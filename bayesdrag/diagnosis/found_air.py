@@ -29,6 +29,7 @@ import numpy as np
 
 from ..air.atmosphere import Atmosphere, MetProfile
 from ..air.wind import WindProfile
+from ..effects import air_effects
 
 __all__ = ["found_atmosphere", "LEVEL_STEP", "TOP_MARGIN", "AIR_EFFECTS"]
 
@@ -37,7 +38,7 @@ LEVEL_STEP = 250.0
 #: the met file reaches this far above the flight's highest point [m]
 TOP_MARGIN = 1000.0
 #: verdict effects that change the air (a met file is written when one of them is found)
-AIR_EFFECTS = ("wind", "wind_profile", "temperature", "density")
+AIR_EFFECTS = air_effects()
 
 
 def _values(row):

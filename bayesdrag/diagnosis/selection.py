@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.stats import chi2 as _chi2
 
-from ..effects import EFFECTS
+from ..effects import confounded_with_cd, EFFECTS
 from ..errors import FitError
 from ..estimate.model.layout import ParameterLayout
 from .setup import fit_effects, fit_starts, k_free, noise_floor
@@ -50,7 +50,7 @@ LOOKAHEAD_STARTS = 3
 FORWARD_MAX_CANDIDATES = 7
 #: the effects that are a drag (table) error or cannot be told from one: a table of another
 #: shell is described by these; anything else beside it is judged against a fitted Cd
-DRAG_EFFECTS = ("density", "drag_scale", "drag_shape")
+DRAG_EFFECTS = confounded_with_cd()
 
 
 def select_effects(setup, rows, fits, gap, sig_vec, alpha, K):

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..effects import EffectContext, drag_shape_free, drag_shape_model, effect_fn, extra_params, static_model
+from ..effects import cross_range_effects, EffectContext, drag_shape_free, drag_shape_model, effect_fn, extra_params, static_model
 from ..estimate.scheme1.winds import layer_free
 from ..wind_layers import wind_profile_free
 from .winds import rw_information, rw_priors
@@ -411,7 +411,7 @@ def extra_free(setup, name):
 #: effects whose signature at their null value is all cross-range: without a channel that sees
 #: the shell's sideways position they cannot be fitted (the lift's vertical part is even in its
 #: factor, so at factor 0 it has no gradient either)
-CROSS_RANGE_EFFECTS = ("lift",)
+CROSS_RANGE_EFFECTS = cross_range_effects()
 
 
 def unseen_effects(setup, candidates=None):

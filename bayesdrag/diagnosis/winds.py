@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..effects import EFFECTS
+from ..effects import drag_along_the_flight, wind_effects, EFFECTS
 from ..errors import FitError
 from ..estimate.scheme1.winds import at_fit_resolution, layers_over, wind_layer_priors
 from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD
@@ -38,10 +38,10 @@ __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_infor
            "refined_start"]
 
 #: the wind models, simplest first: the evidence chooses one of them to stand for the wind
-WIND_FAMILY = ("wind", "wind_profile")
+WIND_FAMILY = wind_effects()
 #: effects whose signature trades against a wind that changes along the flight (an along-range
 #: wind changes the drag along the flight as warmer or thinner air does)
-TRADE_PARTNERS = ("temperature", "density", "drag_scale", "drag_shape")
+TRADE_PARTNERS = drag_along_the_flight()
 #: two effects fitted together are separated when each one's size alone is at least this many of
 #: its sd in their joint fit (the joint fit can tell "all of the signature is this effect" from
 #: "none of it is"); otherwise the verdict reports the pair as one the data cannot separate

@@ -60,6 +60,8 @@ import numpy as np
 from ...dynamics import kernel as K
 from ...dynamics.pointmass import atmosphere_table
 from ...effect_inputs import ExtraParam, SimInputs
+from ...effects import confounded_with_cd, effect_sources, partly_trading_with_cd
+from ...round import SYSTEMATIC_SOURCES
 from ...track import NATIVE_CHANNELS
 from ..model.problem import Prior
 from ..model.layout import ParameterLayout
@@ -305,14 +307,14 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
 
 
 #: effects that carry a source's quantity (one quantity is one parameter)
-EFFECT_SOURCE = {"density": "density", "temperature": "temperature", "radar_time": "time_offset"}
+EFFECT_SOURCE = effect_sources(SYSTEMATIC_SOURCES)
 #: effects fitted beside Cd that trade with it (a temperature's density part is the Cd level, a
 #: decaying yaw's drag a change of its shape): with one of them the edges are not placed, since a
 #: search over edges then trades the layers with Cd as well
-TRADES_WITH_CD = ("temperature", "yaw_drag")
+TRADES_WITH_CD = partly_trading_with_cd()
 #: effects that cannot be fitted with Cd without a declared sd: a constant factor on the drag
 #: (``density``, ``drag_scale``) or its shape (``drag_shape``) is Cd itself
-CONFOUNDED_EFFECTS = ("density", "drag_scale", "drag_shape")
+CONFOUNDED_EFFECTS = confounded_with_cd()
 
 
 def plan_effects(names, rnd):
