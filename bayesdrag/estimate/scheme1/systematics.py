@@ -301,7 +301,10 @@ def source_fn(extras, rnd, model, inner=None, n_inner=0):
         site_shift = base.site_shift
         if pos_cols:
             site_shift = E[:, pos_cols] + (0.0 if site_shift is None else np.asarray(site_shift, float))
-        return SimInputs(ov, base.atmospheres, shift, scale, tables, offset, site_shift)
+        # the inner effects' inputs with the sources' added, by field: a field SimInputs gains is
+        # carried, not dropped by a positional rebuild
+        return replace(base, overrides=ov, time_shift=shift, output_scale=scale, atmosphere_tables=tables,
+                       output_offset=offset, site_shift=site_shift)
 
     return fn
 
