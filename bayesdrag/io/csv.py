@@ -351,7 +351,7 @@ def _header(path, what, hline, header, required, allowed, quote=True):
         near = [f"{lower[m.lower()]!r}" for m in missing if m.lower() in lower]
         if near:
             hint = f" (column names are case-sensitive: found {', '.join(near)})"
-        if not quote:
+        if not quote and len(missing) < len(required):      # a header with a name wrong, not another file
             raise _content_free(f"{path}: line {hline}: {what} needs column(s) {', '.join(required)}; missing "
                                 f"{', '.join(missing)}; the header is not shown")
         raise InputError(f"{path}: line {hline}: {what} needs column(s) {', '.join(required)}; "
