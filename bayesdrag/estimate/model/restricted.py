@@ -176,9 +176,11 @@ def _profiled(P, ld, N, A_other, g_other):
     H = A_other + G / s2
     try:
         L = np.linalg.cholesky(H)
+        # a factorable H may still be singular to LU in the last bits (seen on a track 1 km off the
+        # model compiled for another instruction set): no value there either
+        delta = np.linalg.solve(H, g_other + h / s2)
     except np.linalg.LinAlgError:
         return math.inf, math.nan
-    delta = np.linalg.solve(H, g_other + h / s2)
     rss = max(ee - 2.0 * delta @ h + delta @ G @ delta, 0.0)
     other = -2.0 * g_other @ delta + delta @ A_other @ delta
     return float(0.5 * ld + 0.5 * N * math.log(s2) + 0.5 * (rss / s2 + other) + np.sum(np.log(np.diag(L)))), s2
