@@ -42,6 +42,8 @@ MIN_LEVEL_SPACING = 25.0
 #: radiosonde's sensors resolve [K], [Pa] (a file written at full float precision claims 1e-14 K)
 TEMPERATURE_RESOLUTION_MIN = 0.01
 PRESSURE_RESOLUTION_MIN = 1.0
+#: bytes read first to tell the forms apart
+_SNIFF_BYTES = 64 << 10
 #: columns of a wind CSV by downrange distance
 WIND_COLUMNS = ("downrange", "wind_x", "wind_y")
 
@@ -49,16 +51,19 @@ WIND_COLUMNS = ("downrange", "wind_x", "wind_y")
 def met_file_kind(path):
     """``"metcm"``, ``"downrange"`` (a wind CSV by downrange distance) or ``"csv"`` (a met CSV by
     altitude), from the file's first line that is neither blank nor a comment."""
-    # up to the met profile's own size bound: a message may follow any length of comments, and a
-    # fixed sniffing window took a METCM after 64 kB of them for a met CSV
-    head = read_bytes(path, "met profile", head=True).decode("utf-8", "replace")
-    if is_metcm(head):
-        return "metcm"
-    for ln in head.splitlines():
-        s = ln.strip()
-        if s and not s.startswith("#"):
-            names = [c.strip().lower() for c in s.split(",")]
-            return "downrange" if "downrange" in names else "csv"
+    # the first window holds the first content line of nearly every file; only one that is all
+    # comments there is read further, up to the met profile's size bound (a fixed window took a
+    # METCM after 64 kB of comments for a met CSV)
+    for window in (_SNIFF_BYTES, None):
+        head = read_bytes(path, "met profile", window, head=True).decode("utf-8", "replace")
+        lines = head.splitlines()[:-1] if window is not None and len(head) >= window else head.splitlines()
+        for ln in lines:
+            s = ln.strip()
+            if s and not s.startswith("#"):
+                if is_metcm(s):
+                    return "metcm"
+                names = [c.strip().lower() for c in s.split(",")]
+                return "downrange" if "downrange" in names else "csv"
     return "csv"
 
 
