@@ -279,8 +279,9 @@ def build_parser():
     _add_quiet(s)
 
     f = sub.add_parser("fit", help="estimate Cd(M) from a track (ML with Cramér-Rao bounds, then emcee posterior)")
-    f.add_argument("track", help="radar track (CSV), or a campaign file (TOML) without ROUND")
-    f.add_argument("round", nargs="?", default=None, help="round file (TOML); omitted for a campaign")
+    f.add_argument("inputs", nargs="+", metavar="TRACK [ROUND]",
+                   help="a radar track (CSV) and its round (TOML); a chronograph session: a LabRadar series folder "
+                        "(SR0047/) or several shot files, then the round; or a campaign file (TOML) alone")
     f.add_argument("-o", "--output", required=True, help="output folder")
     _add_fit_options(f)
     f.add_argument("--resume", action="store_true",
@@ -416,7 +417,25 @@ def cmd_simulate(args):
     return 0
 
 
+def _split_fit_inputs(args):
+    """``args.track`` and ``args.round`` from ``fit``'s positional inputs: one file alone is a
+    campaign file; the last of several is the round; more than one track (or a folder) is a
+    chronograph session (``args.tracks``)."""
+    inputs = list(args.inputs)
+    args.round = inputs.pop() if len(inputs) > 1 else None
+    args.tracks = inputs
+    args.track = inputs[0]
+
+
 def cmd_fit(args):
+    _split_fit_inputs(args)
+    if args.round is not None and (len(args.tracks) > 1 or Path(args.track).is_dir()):
+        from .commands.session import run_session
+
+        if args.columns:
+            raise InputError("command line: --columns maps the columns of one track; a chronograph session's shot "
+                             "files are read in their device's own format")
+        return run_session(args.tracks, args.round, args.output, verbosity=args.quiet, echo=_stdout(args))
     if args.channels is not None and args.round is not None:
         from .io.tracks import read_track
 

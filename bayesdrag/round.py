@@ -265,6 +265,11 @@ class Radar:
         correction of the radial speed, which the measurement equations model
         (:class:`bayesdrag.measure.RadarSite`). The round file's ``position`` defaults to
         ``{y = device_offset}`` when it gives this.
+    device_offset_sd : float or None, m
+        How well the device's true distance from the line of fire is known, when it may differ
+        from the typed ``device_offset``: a chronograph session then fits what a range rate sees
+        of it (docs/radar.md, "Chronograph sessions"). A session without ``device_offset`` fits it
+        with no prior.
     """
 
     sigma: dict = field(default_factory=dict)
@@ -274,6 +279,7 @@ class Radar:
     elevation_bias_sd: float | None = None
     position_sd: float | None = None
     device_offset: float | None = None
+    device_offset_sd: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.sigma, dict):
@@ -300,7 +306,7 @@ class Radar:
         object.__setattr__(self, "position", pos)
         for key, unit, hi in (("range_bias_sd", "m", RANGE_BIAS_SD_MAX), ("azimuth_bias_sd", "rad", ANGLE_BIAS_SD_MAX),
                               ("elevation_bias_sd", "rad", ANGLE_BIAS_SD_MAX), ("position_sd", "m", RADAR_SITE_MAX),
-                              ("device_offset", "m", None)):
+                              ("device_offset_sd", "m", DEVICE_OFFSET_MAX), ("device_offset", "m", None)):
             val = number(key, getattr(self, key), unit, optional=True)
             if val is not None and key != "device_offset":
                 val = positive(key, val, unit)

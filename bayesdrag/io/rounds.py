@@ -38,7 +38,8 @@ _SCHEMA = {
                    "density_sd": "relative", "temperature_sd": "K", "wind_sd": "m/s"},
     "radar": {"sigma": "table", "position_scale_sd": "relative", "velocity_scale_sd": "relative",
               "time_offset_sd": "s", "position": "table {x, y, z} in m", "range_bias_sd": "m",
-              "azimuth_bias_sd": "deg", "elevation_bias_sd": "deg", "position_sd": "m", "device_offset": "m"},
+              "azimuth_bias_sd": "deg", "elevation_bias_sd": "deg", "position_sd": "m", "device_offset": "m",
+              "device_offset_sd": "m"},
 }
 ATMOSPHERE_MODELS = ("icao", "profile")
 #: smallest radar noise sd a round file may state [m, m/s] (:data:`bayesdrag.round.SIGMA_BOUNDS`)
@@ -108,7 +109,8 @@ def _radar(tab):
         # left at the muzzle, so that Radar names device_offset, not the position it would give)
         pos = (0.0, float(off), 0.0)
     return Radar(sigma, pos, tab.get("range_bias_sd"), ang["azimuth_bias_sd"],
-                 ang["elevation_bias_sd"], tab.get("position_sd"), tab.get("device_offset"))
+                 ang["elevation_bias_sd"], tab.get("position_sd"), tab.get("device_offset"),
+                 tab.get("device_offset_sd"))
 
 
 def _check_air_ratios(vals):
@@ -426,7 +428,8 @@ def write_round(path: str | os.PathLike[str], rnd: Round, comment: str | None = 
         radar["sigma"] = {c: (math.degrees(v) if c in ANGLE_CHANNELS else v) for c, v in ra.sigma.items()}
     if any(ra.position) or ra.device_offset is not None:     # (else the offset would give the site)
         radar["position"] = dict(zip("xyz", ra.position))
-    for key in ("range_bias_sd", "azimuth_bias_sd", "elevation_bias_sd", "position_sd", "device_offset"):
+    for key in ("range_bias_sd", "azimuth_bias_sd", "elevation_bias_sd", "position_sd", "device_offset",
+                "device_offset_sd"):
         val = getattr(ra, key)
         if val is not None:
             radar[key] = math.degrees(val) if key in ("azimuth_bias_sd", "elevation_bias_sd") else val
