@@ -6,7 +6,7 @@ density ratio drawn from N(1, DENSITY_SD) and a temperature offset drawn from
 N(0, TEMPERATURE_SD) K; the round declares ``density_sd`` and ``temperature_sd`` with those
 values and no firing table. A density ratio is flown as the table times the ratio (in a point
 mass the drag sees only the product rho Cd; the truth Cd stays the table). The fit estimates the
-two sources as nuisance parameters (``bayesdrag.estimate.scheme1.systematics``); the ML total band is
+two sources as nuisance parameters (``bayesdrag.estimate.build.sources``); the ML total band is
 ``ML +- 1.645 crb_sd`` (the joint Cramér-Rao bound, sources included) and the posterior's is
 its 5-95 % interval. At ``N_MACH`` Mach values inside each track's flown span the study
 records whether the bands hold the truth. The density error is common to every Mach point, so

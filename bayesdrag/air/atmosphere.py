@@ -281,7 +281,7 @@ class Atmosphere:
         interpolation error is below 4e-8 (density scale height ~8.5 km); 25 m gave a 1e-6
         bias, which moved a 155 mm trajectory by 2 mm. The table reaches the model's top
         (:data:`MAX_ALTITUDE` above sea level, less one step): a fit refuses a track above it
-        (:func:`bayesdrag.estimate.scheme1.start.check_heights`) rather than fly it in air held at the top.
+        (:func:`bayesdrag.estimate.build.start.check_heights`) rather than fly it in air held at the top.
 
         Returns
         -------

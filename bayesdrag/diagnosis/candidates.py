@@ -20,6 +20,7 @@ from .setup import (drag_shape_for, fit_effects, k_free, n_weighted, noise_floor
 from .signatures import IDENTIFIABLE_FRACTION, seen_axes, signatures
 from .winds import WIND_FAMILY, fit_wind_profile, layers_for, log_evidence, occam
 from .statistics import autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation, threshold
+from ..effects import CORIOLIS, DRAG_SHAPE, RADAR_POSITION, RADAR_TIME, WIND, WIND_PROFILE, YAW_DRAG
 
 __all__ = ["screen_candidates", "fit_candidates", "candidate_row"]
 
@@ -59,29 +60,30 @@ def screen_candidates(setup, candidates, base_theta, span, y_base=None):
         names.remove(n)
         if native:
             skipped[n] = radar_effect_missing(n, setup.channels) + ": nothing it acts on"
-    if setup.ctx.latitude_deg is None and "coriolis" in names:
-        skipped["coriolis"] = "the round gives no [launch] latitude: Earth rotation cannot be formed"
-    if not setup.launch_known and "radar_time" in names:
-        skipped["radar_time"] = "no [launch] velocity/elevation: a clock offset is a later start of the same trajectory"
-    if "drag_shape" in names:
+    if setup.ctx.latitude_deg is None and CORIOLIS.name in names:
+        skipped[CORIOLIS.name] = "the round gives no [launch] latitude: Earth rotation cannot be formed"
+    if not setup.launch_known and RADAR_TIME.name in names:
+        skipped[RADAR_TIME.name] = ("no [launch] velocity/elevation: a clock offset is a later start of the same "
+                                    "trajectory")
+    if DRAG_SHAPE.name in names:
         if not setup.has_reference:
-            skipped["drag_shape"] = ("no reference drag: the fitted nuisance Cd already has any shape, so a "
+            skipped[DRAG_SHAPE.name] = ("no reference drag: the fitted nuisance Cd already has any shape, so a "
                                      "shape error of a table cannot be asked")
         elif span is None or not span[1] > span[0]:
-            skipped["drag_shape"] = "the nominal trajectory gives no Mach span to shape the table over"
+            skipped[DRAG_SHAPE.name] = "the nominal trajectory gives no Mach span to shape the table over"
         else:
             setup.ctx = replace(setup.ctx, drag_shape=drag_shape_for(setup, base_theta, span))
-    if "wind_profile" in names:
+    if WIND_PROFILE.name in names:
         lay = None if y_base is None else (layers_for(setup, y_base, "altitude")
                                            or layers_for(setup, y_base, "downrange"))
         if lay is None:
-            skipped["wind_profile"] = "the track gives no height or downrange span to lay wind layers over"
+            skipped[WIND_PROFILE.name] = "the track gives no height or downrange span to lay wind layers over"
         else:
             setup.ctx = replace(setup.ctx, wind_layers=lay)
-    if "radar_position" in names:   # the site's coordinates the channels see; the others held at 0
+    if RADAR_POSITION.name in names:   # the site's coordinates the channels see; the others held at 0
         setup.ctx = replace(setup.ctx, radar_axes=seen_axes(setup, base_theta))
         if not setup.ctx.radar_axes:
-            skipped["radar_position"] = ("not identifiable from this track (absorbed by the initial state: the "
+            skipped[RADAR_POSITION.name] = ("not identifiable from this track (absorbed by the initial state: the "
                                          "channels see no shift of the site apart from a shift of the flight)")
     effs = [EFFECTS[n] for n in names if n not in skipped]
     sigs = signatures(setup, base_theta, effs)
@@ -127,7 +129,7 @@ def fit_candidates(setup, effs, base_fit, gap, alpha, K, skipped):
     rows = []
     fits = {}
     for e in effs:
-        if e.name == "wind_profile":
+        if e.name == WIND_PROFILE.name:
             got = _fit_profile_variants(setup, e, base_fit, gap, alpha, K, fits)
             if got is None:
                 skipped[e.name] = "its fits failed (by height and by downrange distance)"
@@ -144,7 +146,7 @@ def fit_candidates(setup, effs, base_fit, gap, alpha, K, skipped):
             skipped[e.name] = f"its fit failed ({type(exc).__name__}: {exc})"
             continue
         row = candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base)
-        if e.name == "yaw_drag" and row["significant"]:
+        if e.name == YAW_DRAG.name and row["significant"]:
             res, prob, y, row = _yaw_restarts(setup, e, base_fit, (res, prob, y, row), gap, alpha, K)
         fits[e.name] = (res, prob, y)
         rows.append(row)
@@ -226,7 +228,7 @@ def candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base_res):
     remaining = max(float(res.cost) - floor_e, 0.0)
     noise_sd = chi2_noise_sd(acov, sig_vec, setup.weights)
     physical = True
-    if e.name == "yaw_drag" and vals[0] < 0:
+    if e.name == YAW_DRAG.name and vals[0] < 0:
         physical = False
     sd_c = report_params(setup, e, vals, covc) if e.k else {}
     # inflate the white sd by the colored factor where the Morelli-Klein bound is smaller
@@ -254,7 +256,7 @@ def candidate_row(e, res, y, y_base, chi2_base, gap, setup, alpha, K, base_res):
         "explanation": e.explanation,
         "units": dict(zip(report_params(setup, e, vals).keys(), e.units)) if e.k else {},
     }
-    if e.name == "drag_shape" and setup.ctx.drag_shape is not None:
+    if e.name == DRAG_SHAPE.name and setup.ctx.drag_shape is not None:
         ds = setup.ctx.drag_shape
         grid = np.linspace(ds.knots[0], ds.knots[-1], 9)
         row["shape"] = {"knots": [round(float(k), 3) for k in ds.knots], "mach": [round(float(m), 3) for m in grid],
@@ -323,9 +325,9 @@ def _wind_model_choice(setup, rows, fits, base_fit):
     wind); the one with the larger evidence stands for the wind, the other is kept out of the
     selection (``superseded_by``)."""
     by = {r["name"]: r for r in rows}
-    if "wind" in by:
-        g = _inflation(setup, base_fit, fits["wind"])
-        by["wind"]["log_evidence"] = log_evidence(setup, "wind", fits["wind"][0], base_fit[0], g, g)
+    if WIND.name in by:
+        g = _inflation(setup, base_fit, fits[WIND.name])
+        by[WIND.name]["log_evidence"] = log_evidence(setup, "wind", fits[WIND.name][0], base_fit[0], g, g)
     present = [n for n in WIND_FAMILY if n in by and by[n].get("log_evidence") is not None]
     if len(present) < 2:
         return

@@ -25,6 +25,7 @@ from .winds import (SHAPE_RIVAL_SHARE, WIND_FAMILY, cannot_separate, data_cost, 
 from .statistics import ALPHA
 from .found_air import found_atmosphere
 from .where import absorbed_by_launch, where_segments, with_launch_misfit
+from ..effects import DRAG_SHAPE, WIND, WIND_PROFILE
 
 __all__ = ["diagnose", "Diagnosis", "MIN_DIAGNOSIS_SAMPLES"]
 
@@ -95,7 +96,7 @@ def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
     rows = [r for r in rows if not r.get("superseded_by")]
     if rows and rows[0]["significant"]:
         found, selected_fit, drop_one = select_effects(setup, rows, fits, gap, sig_vec, alpha, K)
-        if "drag_shape" in found and set(found) - set(DRAG_EFFECTS):
+        if DRAG_SHAPE.name in found and set(found) - set(DRAG_EFFECTS):
             found, selected_fit, drop_one, wrong_table = _beside_a_wrong_table(
                 setup, rows, found, selected_fit, drop_one, fits, gap, sig_vec, alpha, opts)
         # ordered by what each effect explains alone (its single chi2 drop)
@@ -131,28 +132,28 @@ def _profile_against_shape(setup, found, fit, fits, by_name, base_res):
     leaves the selection (``superseded_by`` the shape; a constant wind it had superseded comes
     back): it was taking up the model error the others leave (a 6-DOF shell's drag from its yaw
     of repose near the apex, which the point mass lacks)."""
-    if "wind_profile" not in found or "drag_shape" not in fits or "drag_shape" in found or fit is None:
+    if WIND_PROFILE.name not in found or DRAG_SHAPE.name not in fits or DRAG_SHAPE.name in found or fit is None:
         return None
-    others = [n for n in found if n != "wind_profile"]
+    others = [n for n in found if n != WIND_PROFILE.name]
     fit_fn = _fit_names(setup)
     try:
         ref = fit_fn(others, fit) if others else None
-        rival = fit_fn(others + ["drag_shape"], fit) if others else fits["drag_shape"]
+        rival = fit_fn(others + ["drag_shape"], fit) if others else fits[DRAG_SHAPE.name]
     except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
         return None
     c_ref = data_cost(ref[0]) if ref is not None else float(base_res.cost)
     share = shape_rival_share(c_ref, data_cost(fit[0]), data_cost(rival[0]))
     if share < SHAPE_RIVAL_SHARE:
         return None
-    pair = {"effects": ["wind_profile", "drag_shape"], "rival_share": round(float(share), 4), "in_verdict": False,
+    pair = {"effects": [WIND_PROFILE.name, DRAG_SHAPE.name], "rival_share": round(float(share), 4), "in_verdict": False,
             "named": not others}
     if not others:
         # the profile alone explains the gap: the wind is named (a table's shape is never named as
         # the cause of a wind's signature), the pair is reported
         return pair
-    by_name["wind_profile"]["superseded_by"] = "drag_shape"
-    if by_name.get("wind", {}).get("superseded_by") == "wind_profile":
-        del by_name["wind"]["superseded_by"]
+    by_name[WIND_PROFILE.name]["superseded_by"] = "drag_shape"
+    if by_name.get("wind", {}).get("superseded_by") == WIND_PROFILE.name:
+        del by_name[WIND.name]["superseded_by"]
     return pair
 
 
@@ -200,8 +201,8 @@ def _wind_beside_others(setup, found, fit, drop_one, fits, by_name, b, sig_vec, 
             return found, fit, drop_one, tried
         drop_one = drop_one_fits(setup, new, nfit, fits) if len(new) > 1 else {}
         found, fit = new, nfit
-    if "wind_profile" in by_name and lay is not None:
-        by_name["wind_profile"].setdefault("layers", {}).update(
+    if WIND_PROFILE.name in by_name and lay is not None:
+        by_name[WIND_PROFILE.name].setdefault("layers", {}).update(
             {"axis": lay.axis, "edges": list(lay.edges), "n": lay.n,
              "edges_unit": "m above sea level" if lay.axis == "altitude" else "m downrange from the gun"})
     return found, fit, drop_one, tried
@@ -261,7 +262,7 @@ def _verdict(setup, rows, found, by_name, wrong_table):
         verdict += wrong_table["verdict"]
         immaterial += wrong_table["immaterial"]
         found = found + moved
-        what = ("the firing table has another shell's shape (drag_shape)" if "drag_shape" in verdict
+        what = ("the firing table has another shell's shape (drag_shape)" if DRAG_SHAPE.name in verdict
                 else "drag_shape was detected (immaterial)")
         setup.notes.append(f"{what}: the other effects were judged against a fitted Cd, as without a table"
                            + (f" ({', '.join(moved)} found there)" if moved else " (none found)"))
@@ -379,8 +380,8 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     skipped.update(unseen)
     K = max(len(effs), 1)
     rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
-    if "wind_profile" in fits:  # its signature with the layers the evidence chose
-        sigs.update(signatures(setup, b.theta, [EFFECTS["wind_profile"]]))
+    if WIND_PROFILE.name in fits:  # its signature with the layers the evidence chose
+        sigs.update(signatures(setup, b.theta, [EFFECTS[WIND_PROFILE.name]]))
     mark_confounded(rows, sigs, alpha, K)
     for r in rows:   # what the radar's own channels cannot see is said, not reported as a value
         held = held_params(setup, EFFECTS[r["name"]])

@@ -30,6 +30,7 @@ import numpy as np
 from ..air.atmosphere import Atmosphere, MetProfile
 from ..air.wind import WindProfile
 from ..effects import air_effects
+from ..effects import DENSITY, TEMPERATURE, WIND, WIND_PROFILE
 
 __all__ = ["found_atmosphere", "LEVEL_STEP", "TOP_MARGIN", "AIR_EFFECTS"]
 
@@ -75,8 +76,8 @@ def found_atmosphere(summary, rnd):
         return None, None, []
     rows = {r["name"]: r for r in summary["effects"]}
     atm = rnd.atmosphere
-    dT = _values(rows["temperature"])["dT"] if "temperature" in verdict else 0.0
-    ratio = _values(rows["density"])["ratio"] if "density" in verdict else 1.0
+    dT = _values(rows[TEMPERATURE.name])["dT"] if TEMPERATURE.name in verdict else 0.0
+    ratio = _values(rows[DENSITY.name])["ratio"] if DENSITY.name in verdict else 1.0
     air = replace(atm, temperature_offset=atm.temperature_offset + dT, density_ratio=atm.density_ratio * ratio)
     head = [f"the air bayesdrag diagnose found (verdict: {', '.join(verdict)})",
             "give it as [atmosphere] profile with no temperature_offset, pressure_ratio or density_ratio: "
@@ -88,16 +89,16 @@ def found_atmosphere(summary, rnd):
         head.append(f"density: times {ratio:.5g} (verdict's density, written as the pressure)")
     base = getattr(atm, "wind", None)
     wind_alt, wind_x = None, None
-    if "wind" in verdict:
-        v = _values(rows["wind"])
+    if WIND.name in verdict:
+        v = _values(rows[WIND.name])
         const = WindProfile("altitude", (atm.gun_altitude,), (v["wx"],), (v.get("wy", 0.0),))
         wind_alt = const
         head.append(f"wind: constant wx = {v['wx']:.4g}, wy = {v.get('wy', 0.0):.4g} m/s (verdict's wind) added "
                     f"to the round's own")
         if base is not None and base.axis == "downrange":
             wind_x = WindProfile("downrange", (0.0,), (v["wx"],), (v.get("wy", 0.0),))
-    if "wind_profile" in verdict:
-        r = rows["wind_profile"]
+    if WIND_PROFILE.name in verdict:
+        r = rows[WIND_PROFILE.name]
         lay = r["layers"]
         if lay["axis"] == "altitude":
             wind_alt = _layered("altitude", lay["edges"], _values(r))

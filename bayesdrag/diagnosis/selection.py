@@ -18,7 +18,8 @@ from dataclasses import replace
 import numpy as np
 from scipy.stats import chi2 as _chi2
 
-from ..effects import confounded_with_cd, EFFECTS
+from ..effects import DRAG_SHAPE, EFFECTS, WIND_PROFILE, YAW_DRAG, confounded_with_cd, drag_level_effects, \
+    spanning_effects
 from ..errors import FitError
 from ..estimate.model.layout import ParameterLayout
 from .setup import fit_effects, fit_starts, k_free, noise_floor
@@ -84,7 +85,7 @@ def select_effects(setup, rows, fits, gap, sig_vec, alpha, K):
     for r in rows[1:LOOKAHEAD_STARTS]:
         # drag_shape is no start of its own: never kept out of forward selection
         # (:func:`_blocked`), it enters wherever it adds what the others cannot
-        if (r["significant"] and r["shrink"] >= LOOKAHEAD_SHRINK and r["name"] != "drag_shape"
+        if (r["significant"] and r["shrink"] >= LOOKAHEAD_SHRINK and r["name"] != DRAG_SHAPE.name
                 and not any(structural_twins(setup, r, x) for x in starts)):
             starts.append(r)
     best = None
@@ -166,7 +167,7 @@ def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
                 res, prob, y = fit_effects(setup, sel_effs + [e], start)
             except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
                 continue
-            if not np.all(np.isfinite(y)) or (e.name == "yaw_drag" and res.theta[-2] < 0):
+            if not np.all(np.isfinite(y)) or (e.name == YAW_DRAG.name and res.theta[-2] < 0):
                 continue  # a failed or unphysical (negative yaw amplitude) joint fit
             ok, d = admits(setup, e, selected_fit, (res, prob, y), gap, sig_vec, alpha / Kr)
             if ok:
@@ -197,7 +198,7 @@ def beyond_resolution(setup, verdict, small, name, big, gap, sig_vec, a, cache):
     test stands). ``cache`` (a dict) keeps the refitted verdict for the other candidates of one
     forward step."""
     lay = setup.ctx.wind_layers
-    fine = finer_layers(lay) if "wind_profile" in verdict else None
+    fine = finer_layers(lay) if WIND_PROFILE.name in verdict else None
     if fine is None:
         return True
     e = EFFECTS[name]
@@ -226,7 +227,7 @@ def _blocked(r, names):
     the drag-like effects it is confounded with (a yaw drag is a shape change early in the
     flight), so after one of them it can still add what they cannot, and the conditional test
     decides."""
-    if r["name"] in ("drag_shape", "wind_profile"):
+    if r["name"] in spanning_effects():
         return False
     return bool(set(r["confounded_with"]) & set(names))
 
@@ -349,9 +350,9 @@ def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
         The drag effects, their joint fit and its drop-one fits; None when that fit fails.
     """
     by = {r["name"]: r for r in rows}
-    level = [n for n in found if n in ("density", "drag_scale")]
+    level = [n for n in found if n in drag_level_effects()]
     if not level:
-        level = [r["name"] for r in rows if r["name"] in ("density", "drag_scale")][:1]
+        level = [r["name"] for r in rows if r["name"] in drag_level_effects()][:1]
     names = level[:1] + ["drag_shape"]
     res = fit[0]
     k0 = ParameterLayout(setup.P).size
@@ -362,10 +363,10 @@ def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
         start.append([vals.get(f"{n}.{p.name}", s0) for p, s0 in zip(e.params, fit_starts(e))])
     try:
         nfit = fit_effects(setup, [EFFECTS[n] for n in names], np.concatenate(start))
-        if len(names) == 2 and names[0] not in found and "drag_shape" in fits:
-            ok, _ = admits(setup, EFFECTS[names[0]], fits["drag_shape"], nfit, gap, sig_vec, alpha / max(len(by), 1))
+        if len(names) == 2 and names[0] not in found and DRAG_SHAPE.name in fits:
+            ok, _ = admits(setup, EFFECTS[names[0]], fits[DRAG_SHAPE.name], nfit, gap, sig_vec, alpha / max(len(by), 1))
             if not ok:
-                names, nfit = ["drag_shape"], fits["drag_shape"]
+                names, nfit = ["drag_shape"], fits[DRAG_SHAPE.name]
     except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
         return None
     subs = drop_one_fits(setup, names, nfit, fits) if len(names) > 1 else {}

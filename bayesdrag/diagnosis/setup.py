@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..effects import cross_range_effects, EffectContext, drag_shape_free, drag_shape_model, effect_fn, extra_params, static_model
-from ..estimate.scheme1.winds import layer_free
-from ..wind_layers import wind_profile_free
+from ..estimate.build.winds import layer_free
+from ..effects.wind_layers import wind_profile_free
 from .winds import rw_information, rw_priors
 from ..errors import FitError
 from ..estimate.model.noise import OUTLIER_K, noise_and_outliers
@@ -24,6 +24,7 @@ from ..estimate.model.problem import OutputErrorProblem, Prior
 from ..estimate.model.layout import ParameterLayout
 from ..measure import gun_equivalent, site_of
 from ..track import NATIVE_CHANNELS
+from ..effects import DRAG_SHAPE, RADAR_POSITION, WIND_PROFILE
 
 __all__ = ["Setup", "make_setup", "nuisance_drag", "flown_mach_span", "drag_shape_for", "launch_priors",
            "extra_free", "k_free", "fit_starts", "effect_problem", "fit_effects", "n_weighted", "edf",
@@ -101,7 +102,7 @@ def launch_priors(L, P):
     -------
     tuple of Prior
     """
-    from ..estimate.scheme1.launch import launch_state_priors
+    from ..estimate.build.launch import launch_state_priors
 
     return launch_state_priors(L, P, heading=True)
 
@@ -142,7 +143,7 @@ def nuisance_drag(track, rnd, channels, sigma, t_ic):
     """
     from ..dynamics.pointmass import PointMassModel
     from ..estimate.scheme1.fit import fit_scheme1
-    from ..estimate.scheme1.smoothing import SMOOTHING_GRID, smoothness_priors
+    from ..estimate.build.smoothing import SMOOTHING_GRID, smoothness_priors
 
     # the whole track: samples the diagnosis weights out as gross outliers are kept here (the
     # local-cubic rule also flags the first samples of a shell that decelerates fast -- 9-12
@@ -199,7 +200,7 @@ def flown_mach_span(setup, mach_model):
     mach_model : (N,) Mach numbers of the baseline (the fallback)
 
     A radar's own channels are read in the gun's frame first, as the fit's start reads them
-    (:func:`bayesdrag.estimate.scheme1.native_start.start_view`: positions from range and angles,
+    (:func:`bayesdrag.estimate.build.native_start.start_view`: positions from range and angles,
     a speed from the range rate through the nominal flight's line of sight).
 
     Returns
@@ -209,7 +210,7 @@ def flown_mach_span(setup, mach_model):
     track, ch = setup.track, setup.channels
     ok = setup.weights.min(axis=1) > 0
     if _native_view_needed(ch):
-        from ..estimate.scheme1.native_start import start_view
+        from ..estimate.build.native_start import start_view
 
         track = start_view(track.with_channels(ch) if set(ch) != set(track.names) else track, setup.rnd, setup.site)
         ch, ok = track.names, np.ones(track.n, bool)
@@ -380,10 +381,10 @@ def make_setup(track, rnd, *, sigma=None, channels=None):
 
 def _data_state(seen, rnd, site, t0):
     """The initial state at the first sample read off the data, as the fit's start reads it (a
-    radar's own channels through :func:`bayesdrag.estimate.scheme1.native_start.start_view`; a
+    radar's own channels through :func:`bayesdrag.estimate.build.native_start.start_view`; a
     range rate without positions flown out from the muzzle)."""
-    from ..estimate.scheme1.native_start import start_position, start_view
-    from ..estimate.scheme1.start import data_start
+    from ..estimate.build.native_start import start_position, start_view
+    from ..estimate.build.start import data_start
 
     s0 = data_start(start_view(seen, rnd, site), rnd).state0
     if not any(c in gun_equivalent(seen.names) for c in ("x", "y", "z")):
@@ -434,12 +435,12 @@ def held_params(setup, e):
     (whose reports keep the held value with a note)."""
     if not any(c in NATIVE_CHANNELS for c in setup.channels):
         return {}
-    if e.name == "radar_position":
+    if e.name == RADAR_POSITION.name:
         return {a: f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no shift "
                    f"of the site along {a} apart from a shift of the flight"
                 for a in "xyz" if a not in setup.ctx.radar_axes}
     held = [p.name for p in e.params if p.name.startswith("wy") and not extra_free(setup, f"{e.name}.{p.name}")
-            and (e.name != "wind_profile" or wind_profile_free(setup.ctx, p.name))]
+            and (e.name != WIND_PROFILE.name or wind_profile_free(setup.ctx, p.name))]
     why = f"held at 0, not identifiable: the radar's channels ({', '.join(setup.channels)}) see no cross-range position"
     return {n: why for n in held}
 
@@ -520,7 +521,7 @@ def fit_effects(setup, effects, theta_start, max_iter=40):
     prob = effect_problem(setup, effects, theta_start)
     # plain noise likelihood: the diagnosis compares these fits' likelihoods across effects,
     # and restricted likelihoods of models with other parameters are not comparable
-    if not any(e.name == "drag_shape" for e in effects):
+    if not any(e.name == DRAG_SHAPE.name for e in effects):
         res = prob.fit(max_iter=max_iter, restricted=False)
     else:
         res = prob.fit(max_iter=min(max_iter, DRAG_SHAPE_MAX_ITER), restricted=False)
@@ -575,8 +576,8 @@ def report_params(setup, e, vals, cov=None):
     """An effect's reported parameters (``cov`` None) or their sd: the reported names (docs/diagnosis.md); for
     ``drag_shape`` only the coefficients this track uses, for ``wind_profile`` only its layers."""
     out = e.report_params(vals) if cov is None else e.report_sd(vals, cov)
-    if e.name == "drag_shape":
+    if e.name == DRAG_SHAPE.name:
         out = {k: v for k, v in out.items() if extra_free(setup, f"drag_shape.{k}")}
-    if e.name == "wind_profile":  # the layers this track uses (a held wy without a y channel is 0)
+    if e.name == WIND_PROFILE.name:  # the layers this track uses (a held wy without a y channel is 0)
         out = {k: v for k, v in out.items() if wind_profile_free(setup.ctx, k)}
     return out

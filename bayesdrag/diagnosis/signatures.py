@@ -15,6 +15,7 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 
 from .setup import effect_problem, k_free
+from ..effects import LIFT, RADAR_POSITION, WIND_PROFILE, YAW_DRAG
 
 __all__ = ["signatures", "canonical_corr", "mark_confounded", "seen_axes"]
 
@@ -52,9 +53,9 @@ def signatures(setup, base_theta, effects):
         else:
             prob = effect_problem(setup, [e], base_theta)
             th = prob.theta0.copy()
-            if e.name == "yaw_drag":
+            if e.name == YAW_DRAG.name:
                 th[-2] = 0.05  # the decay column is flat at zero amplitude: evaluate at a small one
-            if e.name == "lift":
+            if e.name == LIFT.name:
                 # the vertical part of the lift is even in the factor (flat at 0): the signature
                 # of a typical right-hand-spin shell's lift, at factor 1
                 th[-1] = 1.0
@@ -91,7 +92,7 @@ def seen_axes(setup, base_theta):
 
     full = replace(setup, ctx=replace(setup.ctx, radar_axes=("x", "y", "z")))
     sw = np.sqrt(setup.weights / np.array([setup.sigma[c] for c in setup.channels])[None, :] ** 2)
-    prob = effect_problem(full, [EFFECTS["radar_position"]], base_theta)
+    prob = effect_problem(full, [EFFECTS[RADAR_POSITION.name]], base_theta)
     _, _, S = prob.sensitivities(prob.theta0)
     A = (S * sw[:, :, None]).reshape(-1, S.shape[-1])
     _, pJ = prob.prior_terms(prob.theta0)
@@ -129,7 +130,7 @@ def mark_confounded(rows, sigs, alpha, K):
         for b in rows[i + 1:]:
             cc = canonical_corr(sigs[a["name"]][0], sigs[b["name"]][0])
             a.setdefault("_corr", {})[b["name"]] = cc
-            if "wind_profile" in (a["name"], b["name"]):
+            if WIND_PROFILE.name in (a["name"], b["name"]):
                 # nested wind models: the evidence chooses between them; against the others, the
                 # profile's layers span much of any drag-like signature alone, so whether the data
                 # separate them is asked of their joint fit (diagnosis.winds.cannot_separate)

@@ -18,6 +18,7 @@ from scipy.stats import chi2 as _chi2
 
 from ..estimate.model.filters import autocovariance_window
 from .setup import track_chi2
+from ..effects import DRAG_SHAPE, YAW_DRAG
 
 __all__ = ["autocovariance", "chi2_noise_sd", "colored_inflation", "threshold", "tested_drop", "tested_inflation"]
 
@@ -94,7 +95,7 @@ def threshold(e, a, k=None):
     not identified when the amplitude is zero (Davies' problem: the fit maximises over it, which
     inflates the statistic under the null), so its amplitude is tested with 1 degree of freedom
     at ``a / YAW_DECAY_MULTIPLICITY`` (as if that many separate decay rates were tried)."""
-    if e.name == "yaw_drag":
+    if e.name == YAW_DRAG.name:
         return float(_chi2.ppf(1 - a / YAW_DECAY_MULTIPLICITY, 1))
     return float(_chi2.ppf(1 - a, max(e.k if k is None else k, 1)))
 
@@ -107,7 +108,7 @@ def tested_drop(setup, e, d, small_res, big_res):
     sample pins, can trade against -- a sphere with its right table was named ``drag_shape``).
     Other effects keep the whole drop (``radar_time`` is *meant* to explain a start that misses
     the muzzle)."""
-    if e.name != "drag_shape":
+    if e.name != DRAG_SHAPE.name:
         return d
     return min(d, track_chi2(setup, small_res) - track_chi2(setup, big_res))
 
@@ -118,4 +119,4 @@ def tested_inflation(e, infl):
     right sigma scatters the measured inflation by ~10 % either way, and below 1 it would lift
     an 8-dof chi2 of pure noise over its threshold (a null track did: chi2 drop 19.5 < 19.7,
     divided by 0.85). It must be significant in plain chi2 units too."""
-    return max(infl, 1.0) if e.name == "drag_shape" else infl
+    return max(infl, 1.0) if e.name == DRAG_SHAPE.name else infl

@@ -11,6 +11,7 @@ Nothing is said about the firing table's shape unless ``drag_shape`` is in the v
 from __future__ import annotations
 
 import math
+from ..effects import DRAG_SHAPE
 
 __all__ = ["summary_paragraph", "console_summary", "verdict_lines", "impact_text", "reported_values",
            "absorbed_text", "fmt"]
@@ -98,7 +99,7 @@ def verdict_lines(s):
     list of str
     """
     rows = {e["name"]: e for e in s.get("effects") or []}
-    shape_named = "drag_shape" in (s.get("verdict") or [])
+    shape_named = DRAG_SHAPE.name in (s.get("verdict") or [])
     out = []
     for i, n in enumerate(s.get("verdict") or []):
         e = rows[n]
@@ -166,7 +167,7 @@ def _verdict_tail(s):
     parts = []
     verdict = s.get("verdict") or []
     rows = {e["name"]: e for e in s.get("effects") or []}
-    if "drag_shape" in verdict:
+    if DRAG_SHAPE.name in verdict:
         parts.append("The firing table's shape does not fit this track (a table of another shell, or air "
                      "whose speed of sound is not the round's).")
     joint = s.get("joint")

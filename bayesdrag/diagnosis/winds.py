@@ -1,7 +1,7 @@
 """Which wind: none, a constant wind, or a wind that changes along the flight by height or by
 downrange distance, chosen by evidence (part of steps 4 and 6 of :mod:`bayesdrag.diagnosis`).
 
-The ``wind_profile`` effect (:class:`bayesdrag.wind_layers.WindLayers`) needs its layers: here
+The ``wind_profile`` effect (:class:`bayesdrag.effects.wind_layers.WindLayers`) needs its layers: here
 they are :data:`PROFILE_LAYERS` equal layers over the flown range of the coordinate, by height
 from the gun to the apex (met practice) or by downrange distance from the gun to the last sample
 (how small-arms tools zone winds). Both are fitted; the wind models are then compared by their
@@ -26,10 +26,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..effects import drag_along_the_flight, wind_effects, EFFECTS
+from ..effects import EFFECTS, LIFT, WIND, WIND_PROFILE, drag_along_the_flight, drag_level_effects, wind_effects
 from ..errors import FitError
-from ..estimate.scheme1.winds import at_fit_resolution, layers_over, wind_layer_priors
-from ..wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD
+from ..estimate.build.winds import at_fit_resolution, layers_over, wind_layer_priors
+from ..effects.wind_layers import PROFILE_LAYERS, WIND_LAYERS_MAX, WIND_LEVEL_SD, WIND_STEP_SD
 from ..estimate.model.layout import ParameterLayout
 
 __all__ = ["PROFILE_LAYERS", "WIND_FAMILY", "layers_for", "rw_priors", "rw_information", "log_evidence",
@@ -58,7 +58,7 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
     """The wind_profile layers of this track: ``n`` equal layers over the flown range of the
     coordinate (height from the gun to the apex, or downrange distance from the gun to the last
     sample), read off the baseline's fitted outputs, with the round's own wind as the base
-    (:func:`bayesdrag.estimate.scheme1.winds.layers_over`, the fit's construction).
+    (:func:`bayesdrag.estimate.build.winds.layers_over`, the fit's construction).
 
     Parameters
     ----------
@@ -78,7 +78,7 @@ def layers_for(setup, y_base, axis, n=PROFILE_LAYERS):
 
 def finer_layers(layers):
     """The layers of a wind profile at the fit's resolution (``fit --with wind_profile``:
-    :func:`bayesdrag.estimate.scheme1.winds.at_fit_resolution`); None when ``layers`` is None or
+    :func:`bayesdrag.estimate.build.winds.at_fit_resolution`); None when ``layers`` is None or
     already that fine."""
     return at_fit_resolution(layers)
 
@@ -96,7 +96,7 @@ def refined_start(setup, names, res, coarse, fine):
         row = []
         for p in e.params:
             key = f"{n}.{p.name}"
-            if n == "wind_profile":
+            if n == WIND_PROFILE.name:
                 c, k = p.name.rsplit("_", 1)
                 k = int(k)
                 key = f"{n}.{c}_{int(home[k - 1])}" if k <= fine.n else None
@@ -120,7 +120,7 @@ def _path(setup, y_base):
 def rw_priors(names_all, free):
     """The random-walk priors of ``wind_profile``'s used layers: each neighbouring pair's
     difference ~ N(0, WIND_STEP_SD^2), per component (linear rows of the full parameter vector;
-    the fit's :func:`bayesdrag.estimate.scheme1.winds.wind_layer_priors` without a level).
+    the fit's :func:`bayesdrag.estimate.build.winds.wind_layer_priors` without a level).
 
     Parameters
     ----------
@@ -164,7 +164,7 @@ def wind_prior_precision(k, level_sd):
 def _wind_block(setup, name, res):
     """(indices, values, prior precision) of a wind model's free parameters in a fit."""
     names = list(res.names)
-    if name == "wind":
+    if name == WIND.name:
         keys = [f"wind.{c}" for c in ("wx", "wy")]
         k = 1
     else:
@@ -174,7 +174,7 @@ def _wind_block(setup, name, res):
     level_sd = setup.rnd.systematics.wind_profile or WIND_LEVEL_SD
     Lam = wind_prior_precision(k, level_sd)
     lay = setup.ctx.wind_layers
-    if name == "wind_profile" and lay is not None and lay.constant_cross:
+    if name == WIND_PROFILE.name and lay is not None and lay.constant_cross:
         # one cross wind for all layers: its prior is a constant wind's (wy_2.. are no parameters)
         Lam[1::2, 1::2] = 0.0
         Lam[1, 1] = 1.0 / level_sd ** 2
@@ -352,8 +352,9 @@ def cannot_separate(setup, verdict, fit, fits, rows, fit_fn):
                 out.append(_pair(fit[0], fits, a, b, True))
     winds = [n for n in verdict if n in WIND_FAMILY and n in fits]
     partners = [n for n in TRADE_PARTNERS if n in fits and n not in verdict and rows.get(n, {}).get("significant")]
-    if "density" in partners and "drag_scale" in partners:
-        partners.remove("drag_scale")         # twins: one stands for both
+    twins = drag_level_effects()
+    if all(n in partners for n in twins):
+        partners = [n for n in partners if n not in twins[1:]]         # twins: one stands for both
     for w in winds:
         for q in partners:
             try:
@@ -405,10 +406,10 @@ def rechoose_wind(setup, verdict, fit, alternatives, fit_fn, infl_fn, admit_fn=N
     """
     wind = next(n for n in verdict if n in WIND_FAMILY)
     others = [n for n in verdict if n != wind]
-    if "lift" in others:  # beside the spin drift only the along-range wind may change
+    if LIFT.name in others:  # beside the spin drift only the along-range wind may change
         alternatives = [(n, lay if lay is None else replace(lay, constant_cross=True)) for n, lay in alternatives]
     saved = setup.ctx
-    current = (wind, saved.wind_layers if wind == "wind_profile" else None)
+    current = (wind, saved.wind_layers if wind == WIND_PROFILE.name else None)
     fitted = {}
     try:
         ref = fit_fn(others, fit)
@@ -416,7 +417,7 @@ def rechoose_wind(setup, verdict, fit, alternatives, fit_fn, infl_fn, admit_fn=N
             key = (name, lay)
             if key in fitted:
                 continue
-            if name == current[0] and (name == "wind" or lay == current[1]):
+            if name == current[0] and (name == WIND.name or lay == current[1]):
                 fitted[key] = fit
                 continue
             setup.ctx = replace(saved, wind_layers=lay if lay is not None else saved.wind_layers)
@@ -437,7 +438,7 @@ def rechoose_wind(setup, verdict, fit, alternatives, fit_fn, infl_fn, admit_fn=N
     for (name, lay), f in fitted.items():
         setup.ctx = replace(saved, wind_layers=lay if lay is not None else saved.wind_layers)
         g_info = infl_fn(ref, f)
-        if chain is None or name == "wind":
+        if chain is None or name == WIND.name:
             ev = log_evidence(setup, name, f[0], ref[0], g_info, g_info)
         else:
             g_w = infl_fn(ref, chain)
@@ -459,7 +460,7 @@ def rechoose_wind(setup, verdict, fit, alternatives, fit_fn, infl_fn, admit_fn=N
 
 
 def _axis(name, layers):
-    return None if name == "wind" or layers is None else layers.axis
+    return None if name == WIND.name or layers is None else layers.axis
 
 
 

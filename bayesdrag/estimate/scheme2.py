@@ -45,7 +45,7 @@ from .model.filters import savgol_coeffs
 from .model.noise import noise_and_outliers
 from .cd.quality import assess_window
 from .scheme1.fit import coriolis_of
-from .scheme1.start import data_start
+from .build.start import data_start
 
 #: fewest samples a window may have (7 free parameters, >= 4 samples per parameter per channel)
 MIN_WINDOW = 15
@@ -281,7 +281,7 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
 
 def _start_cd(model, s0, reference, start=None):
     """Starting Cd of a window at its starting Mach: the track's own start curve
-    (:mod:`bayesdrag.estimate.scheme1.start`), else the reference, else 0.3."""
+    (:mod:`bayesdrag.estimate.build.start`), else the reference, else 0.3."""
     _, a = model.atmosphere.density_and_sound_speed(float(s0[2]))
     m = float(np.linalg.norm(s0[3:])) / a
     if start is not None:

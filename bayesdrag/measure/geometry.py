@@ -23,7 +23,7 @@ samples, trajectories) and returns arrays with the same leading dimensions.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -31,8 +31,8 @@ from ..errors import InputError
 from ..track import ALL_CHANNELS as CHANNELS, ANGLE_CHANNELS, GUN_CHANNELS, NATIVE_CHANNELS, RadarTrack
 
 __all__ = ["RadarSite", "site_of", "chronograph_factor", "wrap_angle", "channel_values", "channel_jacobian", "to_gun_frame",
-           "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS", "SITE_ERRORS",
-           "site_error_missing", "check_site_errors", "VERTICAL_LINE_OF_SIGHT", "MIN_ANGLE_RANGE",
+           "gun_frame_track", "near_branch", "native_only", "gun_equivalent", "EARTH_RADIUS",
+           "VERTICAL_LINE_OF_SIGHT", "MIN_ANGLE_RANGE",
            "angle_blind_samples"]
 
 #: mean Earth radius [m], for the curvature figure x^2 / (2 Re) of the docs
@@ -72,7 +72,7 @@ class RadarSite:
         if len(pos) != 3 or not all(math.isfinite(v) for v in pos):
             raise ValueError(f"radar position must be 3 finite numbers [m], got {self.position!r}")
         object.__setattr__(self, "position", pos)
-        for k in ("azimuth", "range_bias", "azimuth_bias", "elevation_bias"):
+        for k in (f.name for f in fields(self) if f.type == "float"):   # the angle and the biases
             v = float(getattr(self, k))
             if not math.isfinite(v):
                 raise ValueError(f"radar {k} must be finite, got {v}")
@@ -82,32 +82,6 @@ class RadarSite:
             if not (math.isfinite(d) and d >= 0.0):
                 raise ValueError(f"radar device_offset must be a finite distance >= 0 [m], got {d}")
             object.__setattr__(self, "device_offset", d or None)
-
-
-#: the radar's errors (the site's biases and its place) and the channels each moves: a range bias
-#: its range, an angle bias its angle, the place every native channel
-SITE_ERRORS = {"range_bias": ("range",), "azimuth_bias": ("azimuth",), "elevation_bias": ("elevation",),
-               "radar_position": NATIVE_CHANNELS}
-
-
-def site_error_missing(name, channels):
-    """Why the radar's error ``name`` (:data:`SITE_ERRORS`) moves none of ``channels`` (str), or
-    None when it moves one (or ``name`` is not one of the radar's errors)."""
-    need = SITE_ERRORS.get(name)
-    if need is None or any(c in channels for c in need):
-        return None
-    what = need[0] if len(need) == 1 else "radar-native (" + ", ".join(need) + ")"
-    return f"the track has no {what} channel (its channels: {', '.join(channels)})"
-
-
-def check_site_errors(names, channels, where="track"):
-    """Raise :class:`InputError` when one of the radar's errors among ``names`` (effects asked
-    for) moves none of ``channels``; ``where`` names the track."""
-    for n in names:
-        why = site_error_missing(n, tuple(channels))
-        if why is not None:
-            raise InputError(f"{where}: effect {n!r} acts on the radar's {' or '.join(SITE_ERRORS[n])}, but {why}; "
-                             f"drop it or fit a track that has the channel")
 
 
 #: the device's cosine correction is held at this factor where the range nears its offset (a

@@ -24,7 +24,7 @@ How one case is predicted, and why (decisions):
   a smooth correction with a table, a spline in Cd without, knots placed from the data's start
   curve): its knots depend on the noise (the start's noise sets how finely the knots may follow
   the shape), so they are placed from *one seeded noisy realisation* of the nominal track
-  (:data:`PLAN_SEED`), read by :func:`bayesdrag.estimate.scheme1.start.data_start` exactly as the fit
+  (:data:`PLAN_SEED`), read by :func:`bayesdrag.estimate.build.start.data_start` exactly as the fit
   reads a track. The launch priors are the fit's (:func:`launch_state_priors`, applied when the
   track starts at launch), the smoothness penalty the fit's (:func:`smoothing.penalty`).
 * **The smoothing weight as the fit would choose it on the planned noise.** The fit walks its
@@ -84,7 +84,8 @@ from .._runtime.threads import single_blas
 from ..drag import ReferenceTable
 from ..dynamics.pointmass import PointMassModel
 from ..dynamics.trajectory import initial_state
-from ..effect_inputs import ExtraParam, SimInputs
+from ..effects.inputs import ExtraParam
+from ..effects import EffectContext, sources_fn
 from ..errors import InputError
 from ..io.drag_tables import load_m101
 from ..measure import angle_blind_samples, channel_values, site_of
@@ -92,15 +93,16 @@ from ..measure.geometry import MIN_ANGLE_RANGE, VERTICAL_LINE_OF_SIGHT
 from ..round import SYSTEMATIC_SOURCES
 from ..synthetic import add_noise
 from ..track import ALL_CHANNELS, ANGLE_CHANNELS, MAX_FIT_SAMPLES, NATIVE_CHANNELS, RadarTrack
-from ..estimate.scheme1.launch import launch_state_priors
+from ..estimate.build.launch import launch_state_priors
 from ..estimate.cd.budget import LEVEL_SOURCES
 from ..estimate.model.layout import ParameterLayout
 from ..estimate.model.problem import OutputErrorProblem
 from ..estimate.scheme1.fit import build_drag_model, coriolis_of
-from ..estimate.scheme1.smoothing import SMOOTHING_GRID, penalty, walk_evidence
-from ..estimate.scheme1.native_start import start_view
-from ..estimate.scheme1.systematics import RADAR_SOURCES, radar_extras
-from ..estimate.scheme1.start import data_start
+from ..estimate.build.smoothing import SMOOTHING_GRID, penalty, walk_evidence
+from ..estimate.build.native_start import start_view
+from ..estimate.build.sources import RADAR_SOURCES, radar_extras
+from ..estimate.build.start import data_start
+from ..effects import TEMPERATURE
 
 __all__ = ["CasePlan", "plan_case", "ASSUMPTIONS", "generic_drag", "drag_assumption", "expected_log_evidence",
            "walk_evidence", "case_mach_grid", "systematic_parameters", "level_shares", "LEVEL_SOURCES", "DEFAULT_DT", "PLAN_SEED",
@@ -331,7 +333,7 @@ def systematic_parameters(rnd, chans=()):
         not parameters: their shares are :func:`level_shares`.
     """
     declared = rnd.systematics.declared()
-    steps = {"temperature": (0.0, TEMPERATURE_STEP), "time_offset": (0.0, TIME_STEP)}
+    steps = {TEMPERATURE.source: (0.0, TEMPERATURE_STEP), "time_offset": (0.0, TIME_STEP)}
     sim, scale = [], []
     for stem, sd in declared.items():
         if stem in LEVEL_SOURCES:
@@ -353,28 +355,11 @@ def level_shares(rnd, cd):
             for stem, sd in rnd.systematics.declared().items() if stem in LEVEL_SOURCES}
 
 
-def _systematic_effect(rnd, sim):
-    """``effect_fn`` of the simulated systematic sources (B, E) -> SimInputs."""
-    stems = [s for s, _, _ in sim]
-    atm = rnd.atmosphere
-
-    def fn(E):
-        E = np.atleast_2d(E)
-        col = {s: E[:, j] for j, s in enumerate(stems)}
-        atms, shift = None, None
-        if "temperature" in col:
-            atms = [replace(atm, temperature_offset=round(atm.temperature_offset + float(v), 6))
-                    for v in col["temperature"]]
-        if "time_offset" in col:
-            shift = col["time_offset"].copy()
-        # the radar's biases add to its channels; its site moves where they are seen from
-        offset = {c: col[stem] for stem, c in (("range_bias", "range"), ("azimuth_bias", "azimuth"),
-                                                ("elevation_bias", "elevation")) if stem in col}
-        pos = [j for j, s in enumerate(stems) if s == "radar_position"]
-        site_shift = E[:, pos] if pos else None
-        return SimInputs({}, atms, shift, output_offset=offset, site_shift=site_shift)
-
-    return fn
+def systematic_effect_fn(rnd, sim):
+    """``effect_fn`` of the simulated systematic sources (B, E) -> SimInputs: each through the
+    mapping the fit's declared sources use (:func:`bayesdrag.effects.sources_fn`), the temperature
+    as one atmosphere per trajectory."""
+    return sources_fn([s for s, _, _ in sim], EffectContext(atmosphere=rnd.atmosphere))
 
 
 @dataclass(frozen=True, eq=False)
@@ -428,7 +413,7 @@ def case_information(rnd_case, dm, track, state0, theta_drag, sigma, chans):
         if "azimuth" not in chans and abs(float(rnd_case.radar.position[1])) < 1e-6:
             free[lay.index("y")] = free[lay.index("vy")] = False   # ... nor across a plane of fire holding its site
     prob = OutputErrorProblem(model, track, theta, free=free, sigma=sigma, channels=chans, extras=extras,
-                              effect_fn=_systematic_effect(rnd_case, sim) if extras else None,
+                              effect_fn=systematic_effect_fn(rnd_case, sim) if extras else None,
                               site=site_of(rnd_case, chans) if native else None)
     y, _, S = prob.sensitivities(theta)
     if not np.all(np.isfinite(S)):
@@ -481,7 +466,7 @@ def expected_log_evidence(F_meas, R, p, sds, prior_diag):
     (float, float, ndarray)
         Expected log evidence, edf of the fit (``n - tr(F^-1 R'R)``) and ``F^-1``.
 
-    The fit's evidence (:func:`bayesdrag.estimate.scheme1.smoothing.fit_penalised`) is
+    The fit's evidence (:func:`bayesdrag.estimate.build.smoothing.fit_penalised`) is
     ``-chi2_min / 2 + log|F^-1| / 2 - sum log sds``; for ``y = J theta* + e`` the minimum of the
     penalised chi2 has expectation ``const - tr(F^-1 F_meas) + p'p - g'F^-1 g``, ``g = R'p``.
     """

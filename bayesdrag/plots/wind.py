@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .common import new_axes
+from ..effects import WIND, WIND_PROFILE
 
 __all__ = ["plot_found_wind", "wind_layer_table"]
 
@@ -25,8 +26,8 @@ def wind_layer_table(s):
     """
     rows = {r["name"]: r for r in s.get("effects") or []}
     verdict = s.get("verdict") or []
-    if "wind_profile" in verdict:
-        r = rows["wind_profile"]
+    if WIND_PROFILE.name in verdict:
+        r = rows[WIND_PROFILE.name]
         pv = r.get("params_joint") or r["params"]
         sd = r.get("sd_joint") or r["sd"]
         e = r["layers"]["edges"]
@@ -36,8 +37,8 @@ def wind_layer_table(s):
             out.append({"layer": k, "from": e[k - 1], "to": e[k], "wx": pv.get(f"wx_{k}"), "sd_wx": sd.get(f"wx_{k}"),
                         "wy": pv.get(wy_key), "sd_wy": sd.get(wy_key)})
         return out, r["layers"]["axis"]
-    if "wind" in verdict:
-        r = rows["wind"]
+    if WIND.name in verdict:
+        r = rows[WIND.name]
         pv = r.get("params_joint") or r["params"]
         sd = r.get("sd_joint") or r["sd"]
         return [{"layer": 1, "from": None, "to": None, "wx": pv["wx"], "sd_wx": sd.get("wx"), "wy": pv.get("wy"),

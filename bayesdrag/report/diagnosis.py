@@ -13,6 +13,7 @@ from ..plots.wind import plot_found_wind, wind_layer_table
 from ..diagnosis.summary import impact_text, reported_values, summary_paragraph
 from ..results.document import jsonable
 from .render import figure_png, png_base64, render_report
+from ..effects import WIND
 
 __all__ = ["write_diagnosis", "diagnosis_figures"]
 
@@ -29,7 +30,7 @@ def diagnosis_figures(d):
     figs = {"residuals": plot_residuals_before_after(d), "ranking": plot_ranking(d.summary).figure,
             "where": plot_where(d)}
     if wind_layer_table(d.summary)[0]:
-        figs["wind"] = plot_found_wind(d.summary).figure
+        figs[WIND.name] = plot_found_wind(d.summary).figure
     return figs
 
 

@@ -39,12 +39,12 @@ import bayesdrag
 from bayesdrag.drag import ReferenceTable
 from bayesdrag.effects import EFFECTS, EffectContext, effect_fn, extra_params
 from bayesdrag.dynamics.pointmass import PointMassModel
-from bayesdrag.estimate.scheme1.launch import launch_state_priors
+from bayesdrag.estimate.build.launch import launch_state_priors
 from bayesdrag.planning.case import case_round, nominal_flight
 from bayesdrag.estimate.model.problem import OutputErrorProblem, Prior
 from bayesdrag.estimate.cd.table import cd_table
 from bayesdrag.estimate.scheme1.fit import fit_scheme1
-from bayesdrag.estimate.scheme1.smoothing import smoothness_priors
+from bayesdrag.estimate.build.smoothing import smoothness_priors
 from bayesdrag.round import Launch, Projectile, Radar, Round, Systematics
 from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.track import RadarTrack

@@ -1,4 +1,4 @@
-"""Gross outliers as the model check counts them (:func:`bayesdrag.model_check.gross_outliers`):
+"""Gross outliers as the model check counts them (:func:`bayesdrag.pipeline.model_check.gross_outliers`):
 a sample must stand out of the track's local scale *and* of the fit's residuals. A Doppler radar
 10 m behind a mortar sees the range rate rise from ~130 to ~280 m/s in its first samples; the
 track's local smoother cannot follow that bend and flagged them, which started a Student-t check
@@ -11,7 +11,7 @@ import numpy as np
 
 from bayesdrag.estimate.model.noise import noise_and_outliers
 from bayesdrag.estimate.scheme1.fit import fit_scheme1
-from bayesdrag.model_check import gross_outliers
+from bayesdrag.pipeline.model_check import gross_outliers
 from bayesdrag.track import RadarTrack
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "acceptance"))

@@ -9,7 +9,7 @@ import pytest
 import bayesdrag
 from acceptance import cases as wc, honesty_suite as hs
 from bayesdrag.effects import K_YAW
-from bayesdrag.estimate.scheme1 import systematics as S
+from bayesdrag.estimate.build import sources as S
 
 #: rows within this many band sd of the truth, or within 2 % (DESIGN "How a fit is judged")
 TOL_SD = 3.0

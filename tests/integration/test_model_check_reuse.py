@@ -1,5 +1,5 @@
 """The model check's fits with the diagnosis's effects are built on the plain fit's stages
-(``bayesdrag.model_check._from_plain``) instead of repeating them: the same numbers as
+(``bayesdrag.pipeline.model_check._from_plain``) instead of repeating them: the same numbers as
 ``fit_scheme1`` with the effects from the start, for the AR(1) fit and for its white-noise
 check; and no shortcut where the effects change an earlier stage.
 
@@ -11,7 +11,7 @@ import pytest
 
 from acceptance import honesty_suite as hs
 from bayesdrag.estimate.scheme1.fit import fit_scheme1
-from bayesdrag.model_check import _from_plain
+from bayesdrag.pipeline.model_check import _from_plain
 from bayesdrag.options import FitOptions
 
 #: the same arithmetic in the same order: equal to rounding, relative [-]

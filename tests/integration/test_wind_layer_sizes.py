@@ -13,7 +13,7 @@ import pytest
 
 import bayesdrag
 from bayesdrag.air.atmosphere import Atmosphere
-from bayesdrag.estimate.scheme1.winds import within_layer_sd
+from bayesdrag.estimate.build.winds import within_layer_sd
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round

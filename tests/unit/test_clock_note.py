@@ -1,9 +1,9 @@
 """A radar clock offset the fit carries is said in words when the data determine it
-(bayesdrag.model_check.clock_note): a track whose t = 0 is the first radar sample, 0.5 s after
+(bayesdrag.pipeline.model_check.clock_note): a track whose t = 0 is the first radar sample, 0.5 s after
 the launch, used to be told by the launch check; with the offset fitted by default it is told here."""
 import pytest
 
-from bayesdrag.model_check import CLOCK_NOTE_SD, clock_note
+from bayesdrag.pipeline.model_check import CLOCK_NOTE_SD, clock_note
 
 
 def _ml(dt, sd=None, crb=None):

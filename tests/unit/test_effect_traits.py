@@ -9,8 +9,8 @@ from bayesdrag.diagnosis.found_air import AIR_EFFECTS
 from bayesdrag.diagnosis.selection import DRAG_EFFECTS
 from bayesdrag.diagnosis.setup import CROSS_RANGE_EFFECTS
 from bayesdrag.diagnosis.winds import TRADE_PARTNERS, WIND_FAMILY
-from bayesdrag.estimate.scheme1.systematics import CONFOUNDED_EFFECTS, EFFECT_SOURCE, TRADES_WITH_CD
-from bayesdrag.model_check import LEVEL_EFFECTS, NOT_ALTERNATIVES
+from bayesdrag.estimate.build.sources import CONFOUNDED_EFFECTS, EFFECT_SOURCE, TRADES_WITH_CD
+from bayesdrag.pipeline.model_check import LEVEL_EFFECTS, NOT_ALTERNATIVES
 from bayesdrag.round import SYSTEMATIC_SOURCES
 
 

@@ -9,7 +9,7 @@ from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.effects import (DRAG_SHAPE_MAX, EFFECTS, K_YAW, EffectContext, ShapedTable, drag_shape_knots,
                                drag_shape_model, get_effect, level_free_offsets, simulate_with_effects)
 from bayesdrag.air.wind import WindProfile
-from bayesdrag.wind_layers import WIND_LAYERS_MAX, WindLayers
+from bayesdrag.effects.wind_layers import WIND_LAYERS_MAX, WindLayers
 
 V0, EL = 818.0, 30.0
 T = np.linspace(0.0, 40.0, 401)

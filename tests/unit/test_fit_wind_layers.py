@@ -4,9 +4,9 @@ their base, a random walk between neighbours and a declared wind_sd as each laye
 import numpy as np
 import pytest
 
-from bayesdrag.estimate.scheme1.winds import layer_free, wind_layer_priors
+from bayesdrag.estimate.build.winds import layer_free, wind_layer_priors
 from bayesdrag.air.wind import WindProfile
-from bayesdrag.wind_layers import PROFILE_LAYERS, WIND_STEP_SD, path_layers
+from bayesdrag.effects.wind_layers import PROFILE_LAYERS, WIND_STEP_SD, path_layers
 
 #: a layer edge is rounded to 10 m; its place is checked within this [m]
 EDGE_TOL_M = 10.0
@@ -63,7 +63,7 @@ def test_a_cross_wind_without_a_y_channel_is_held():
 def test_the_fit_resolution_keeps_span_axis_base_and_cross_wind_rule():
     from dataclasses import replace
 
-    from bayesdrag.estimate.scheme1.winds import FIT_LAYERS, at_fit_resolution
+    from bayesdrag.estimate.build.winds import FIT_LAYERS, at_fit_resolution
 
     x, z = _path()
     coarse = replace(path_layers("altitude", x, z, 300.0, WindProfile("altitude", (300.0, 4300.0), (1.0, 2.0),
@@ -96,7 +96,7 @@ def _step_fits(scale, cold_extra=0.0):
 
 
 def test_an_edge_is_placed_at_a_wind_step_when_the_drop_beats_its_bic_price():
-    from bayesdrag.estimate.scheme1.winds import placed_layers
+    from bayesdrag.estimate.build.winds import placed_layers
 
     x = np.linspace(0.0, 10000.0, 200)
     equal = path_layers("downrange", x, 0.0 * x + 100.0, 0.0, n=10)
@@ -109,7 +109,7 @@ def test_an_edge_is_placed_at_a_wind_step_when_the_drop_beats_its_bic_price():
 
 
 def test_the_equal_grid_stays_when_the_drop_is_within_the_price_or_the_plain_start_disagrees():
-    from bayesdrag.estimate.scheme1.winds import placed_layers
+    from bayesdrag.estimate.build.winds import placed_layers
 
     x = np.linspace(0.0, 10000.0, 200)
     equal = path_layers("downrange", x, 0.0 * x + 100.0, 0.0, n=10)
@@ -131,7 +131,7 @@ def _placement_fit(d, coef, ok=True):
 
 def test_the_placements_tried_give_cd_model_error_weighted_by_their_likelihood():
     from bayesdrag.drag import ReferenceScale, ReferenceTable
-    from bayesdrag.estimate.scheme1.winds import equivalent_placements, placement_sd
+    from bayesdrag.estimate.build.winds import equivalent_placements, placement_sd
 
     model = ReferenceScale(reference=ReferenceTable((0.5, 3.0), (0.3, 0.3)))   # Cd = 0.3 x factor
     kept = _placement_fit(100.0, [1.0])

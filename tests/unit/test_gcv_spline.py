@@ -1,10 +1,10 @@
-"""The start curve's GCV smoothing spline (bayesdrag.estimate.scheme1.gcv_spline) is scipy's
+"""The start curve's GCV smoothing spline (bayesdrag.estimate.build.gcv_spline) is scipy's
 ``make_smoothing_spline`` to the last bit, on start-curve-like data and on odd inputs."""
 import numpy as np
 import pytest
 from scipy.interpolate import make_smoothing_spline
 
-from bayesdrag.estimate.scheme1.gcv_spline import gcv_lambda, gcv_smoothing_spline
+from bayesdrag.estimate.build.gcv_spline import gcv_lambda, gcv_smoothing_spline
 
 
 def _cases():

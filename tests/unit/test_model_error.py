@@ -6,7 +6,7 @@ import pytest
 from bayesdrag.estimate.bayes.draws import cd_posterior_rows, needs_widening, widen_to_floor
 from bayesdrag.estimate.cd.headline import HEADLINE_LEVEL_Z, headline
 from bayesdrag.estimate.cd.model_error import check_sd, combine, fold_into_budget, shift_sd
-from bayesdrag.model_check import level_shift
+from bayesdrag.pipeline.model_check import level_shift
 
 #: relative agreement of quantities written to 6 significant digits
 SIX_DIGITS = 1e-5
@@ -146,7 +146,7 @@ def _rows(**shrinks):
 
 
 def test_close_alternative_is_the_single_effect_the_data_barely_tell_from_the_verdict():
-    from bayesdrag.model_check import ALTERNATIVE_GAP_RATIO, close_alternative
+    from bayesdrag.pipeline.model_check import ALTERNATIVE_GAP_RATIO, close_alternative
 
     # a 6-DOF flight in a head wind: the profile leaves 0.17 % of the gap, a constant wind 0.19 %
     names, instead_of, ratio = close_alternative(_rows(wind_profile=0.9983, wind=0.9981, lift=0.16),
@@ -169,7 +169,7 @@ def test_close_alternative_is_the_single_effect_the_data_barely_tell_from_the_ve
 
 
 def test_alternative_error_adds_the_shift_on_the_answer_s_grid():
-    from bayesdrag.model_check import alternative_error
+    from bayesdrag.pipeline.model_check import alternative_error
 
     rows = [{"mach": m, "ml": 0.30, "crb_sd": 0.001, "model_error_sd": 0.002} for m in (0.9, 1.0, 1.1)]
     gap = {"alternative": {"mach": [0.8, 1.0, 1.2], "cd": [0.31, 0.33, 0.35], "band_sd": [0.001, 0.001, 0.001]}}
@@ -180,7 +180,7 @@ def test_alternative_error_adds_the_shift_on_the_answer_s_grid():
 
 
 def test_a_yaw_behind_the_verdict_s_drag_shape_is_named_when_it_explains_nearly_as_much():
-    from bayesdrag.model_check import ALTERNATIVE_GAP_RATIO, shape_confounded
+    from bayesdrag.pipeline.model_check import ALTERNATIVE_GAP_RATIO, shape_confounded
 
     def dsum(yaw_shrink, shape_shrink=0.77, **yaw):
         row = dict(name="yaw_drag", shrink=yaw_shrink, significant=True, material=True,

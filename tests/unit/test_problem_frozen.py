@@ -109,7 +109,7 @@ def test_a_priors_declared_dependencies_leave_its_jacobian_unchanged(problem):
     # columns were exactly zero, so the Jacobian is the same to the bit
     import dataclasses
 
-    from bayesdrag.estimate.scheme1.launch import launch_state_priors
+    from bayesdrag.estimate.build.launch import launch_state_priors
     from bayesdrag.round import Launch
 
     prob, ml = problem

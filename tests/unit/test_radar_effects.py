@@ -12,7 +12,7 @@ from bayesdrag.errors import InputError
 from bayesdrag.measure import RadarSite, channel_values
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.estimate.model.problem import outputs
-from bayesdrag.estimate.scheme1.systematics import plan_effects
+from bayesdrag.estimate.build.sources import plan_effects
 from bayesdrag.io.drag_tables import load_m101
 
 NATIVE = ("range", "azimuth", "elevation", "range_rate")

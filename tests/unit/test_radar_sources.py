@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from bayesdrag.effect_inputs import SimInputs
+from bayesdrag.effects.inputs import SimInputs
 from bayesdrag.estimate.model.problem import outputs
-from bayesdrag.estimate.scheme1 import systematics as S
+from bayesdrag.estimate.build import sources as S
 from bayesdrag.measure import RadarSite, channel_values
 from bayesdrag.round import Launch, Projectile, Radar, Round
 

@@ -14,12 +14,12 @@ from scipy.interpolate import CubicSpline, PchipInterpolator
 from bayesdrag.drag import ReferenceTable, Spline
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.scheme1.basis import coefficient_budget, sparse_knots
-from bayesdrag.estimate.scheme1.model_size import check_determinable
+from bayesdrag.estimate.build.basis import coefficient_budget, sparse_knots
+from bayesdrag.estimate.build.model_size import check_determinable
 from bayesdrag.estimate.model.problem import OutputErrorProblem
 from bayesdrag.estimate.cd.quality import BEND_CAP, bend_coefficient, unresolved_bend
 from bayesdrag.estimate.scheme1.fit import fit_scheme1
-from bayesdrag.estimate.scheme1.smoothing import SMOOTHING_GRID, penalty
+from bayesdrag.estimate.build.smoothing import SMOOTHING_GRID, penalty
 from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.synthetic import add_noise, simulate_round

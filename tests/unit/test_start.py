@@ -15,11 +15,11 @@ from bayesdrag.io.drag_tables import load_m101
 from bayesdrag.dynamics.pointmass import PointMassModel
 from bayesdrag.dynamics.trajectory import initial_state
 from bayesdrag.errors import InputError
-from bayesdrag.estimate.scheme1.basis import adaptive_knots, rise_regions
+from bayesdrag.estimate.build.basis import adaptive_knots, rise_regions
 from bayesdrag.estimate.cd.quality import CHI2_LIMIT
 from bayesdrag.estimate.cd.table import cd_grid, cd_table
 from bayesdrag.estimate.scheme1.fit import fit_scheme1
-from bayesdrag.estimate.scheme1.start import check_gravity_units, data_start, smooth_kinematics
+from bayesdrag.estimate.build.start import check_gravity_units, data_start, smooth_kinematics
 from bayesdrag.synthetic import add_noise, simulate_round
 from bayesdrag.round import Launch, Projectile, Radar, Round
 from bayesdrag.track import RadarTrack

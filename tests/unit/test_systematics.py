@@ -7,8 +7,9 @@ import pytest
 
 from bayesdrag.air.atmosphere import Atmosphere
 from bayesdrag.dynamics.pointmass import atmosphere_table
+from bayesdrag.effects import temperature_nodes
 from bayesdrag.estimate.cd.budget import uncertainty_budget
-from bayesdrag.estimate.scheme1 import systematics as S
+from bayesdrag.estimate.build import sources as S
 
 #: interpolated temperature tables against exact ones, relative [-]
 TABLE_TOL = 1e-6
@@ -42,7 +43,7 @@ def test_independent_source_share_is_its_linear_effect():
 
 def test_temperature_tables_interpolate_the_shifted_atmosphere():
     atm = Atmosphere()
-    tabs = S._temperature_tables(atm, 1.5)
+    _, tabs = temperature_nodes(atm, 1.5)
     x = 0.7 / 1.5
     interp = tabs[1] + 0.5 * x * (tabs[2] - tabs[0]) + 0.5 * x * x * (tabs[2] - 2 * tabs[1] + tabs[0])
     exact = atmosphere_table(replace(atm, temperature_offset=0.7))[2]

@@ -56,7 +56,7 @@ def test_an_implausible_wind_among_many_is_named():
 @pytest.mark.parametrize("cross, base", [(False, None), (True, None),
                                          (False, WindProfile("downrange", (0.0, 5000.0), (1.0, -2.0), (0.5, 0.5)))])
 def test_wind_layers_make_their_profiles_at_once(cross, base):
-    from bayesdrag.wind_layers import WindLayers
+    from bayesdrag.effects.wind_layers import WindLayers
 
     lay = WindLayers("downrange", EDGES, base=base, constant_cross=cross)
     rows = np.random.default_rng(9).normal(0, 4, (6, 12))

@@ -2,7 +2,7 @@
 
 A radar track determines the drag *force*, i.e. the product ``rho * Kref * Cd(v / a)`` along the
 flight, far better than it determines each factor. When the round declares the air density, the
-temperature, the mass or the diameter as uncertain (``bayesdrag.estimate.scheme1.systematics``) the
+temperature, the mass or the diameter as uncertain (``bayesdrag.estimate.build.sources``) the
 posterior of the spline coefficients ``c`` and those sources is a thin curved ridge: a density
 ratio ``r`` is only known through ``r * c`` (a bilinear coupling) and a temperature offset
 ``dT`` moves every data point along the Mach axis (``M = M0 * sqrt(T / (T + dT))``), so the
@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-#: parameter names of the sources the map uses (``bayesdrag.estimate.scheme1.systematics.SOURCE_PARAMS``)
+#: parameter names of the sources the map uses (``bayesdrag.estimate.build.sources.SOURCE_PARAMS``)
 DENSITY, TEMPERATURE, MASS, DIAMETER = "density.ratio", "temperature.dT", "mass", "diameter"
 #: Mach points per knot interval of the projection grid
 GRID_PER_INTERVAL = 12

@@ -4,6 +4,7 @@ for Scheme 2."""
 from __future__ import annotations
 
 import numpy as np
+from ...effects import DENSITY
 
 __all__ = ["uncertainty_budget", "budget_rows", "LEVEL_SOURCES", "level_shares"]
 
@@ -72,7 +73,7 @@ def budget_rows(budget, mach):
 #: error of Cd by a fixed relative amount at every Mach: the signed relative Cd error per declared
 #: sd (``density_sd`` is relative), from the sd, the mass [kg] and the diameter [m]
 LEVEL_SOURCES = {
-    "density": lambda sd, m, d: -sd,              # Cd ∝ 1 / rho
+    DENSITY.source: lambda sd, m, d: -sd,              # Cd ∝ 1 / rho
     "mass": lambda sd, m, d: sd / m,              # Cd ∝ m
     "diameter": lambda sd, m, d: -2.0 * sd / d,   # Cd ∝ 1 / d^2
 }

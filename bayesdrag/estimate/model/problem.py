@@ -39,7 +39,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ...effect_inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
+from ...effects.inputs import ExtraParam, SimInputs  # noqa: F401  (the extras this problem fits)
 from ...errors import InputError
 from ...measure import RadarSite, channel_jacobian, channel_values, near_branch, sample_noise
 from ...track import ALL_CHANNELS, NATIVE_CHANNELS

@@ -1,4 +1,5 @@
-"""Scheme 1 (Cd(M) over the whole flight): the recipe (:mod:`~bayesdrag.estimate.scheme1.fit`),
-its start from the data (``start``), knots and smoothing (``basis``, ``smoothing``), how large a
-model the track determines (``model_size``), launch priors (``launch``) and declared systematic
-sources as nuisance parameters (``systematics``)."""
+"""Scheme 1 (Cd(M) over the whole flight): the recipe (:mod:`~bayesdrag.estimate.scheme1.fit`) and
+how sure an added effect's size is (``effect_sizes``). Its building blocks (start, knots and
+smoothing, model size, launch priors, wind layers, declared sources) are :mod:`bayesdrag.estimate.build`'s;
+``start``, ``basis``, ``smoothing``, ``launch`` and ``systematics`` here are deprecated re-exports
+of them until release 0.3."""

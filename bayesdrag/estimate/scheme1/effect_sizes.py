@@ -21,7 +21,7 @@ takes up the difference of the shapes: measured on a 105 mm 6-DOF flight in a 5 
 * **The sd reported.** ``sd = sqrt(max(crb, crb_colored)^2 + split_sd^2)``; ``crb_sd`` and
   ``crb_sd_colored`` keep the bounds. A fit with white residuals gets no split fits (the model
   follows the track; its bound stands). Wind layers are sized in
-  :func:`~bayesdrag.estimate.scheme1.winds.layer_sizes` (a part of the track leaves layers
+  :func:`~bayesdrag.estimate.build.winds.layer_sizes` (a part of the track leaves layers
   empty).
 """
 from __future__ import annotations
@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import FitError, InputError
+from ...effects import WIND_PROFILE
 
 __all__ = ["effect_sizes", "split_excess", "SPLIT_SHARES"]
 
@@ -109,7 +110,7 @@ def effect_sizes(track, rnd, opts, channels, f1):
     res = f1.ml
     names = list(res.names)
     idx = [j for j, n in enumerate(names) if res.free[j] and "." in n
-           and n.split(".")[0] in f1.effects and n.split(".")[0] != "wind_profile"]
+           and n.split(".")[0] in f1.effects and n.split(".")[0] != WIND_PROFILE.name]
     if not idx:
         return {}
     structured = any(m == "ar1" for m in (getattr(f1.problem, "noise_model", None) or {}).values())

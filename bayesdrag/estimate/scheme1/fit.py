@@ -2,7 +2,7 @@
 
 How a fit is set up and run (each choice with its reason):
 
-* **Start from the data** (:mod:`bayesdrag.estimate.scheme1.start`). The Mach span, the starting Cd(M)
+* **Start from the data** (:mod:`bayesdrag.estimate.build.start`). The Mach span, the starting Cd(M)
   and the state at the first sample are read off the track (smoothed speed, its rate and the
   path angle), not from the round's nominal launch values or a generic curve: a round file may
   be wrong, and a shell may be nothing like a 155 mm one. A track whose path bends as if gravity
@@ -11,13 +11,13 @@ How a fit is set up and run (each choice with its reason):
   1996). With a firing table it is the table times a smooth correction
   (:class:`bayesdrag.drag.TableSpline`: the table is evaluated exactly, so a correct table costs
   nothing however steep its rise); without one, a spline in Cd itself. Knots are placed where
-  the start curve (and the table) bend (:func:`bayesdrag.estimate.scheme1.basis.adaptive_knots`); the
+  the start curve (and the table) bend (:func:`bayesdrag.estimate.build.basis.adaptive_knots`); the
   penalty is on the second derivative of the relative correction ``Cd / base`` (base: the table,
   or the start curve), its weight chosen by maximising the Laplace-approximated marginal
   likelihood (the evidence) over :data:`SMOOTHING_GRID`, and allowed more freedom where the base
   itself bends. A short track (8-24 samples) gets at most one coefficient per sample, and a
   track too short even for the penalty's straight-line correction gets one factor on the table
-  or is refused, naming the smallest model (:mod:`bayesdrag.estimate.scheme1.model_size`). Why not knots
+  or is refused, naming the smallest model (:mod:`bayesdrag.estimate.build.model_size`). Why not knots
   added one by one by BIC: BIC's ``log N`` per knot (~9 for a
   1500-sample track) refuses corrections of a few Cramér-Rao sd, so the representation error
   stays several bounds wide where Cd bends; the penalised spline follows the bend and its bounds
@@ -55,19 +55,20 @@ from ...drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default
 from ...dynamics.pointmass import PointMassModel
 from ...dynamics.trajectory import initial_state
 from ...errors import FitError, InputError
-from .launch import checked_launch_priors, launch_state_priors, unseen_launch_priors
-from .model_size import check_determinable, default_knots, free_mask
+from ..build.launch import checked_launch_priors, launch_state_priors, unseen_launch_priors
+from ..build.model_size import check_determinable, default_knots, free_mask
 from ..model.ml import MLResult
 from ..model import colored
 from ..model.contamination import contamination_refit
 from ..model.likelihood import LIKELIHOODS, STUDENT_T_NU
 from ..model.layout import ParameterLayout
 from ..model.problem import OutputErrorProblem
-from .systematics import fit_with_sources
-from .smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
-from .native_start import start_position, start_view
-from .start import DataStart, check_gravity_units, check_heights, data_start
+from ..build.sources import fit_with_sources
+from ..build.smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
+from ..build.native_start import start_position, start_view
+from ..build.start import DataStart, check_gravity_units, check_heights, data_start
 from ...measure import gun_equivalent, site_of
+from ...effects import RADAR_TIME, WIND_PROFILE
 
 __all__ = ["Scheme1Fit", "fit_scheme1", "build_drag_model", "robust_refit", "coriolis_of", "noise_record"]
 
@@ -99,7 +100,7 @@ class Scheme1Fit:
         penalty and the launch priors kept, per-sample weights of a robust fit, noise): the
         posterior samples exactly this problem.
     start : DataStart
-        What the track said before any fit (:mod:`bayesdrag.estimate.scheme1.start`).
+        What the track said before any fit (:mod:`bayesdrag.estimate.build.start`).
     smoothing : dict or None
         The penalty's choice (sd, edf, evidence over the grid, ``at_grid_end``); None for an
         unpenalised model.
@@ -116,7 +117,7 @@ class Scheme1Fit:
         fitted ``rho`` and ``q`` of ``ar1`` channels.
     sources : tuple
         The round's declared systematic sources fitted as nuisance parameters
-        (:func:`bayesdrag.estimate.scheme1.systematics.source_extras`: stem, parameter, nominal, sd), in
+        (:func:`bayesdrag.estimate.build.sources.source_extras`: stem, parameter, nominal, sd), in
         this order after the initial state; empty when none is declared.
     white_ml : MLResult or None
         With ``auto`` noise that chose ``ar1`` somewhere: the white-noise fit it started from,
@@ -134,7 +135,7 @@ class Scheme1Fit:
     layer_placements : tuple or None
         With a ``wind_profile`` whose edges were placed: the kept placement's drag coefficients
         and those of the placements the track cannot tell from the best
-        (:func:`bayesdrag.estimate.scheme1.winds.equivalent_placements`); their Cd spread is
+        (:func:`bayesdrag.estimate.build.winds.equivalent_placements`); their Cd spread is
         model error.
     """
 
@@ -269,14 +270,14 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         show one (:func:`choose_noise_model`). A Student-t fit stays white.
     with_effects : sequence of str
         Effects of :mod:`bayesdrag.effects` fitted with Cd as nuisance parameters (checked by
-        :func:`bayesdrag.estimate.scheme1.systematics.plan_effects`).
+        :func:`bayesdrag.estimate.build.sources.plan_effects`).
     progress : callable, optional
         ``progress(step)`` receives a short description of each step as the fit reaches it
         (the command prints them when the fit is slow).
     wind_layers : WindLayers or str, optional
         The layers of a ``wind_profile`` in ``with_effects``, or the axis to lay them on (the
         diagnosis's); default: laid over the fitted flight on the better axis
-        (:func:`bayesdrag.estimate.scheme1.systematics.fit_with_sources`).
+        (:func:`bayesdrag.estimate.build.sources.fit_with_sources`).
 
     Returns
     -------
@@ -363,7 +364,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
             prob = prob.replace(theta0=res_b.theta)
     model = prob.model
     say("checking the round's launch values against the track")
-    clock = "radar_time" in with_effects or rnd.systematics.time_offset is not None
+    clock = RADAR_TIME.name in with_effects or rnd.systematics.time_offset is not None
     used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen, start=start, sigma=sig,
                                         clock_fitted=clock)
     used = fixed_pri + tuple(used)
@@ -399,7 +400,7 @@ def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, 
     """
     rejected = white_ml = placements = None
     sources, fitted_effects = (), ()
-    winds_first = ("wind_profile" in with_effects or rnd.systematics.wind_profile is not None) \
+    winds_first = (WIND_PROFILE.name in with_effects or rnd.systematics.wind_profile is not None) \
         and likelihood != "student-t"
     before = res
     if winds_first:

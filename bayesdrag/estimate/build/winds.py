@@ -23,7 +23,7 @@ priors that tie them (``fit --with wind_profile``, or a declared ``[atmosphere] 
   may change inside it; the Cramér-Rao sd holds the noise only. The wind read through the layer
   middles (:func:`within_layer_sd`) says how much it changes inside each layer, and that change,
   spread uniformly, is the layer's representation sd, added to its bound in squares.
-* **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.wind_layers.WIND_STEP_SD` per
+* **Priors.** Neighbouring layers differ with sd :data:`bayesdrag.effects.wind_layers.WIND_STEP_SD` per
   component (the random walk of the diagnosis); with ``[atmosphere] wind_sd`` declared, each
   layer's wind is also ``N(0, wind_sd^2)`` around the round's own wind (the layers are what the
   met profile did not state). Without it the layers are bounded only, and what the track tells
@@ -35,7 +35,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
+from ...effects.wind_layers import EDGE_ROUND, WIND_LAYERS_MAX, WIND_STEP_SD, equal_edges, path_layers, wind_profile_free
 from ..model.problem import Prior
 
 __all__ = ["wind_layer_priors", "fit_layers", "placed_layers", "equivalent_placements", "placement_sd",

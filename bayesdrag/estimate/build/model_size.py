@@ -11,9 +11,9 @@ table is fitted with that factor (and says so); one too short for even that is r
 the smallest model and the samples it needs.
 
 Knots (:func:`default_knots`) follow where the data's shape and the table bend
-(:func:`bayesdrag.estimate.scheme1.basis.adaptive_knots`); a *short* track, with fewer samples than
+(:func:`bayesdrag.estimate.build.basis.adaptive_knots`); a *short* track, with fewer samples than
 those rules want coefficients, gets at most one coefficient per sample and no knot between two
-samples the data cannot tell apart (:func:`bayesdrag.estimate.scheme1.basis.sparse_knots`), and its bands
+samples the data cannot tell apart (:func:`bayesdrag.estimate.build.basis.sparse_knots`), and its bands
 include how far Cd may bend between its samples (:func:`bayesdrag.estimate.cd.quality.unresolved_bend`).
 """
 from __future__ import annotations
@@ -147,10 +147,10 @@ def default_knots(reference, start, lo, hi):
     """Knots of the default (penalised) spline over [lo, hi] and the record of the model's size.
 
     The knots follow where the start's shape (and the table) bend
-    (:func:`bayesdrag.estimate.scheme1.basis.adaptive_knots`), to :data:`KNOT_TOL` but not into wiggles
+    (:func:`bayesdrag.estimate.build.basis.adaptive_knots`), to :data:`KNOT_TOL` but not into wiggles
     the start's noise left. A short track, with fewer samples than those rules want
     coefficients, gets at most one coefficient per sample, and no knot between two samples
-    that the data cannot tell apart (:func:`bayesdrag.estimate.scheme1.basis.sparse_knots`): the
+    that the data cannot tell apart (:func:`bayesdrag.estimate.build.basis.sparse_knots`): the
     model's size follows the data.
 
     Returns

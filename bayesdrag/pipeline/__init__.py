@@ -15,23 +15,24 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._runtime.beside import computed_beside, started_beside
-from ._runtime.threads import single_blas
-from .errors import FitError, InputError
-from .estimate.cd.headline import headline
-from .estimate.cd.model_error import add_in_squares, fold_into_budget
-from .estimate.cd.quality import assess, check_against_flexible, intervals
-from .estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
-from .estimate.scheme1.effect_sizes import effect_sizes
-from .estimate.scheme1.fit import fit_scheme1, noise_record
-from .estimate.scheme2 import fit_scheme2, windows_table
+from .._runtime.beside import computed_beside, started_beside
+from .._runtime.threads import single_blas
+from ..errors import FitError, InputError
+from ..estimate.cd.headline import headline
+from ..estimate.cd.model_error import add_in_squares, fold_into_budget
+from ..estimate.cd.quality import assess, check_against_flexible, intervals
+from ..estimate.cd.table import cd_grid, cd_table, determined_range, model_error_floor
+from ..estimate.scheme1.effect_sizes import effect_sizes
+from ..estimate.scheme1.fit import fit_scheme1, noise_record
+from ..estimate.scheme2 import fit_scheme2, windows_table
 from .model_check import (LEVEL_EFFECTS, air, air_contradiction, alternative_error, clock_note, diagnosis_record, model_error, note_model_error,
                           why_not_clean)
-from .options import DiagnoseOptions, FitOptions
-from .results import DiagnosisResult, FitResult
-from .round import Round
+from ..options import DiagnoseOptions, FitOptions
+from ..results import DiagnosisResult, FitResult
+from ..round import Round
 from .sampling import mcmc_json, posterior_json, run_sampler, sampled_rows
-from .track import RadarTrack, thin_for_fit
+from ..track import RadarTrack, thin_for_fit
+from ..effects import RADAR_POSITION, WIND_PROFILE
 
 __all__ = ["fit", "diagnose", "summary_line"]
 
@@ -191,7 +192,7 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         budget["met_file"] = {"sources": list(rnd.systematics.from_met_file), "why": stated.why,
                               "wind_sd": stated.wind_sd, "temperature_sd": float(f"{stated.temperature_sd:.4g}"),
                               "density_sd": float(f"{stated.density_sd:.4g}")}
-    if with_note is not None or "wind_profile" in f1.effects:
+    if with_note is not None or WIND_PROFILE.name in f1.effects:
         if sizes is None:
             made = _effect_sizes_record(track, rnd, opts, chans, f1)
             sizes, timing["effect_sizes"] = made["sizes"], round(made["seconds"], 3)
@@ -256,7 +257,7 @@ def _with_effects_record(f1, with_note, sizes, placement):
     equivalent placements, ``placement``)."""
     note = with_note if with_note is not None else {
         "added_by": "round", "requested": [], "candidates": [], "skipped": {},
-        "added": {"wind_profile": "[atmosphere] wind_sd is declared: the layers' prior"},
+        "added": {WIND_PROFILE.name: "[atmosphere] wind_sd is declared: the layers' prior"},
         "reason": "[atmosphere] wind_sd is declared: the wind layers are fitted with Cd"}
     note["fitted"] = list(f1.effects)
     note.setdefault("effects", list(f1.effects))
@@ -319,11 +320,11 @@ def _effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
 
 def _placement_error(f1, grid, rows):
     """Add the Cd spread of the wind layers' equivalent placements
-    (:func:`~bayesdrag.estimate.scheme1.winds.placement_sd`) to each row's ``model_error_sd`` in
+    (:func:`~bayesdrag.estimate.build.winds.placement_sd`) to each row's ``model_error_sd`` in
     squares: where the track cannot tell where a wind step lies, the Cd that follows from each
     choice is as good as the kept one. Returns its largest value [Cd], or None without such
     placements."""
-    from .estimate.scheme1.winds import placement_sd
+    from ..estimate.build.winds import placement_sd
 
     if not f1.layer_placements:
         return None
@@ -341,7 +342,7 @@ def _trades_with_cd(f1, rnd):
     the wrong reason): the default does not take such a fit as its answer, the plain fit stands
     with the shift as model error (and the Cd conditional on the stated air or site)."""
     declared = rnd.systematics.declared()
-    partial = "radar_position" in f1.effects and "radar_position" not in _wholly_fitted(f1)
+    partial = RADAR_POSITION.name in f1.effects and RADAR_POSITION.name not in _wholly_fitted(f1)
     return partial or any(e in LEVEL_EFFECTS and e not in declared for e in f1.effects)
 
 
@@ -376,19 +377,19 @@ def _with_effects(track, rnd, opts, log):
     Returns ``(names, record, layers)``; ``record`` (``requested``, ``skipped``) is None without
     ``--with``; ``layers`` the axis of the diagnosis's ``wind_profile`` when ``auto`` names it
     (else None: the fit tries both)."""
-    from .effects import check_radar_effects
-    from .estimate.scheme1.systematics import plan_effects
+    from ..effects import check_radar_effects
+    from ..estimate.build.sources import plan_effects
 
     req = opts.with_effects
     if not req or req == "default":
         return (), None, None
     layers = None
     if req == "auto":
-        from .diagnosis import diagnose
+        from ..diagnosis import diagnose
 
         d = diagnose(track, rnd)
         names = list(d.summary["verdict"])
-        if "wind_profile" in names:
+        if WIND_PROFILE.name in names:
             layers = _diagnosis_layers(d.summary, track, rnd)
         if log is not None:
             log(f"--with auto: the diagnosis names {', '.join(names) if names else 'no material effect'}")
@@ -404,7 +405,7 @@ def _with_effects(track, rnd, opts, log):
 def _diagnosis_layers(summary, track, rnd):
     """The axis of the diagnosis's ``wind_profile`` row (``altitude`` or ``downrange``; the fit
     lays its own layers on it), or None."""
-    row = next((e for e in summary.get("effects", []) if e.get("name") == "wind_profile"), None)
+    row = next((e for e in summary.get("effects", []) if e.get("name") == WIND_PROFILE.name), None)
     return ((row or {}).get("layers") or {}).get("axis")
 
 
@@ -412,11 +413,11 @@ def _fitted_layers(f1):
     """``ml.with_effects.wind_layers`` of a fit with ``wind_profile``: the axis, the edges and
     each layer's fitted wind (the round's own wind not included) with its sd [m/s]: the noise's
     bound and what the wind can do inside the layer
-    (:func:`~bayesdrag.estimate.scheme1.winds.layer_sizes`)."""
-    from .estimate.scheme1.winds import layer_sizes
+    (:func:`~bayesdrag.estimate.build.winds.layer_sizes`)."""
+    from ..estimate.build.winds import layer_sizes
 
     lay = getattr(f1.problem.model, "layers", None)
-    if "wind_profile" not in f1.effects or lay is None:
+    if WIND_PROFILE.name not in f1.effects or lay is None:
         return None
     res = f1.ml
     rows = layer_sizes(lay, res.names, res.theta, res.free, res.crb, res.crb_colored)
@@ -443,9 +444,9 @@ def _budget(f1, grid, rows):
     """result.json ``uncertainty_budget`` (linearised, GUM) of the Scheme 1 fit; each ``cd`` row
     gains ``crb_sd_statistical`` (the sd with the sources held). Without declared sources the
     budget is all ``statistical`` and ``conditional_on`` lists what the Cd assumes known."""
-    from .estimate.cd.budget import budget_rows, uncertainty_budget
-    from .estimate.scheme1.systematics import assumed_record, radar_conditional
-    from .round import SYSTEMATIC_SOURCES
+    from ..estimate.cd.budget import budget_rows, uncertainty_budget
+    from ..estimate.build.sources import assumed_record, radar_conditional
+    from ..round import SYSTEMATIC_SOURCES
 
     res = f1.ml
     P = f1.problem.P
@@ -465,7 +466,7 @@ def _budget(f1, grid, rows):
     declared = {s[0] for s in f1.sources}
     out["conditional_on"] = [k for k in SYSTEMATIC_SOURCES if k not in declared] + \
         radar_conditional(f1.problem.channels, declared | _wholly_fitted(f1))   # a radar's own: its native channels
-    if getattr(f1.problem.model.atmosphere, "wind", None) is not None and "wind_profile" not in f1.effects:
+    if getattr(f1.problem.model.atmosphere, "wind", None) is not None and WIND_PROFILE.name not in f1.effects:
         out["conditional_on"].append("wind_profile")    # the round's winds, held as stated
     assumed = assumed_record(declared)
     if assumed:
@@ -504,9 +505,9 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     initial state, noise). Windows are sampled one after the other: each window's batch already
     runs on both cores (numba threads); a process pool would only add start-up and contention on
     a 2-core machine. Scheme 2 chains are kept in memory (one window takes a few seconds)."""
-    from .estimate.bayes.posterior import LogPosterior
-    from .estimate.scheme1.systematics import radar_conditional
-    from .estimate.bayes.sampler import sample_posterior
+    from ..estimate.bayes.posterior import LogPosterior
+    from ..estimate.build.sources import radar_conditional
+    from ..estimate.bayes.sampler import sample_posterior
 
     r2 = fit_scheme2(track, rnd, window=opts.window, overlap=opts.overlap, channels=chans, free_ic=not opts.fix_ic)
     ok = [k for k, r in enumerate(r2.results) if r.success]
@@ -571,7 +572,7 @@ def _window_budget(rows, ok, draws, rnd, seed):
     every window's Cd) added to each window's bound and, by Monte Carlo (an independent factor
     per draw), to its posterior draws; the windows stay conditional on the other sources.
     Window rows gain ``crb_sd_statistical``; ``crb_sd`` becomes the total."""
-    from .estimate.cd.budget import level_shares
+    from ..estimate.cd.budget import level_shares
 
     rel, cond = level_shares(rnd)
     s_rel = float(np.sqrt(sum(v * v for v in rel.values())))
@@ -677,11 +678,11 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
         ``verdict``, ``paragraph``, ``summary()``, ``to_dataframe()`` (the candidate effects),
         ``to_dict()`` (``diagnosis.json``), ``write(DIR)``.
     """
-    from .diagnosis import MIN_DIAGNOSIS_SAMPLES
-    from .diagnosis import diagnose as analyse
-    from .diagnosis.summary import summary_paragraph
-    from .estimate.scheme1.model_size import check_constant_channels
-    from .estimate.scheme1.start import check_heights
+    from ..diagnosis import MIN_DIAGNOSIS_SAMPLES
+    from ..diagnosis import diagnose as analyse
+    from ..diagnosis.summary import summary_paragraph
+    from ..estimate.build.model_size import check_constant_channels
+    from ..estimate.build.start import check_heights
 
     opts = options if options is not None else DiagnoseOptions()
     track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note

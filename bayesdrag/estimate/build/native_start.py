@@ -1,5 +1,5 @@
 """Starting values of a radar-native track: its range, angles or range rate read as the gun-frame
-channels the start from the data (:mod:`bayesdrag.estimate.scheme1.start`) works on. The fit
+channels the start from the data (:mod:`bayesdrag.estimate.build.start`) works on. The fit
 itself compares the radar's own channels; this view only starts it."""
 from __future__ import annotations
 
