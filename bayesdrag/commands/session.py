@@ -21,6 +21,9 @@ def session_summary(record):
     """The console's lines for a session: its central row, form factors, muzzle speeds."""
     c, ff, bc, mv = record["central"], record["form_factor"], record["bc"], record["muzzle_velocity"]
     state = "determined" if c["determined"] else ("claimed, not determined" if c["claimed"] else "not determined")
+    if c["mean"] <= 0 or ff["G7"]["value"] is None:
+        return [f"session {record['name']}: {len(record['rounds'])} shots: no physical Cd (the shots do not determine "
+                f"their deceleration; see campaign.json warnings)"]
     lines = [f"session {record['name']}: {len(record['rounds'])} shots, Cd {c['mean']:.4f} ± {c['sd']:.2g} "
              f"({100 * c['rel_sd']:.2g} %, {state}) at Mach {c['mach']:.3f}; "
              f"{record['determined']['rows']} of {record['determined']['of']} rows determined",

@@ -25,6 +25,9 @@ def plot_session_cd(record, ax=None):
     """
     ax = new_axes(ax, (7.0, 4.2))
     rows = record["cd"]
+    if not rows:
+        ax.text(0.5, 0.5, "no physical Cd (campaign.json warnings)", ha="center", transform=ax.transAxes)
+        return ax
     m = np.array([r["mach"] for r in rows])
     mean = np.array([r["mean"] for r in rows])
     ax.fill_between(m, [r["q05"] for r in rows], [r["q95"] for r in rows], color="C0", alpha=0.25,
@@ -59,7 +62,8 @@ def plot_shot_residuals(t, residual, keep, noise_sd, name="", fig=None):
     t, residual : ndarray, s and m/s
     keep : ndarray of bool
         False at the outliers left out of the fit.
-    noise_sd : float, m/s
+    noise_sd : float or ndarray, m/s
+        The noise sd (per sample when it follows the echo's SNR).
 
     Returns
     -------
@@ -67,7 +71,8 @@ def plot_shot_residuals(t, residual, keep, noise_sd, name="", fig=None):
     """
     fig = fig or new_figure((6.0, 2.8))
     ax = fig.add_subplot(1, 1, 1)
-    ax.axhspan(-2 * noise_sd, 2 * noise_sd, color="0.9", label="±2 noise sd")
+    sd = np.broadcast_to(np.asarray(noise_sd, float), t.shape)
+    ax.fill_between(t * 1e3, -2 * sd, 2 * sd, color="0.9", label="±2 noise sd")
     ax.plot(t[keep] * 1e3, residual[keep], ".", ms=3, color="C0", label="samples fitted")
     if (~keep).any():
         ax.plot(t[~keep] * 1e3, residual[~keep], "x", color="C3", ms=5, label="outliers (left out)")

@@ -44,6 +44,6 @@ def write_shot(out, record, fit, i, figures=True):
     doc = shot_record(record, fit, i)
     write_json(out / "shot.json", doc)
     if figures:
-        fig = plot_shot_residuals(fit.shots[i].t, fit.residuals[i], fit.keep[i], float(fit.sigma[i]),
-                                  fit.shots[i].name)
+        fig = plot_shot_residuals(fit.shots[i].t, fit.residuals[i], fit.keep[i],
+                                  float(fit.sigma[i]) * np.asarray(fit.scale[i]), fit.shots[i].name)
         write_bytes(out / "residuals.png", figure_png(fig))

@@ -3,7 +3,9 @@ ballistic coefficients against the standard drag functions, the muzzle speeds, t
 scatter between shots and what the range rate saw of the device's site.
 
 Every band is Student's t with the session's ``S - 1`` degrees of freedom (the shot-to-shot
-scatter is estimated from the shots themselves); ``sd`` is the row's 1-sd band and a row is
+scatter is estimated from the shots themselves). A row's ``sd`` is the band's normal-equivalent
+1-sd width (its 90 % half width over 1.645: with five shots 1.3 times the t scale ``sd_t``), so
+that "within 3 sd" means what it means for every other row bayesdrag writes; a row is
 ``determined`` when ``sd`` is at most :data:`DETERMINED_REL_SD` of its Cd, the meaning the word
 has everywhere in bayesdrag.
 """
@@ -19,6 +21,8 @@ from .fit import paule_mandel
 __all__ = ["rows", "central_row", "form_factor", "ballistic_coefficient", "muzzle_velocity", "scatter",
            "site", "MACH_ROW_STEP", "LB_PER_KG", "M_PER_IN", "CLAIM_REL_SD"]
 
+#: the normal distribution's 95 % quantile (a 90 % band is +-Z90 sd)
+Z90 = 1.6448536269514722
 #: spacing of the Cd rows [Mach]
 MACH_ROW_STEP = 0.01
 #: a row whose 1-sd band is at most this fraction of Cd is claimed (it may be claimed without
@@ -47,11 +51,14 @@ def _band(fit, mach, extra_rel_sd=0.0):
 
 
 def _row(mach, cd, sd, tq, ref):
-    rel = sd / cd if cd > 0 else np.inf
-    return {"mach": float(mach), "mean": float(cd), "sd": float(sd), "q05": float(cd - tq * sd),
+    # the 1-sd band a reader compares with: the t band's half width over the normal 90 % quantile,
+    # so that "within 3 sd" keeps its meaning with few shots (sd_t is the t distribution's scale)
+    sd_eq = sd * tq / Z90
+    rel = sd_eq / cd if cd > 0 else np.inf
+    return {"mach": float(mach), "mean": float(cd), "sd": float(sd_eq), "sd_t": float(sd), "q05": float(cd - tq * sd),
             "q95": float(cd + tq * sd), "reference": None if ref is None else float(ref),
             "rel_sd": float(rel), "determined": bool(cd > 0 and rel <= DETERMINED_REL_SD),
-            "claimed": bool(cd > 0 and rel <= CLAIM_REL_SD)}
+            "claimed": bool(cd > 0 and rel <= CLAIM_REL_SD), "physical": bool(cd > 0)}
 
 
 def flown_span(fit):
@@ -100,8 +107,10 @@ def wind_rel_sd(fit, wind_sd):
 
 
 def form_factor(fit, table, claim_rows, extra_rel_sd=0.0):
-    """The form factor against a standard drag function: generalised least squares of
-    ``Cd / Cd_std`` over the rows given (the rows' covariance from the fit).
+    """The form factor against a standard drag function: the weighted least-squares mean of
+    ``Cd / Cd_std`` over the rows given (weights 1 / var), its sd from the rows' full covariance
+    (a smooth curve's rows are strongly correlated, so the sd is the weighted mean's, not
+    ``1 / sqrt(sum w)``), widened like the rows for the shots' degrees of freedom.
 
     Parameters
     ----------
@@ -116,18 +125,15 @@ def form_factor(fit, table, claim_rows, extra_rel_sd=0.0):
         ``{"value", "sd", "rows"}``.
     """
     mach = np.array([r["mach"] for r in claim_rows])
-    cd, _, _ = _band(fit, mach)
+    cd, _, tq = _band(fit, mach)
     std = table.value(mach)
     G = _curve_gradient(fit, mach) / std[:, None]
     cov = G @ fit.cov @ G.T + np.diag((cd / std * extra_rel_sd) ** 2)
-    # a smooth curve's rows are nearly collinear: the pseudo-inverse drops the null directions
-    W = np.linalg.pinv(cov + 1e-12 * np.trace(cov) / max(len(mach), 1) * np.eye(len(mach)), hermitian=True)
-    one = np.ones(len(mach))
-    info = float(one @ W @ one)
-    value = float(one @ W @ (cd / std)) / info
-    w = W @ one / info
-    var = max(float(w @ cov @ w), 0.0)
-    return {"value": value, "sd": float(np.sqrt(var)), "rows": int(len(mach))}
+    var = np.clip(np.diag(cov), 1e-300, None)
+    w = (1.0 / var) / np.sum(1.0 / var)
+    value = float(w @ (cd / std))
+    sd = float(np.sqrt(max(float(w @ cov @ w), 0.0))) * tq / Z90
+    return {"value": value, "sd": sd, "rows": int(len(mach))}
 
 
 def ballistic_coefficient(ff, mass, diameter):

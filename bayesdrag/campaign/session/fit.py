@@ -13,8 +13,9 @@ Steps (docs/radar.md, "Chronograph sessions"):
    equals its degrees of freedom, ``S - 1``); the shots' drag offsets are random effects of that
    sd in the fit.
 4. **Model size by the evidence**: the correction polynomial of order 1, 2, ... (a form factor, a
-   slope, ...) while the Bayesian information criterion improves, at most :data:`MAX_ORDER` and
-   at most one coefficient per :data:`MACH_PER_COEFFICIENT` of the flown span.
+   slope, ...) with the lowest Bayesian information criterion, at most :data:`MAX_ORDER` and at
+   most one coefficient per :data:`MACH_PER_COEFFICIENT` of the flown span; each coefficient
+   beyond the level has the prior :data:`SHAPE_PRIOR_SD` (a departure from the reference's shape).
 5. **Covariance** of the final fit (Gauss-Newton, the random-effect and time-origin priors
    included); the band of a row uses Student's t with ``S - 1`` degrees of freedom.
 """
@@ -52,10 +53,21 @@ TAU_START = 0.05
 STEP_TOL = 1e-4
 #: most Levenberg-Marquardt steps of one fit
 MAX_ITER = 50
+#: the smallest correction level (the form factor against the reference) a fit may reach [-]
+C0_MIN = 1e-3
 #: farthest a time origin may lie before the device's trigger [s] (50 times its prior sd)
 T0_BOUND = 0.05
 #: largest |q| = |y_d^2 - d^2| [m^2]: a device 3 m from the line of fire
 Q_BOUND = 9.0
+#: prior sd of each correction coefficient beyond the level, relative to the level [-]: the
+#: reference's shape is the projectile's to within this per half span of the flown Mach (a
+#: bullet's supersonic Cd departs from G1 or G7 by a few per cent over 0.2 Mach); strong data
+#: overcome it, a near-muzzle misfit inside one shot's track does not bend the curve through it
+SHAPE_PRIOR_SD = 0.15
+#: the largest SNR slope (``beta``) the noise model takes
+SNR_BETA_MAX = 2.0
+#: a sample's SNR scale is held within this range (a fade or a glint is not the law's)
+SNR_SCALE_RANGE = (0.02, 50.0)
 #: finite-difference steps: curve coefficient, q [m^2], v0 [m/s], t0 [s], delta
 _STEP = {"c": 1e-6, "q": 1e-4, "v0": 1e-4, "t0": 1e-7, "delta": 1e-6}
 
@@ -75,7 +87,11 @@ class SessionFit:
     shots : tuple of Shot
         The shots fitted (those skipped are not here).
     sigma, rho : ndarray, shape (S,)
-        Each shot's noise sd [m/s] and AR(1) coefficient per typical spacing.
+        Each shot's noise sd [m/s] at its median SNR and AR(1) coefficient per typical spacing.
+    scale : tuple of ndarray
+        Each sample's noise sd relative to its shot's ``sigma`` (from its SNR, :func:`snr_scale`).
+    snr_beta : float
+        The session's SNR slope (:func:`snr_slope`).
     keep : tuple of ndarray of bool
         Each shot's samples used (False: an outlier).
     tau : float
@@ -115,6 +131,8 @@ class SessionFit:
     levels: np.ndarray = field(repr=False)
     level_sd: np.ndarray = field(repr=False)
     q_prior: tuple | None = None
+    scale: tuple = field(default=(), repr=False)
+    snr_beta: float = 0.0
 
     @property
     def order(self) -> int:
@@ -171,21 +189,28 @@ def _whiten(e, phi):
 class _Problem:
     """The residual vector and its Jacobian for one layout, noise and prior set."""
 
-    def __init__(self, model, shots, layout, sigma, rho, keep, tau, q_prior):
+    def __init__(self, model, shots, layout, sigma, rho, keep, tau, q_prior, scale=None, shape_sd=None):
         self.model, self.shots, self.layout = model, shots, layout
+        # prior sd of the correction's coefficients beyond the level [Cd units per half span]
+        self.shape_sd = shape_sd
         self.sigma, self.keep, self.tau, self.q_prior = sigma, keep, tau, q_prior
+        # each sample's noise sd [m/s]: the shot's level times the sample's SNR scale
+        self.sd = [sg * (np.ones(s.n) if scale is None else sc)
+                   for s, sg, sc in zip(shots, sigma, scale if scale is not None else [None] * len(shots))]
         self.phi = [_phi(s.t, k, r) for s, k, r in zip(shots, keep, rho)]
 
     def _data_part(self, pred):
         out = []
         for i, (s, p) in enumerate(zip(self.shots, pred)):
             k = self.keep[i]
-            out.append(_whiten((s.v[k] - p[k]) / self.sigma[i], self.phi[i]))
+            out.append(_whiten((s.v[k] - p[k]) / self.sd[i][k], self.phi[i]))
         return np.concatenate(out)
 
     def _prior_part(self, theta):
         L = self.layout
         parts = [L.t0(theta) / T0_SD, L.delta(theta) / max(self.tau, TAU_FLOOR)]
+        if self.shape_sd and L.K > 1:
+            parts.append(np.asarray(theta[1: L.K]) / self.shape_sd)
         if L.fit_q and self.q_prior is not None:
             parts.append(np.atleast_1d((L.q(theta, 0.0) - self.q_prior[0]) / self.q_prior[1]))
         return np.concatenate(parts)
@@ -220,11 +245,15 @@ class _Problem:
             Ji = np.zeros((int(k.sum()), L.size))
             for kind, where, d in cols:
                 j = where if kind == "shared" else where.start + i
-                Ji[:, j] = -d[i][k] / self.sigma[i]
+                Ji[:, j] = -d[i][k] / self.sd[i][k]
             rows.append(_whiten(Ji, self.phi[i]))
-        Jp = np.zeros((L.S * 2 + int(L.fit_q and self.q_prior is not None), L.size))
-        Jp[np.arange(L.S), L.block("t0")] = 1.0 / T0_SD
-        Jp[L.S + np.arange(L.S), L.block("delta")] = 1.0 / max(self.tau, TAU_FLOOR)
+        n_shape = L.K - 1 if self.shape_sd else 0
+        Jp = np.zeros((L.S * 2 + n_shape + int(L.fit_q and self.q_prior is not None), L.size))
+        shots = np.arange(L.S)
+        Jp[shots, L.block("t0").start + shots] = 1.0 / T0_SD
+        Jp[L.S + shots, L.block("delta").start + shots] = 1.0 / max(self.tau, TAU_FLOOR)
+        if n_shape:
+            Jp[2 * L.S + np.arange(n_shape), 1 + np.arange(n_shape)] = 1.0 / self.shape_sd
         if L.fit_q and self.q_prior is not None:
             Jp[-1, L.K] = 1.0 / self.q_prior[1]
         return np.vstack(rows + [Jp])
@@ -235,6 +264,7 @@ def _bounds(problem):
     :data:`T0_BOUND` before the trigger; a positive muzzle speed; ``q`` within :data:`Q_BOUND`."""
     L = problem.layout
     lo, hi = np.full(L.size, -np.inf), np.full(L.size, np.inf)
+    lo[0] = C0_MIN       # a drag level: positive
     if L.fit_q:
         lo[L.K], hi[L.K] = -Q_BOUND, Q_BOUND
     lo[L.block("v0")] = 1.0
@@ -274,8 +304,11 @@ def _solve(problem, theta0, max_iter=MAX_ITER, fixed=()):
                 lam *= 10
                 continue
             new = np.clip(theta + step, lo, hi)
-            r_new = problem.residual(new)
-            c_new = float(r_new @ r_new)
+            try:
+                r_new = problem.residual(new)
+                c_new = float(r_new @ r_new)
+            except ValueError:      # a trial step that stops a shot within its track: no step
+                c_new = np.inf
             if np.isfinite(c_new) and c_new <= cost:
                 accepted = True
                 break
@@ -300,11 +333,53 @@ def _theta_with_order(theta, old, new):
     return out
 
 
+def snr_slope(shots, pred, keep):
+    """How the noise grows as the echo weakens: ``beta`` in ``sd ~ 10 ** (-beta * snr_dB / 20)``,
+    fitted to the log of the absolute residuals with an intercept per shot (0 without SNR).
+
+    A chronograph's speed noise grows from a tenth of a m/s near the muzzle to metres per second
+    at its reach as the echo weakens; ``beta = 1`` is the Cramér-Rao law of a tone's frequency
+    (:mod:`bayesdrag.measure.sample_noise`); real tracks show about 0.7."""
+    xs, ys = [], []
+    for s, p, k in zip(shots, pred, keep):
+        if s.snr is None or k.sum() < 5:
+            continue
+        snr = np.asarray(s.snr, float)[k]
+        r = np.abs(s.v - p)[k]
+        ok = np.isfinite(snr) & (snr != 0) & (r > 0)
+        if ok.sum() < 5:
+            continue
+        xs.append(snr[ok] - np.median(snr[ok]))
+        y = np.log(r[ok])
+        ys.append(y - np.mean(y))
+    if not xs:
+        return 0.0
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    if np.sum(x * x) <= 0:
+        return 0.0
+    b = float(np.sum(x * y) / np.sum(x * x))
+    return float(np.clip(-b * 20.0 / np.log(10.0), 0.0, SNR_BETA_MAX))
+
+
+def snr_scale(shot, beta):
+    """Each sample's noise sd relative to the shot's median sample (1 without SNR)."""
+    if shot.snr is None or beta == 0.0:
+        return np.ones(shot.n)
+    snr = np.asarray(shot.snr, float)
+    known = np.isfinite(snr) & (snr != 0)
+    med = float(np.median(snr[known])) if known.any() else 0.0
+    sc = np.where(known, 10.0 ** (-beta * (snr - med) / 20.0), 1.0)
+    return np.clip(sc, SNR_SCALE_RANGE[0], SNR_SCALE_RANGE[1])
+
+
 def _noise(shots, pred, keep_prev):
-    """Each shot's (sd, AR(1) coefficient, samples kept) from its residuals."""
-    sig, rho, keep = [], [], []
+    """Each shot's (sd level, AR(1) coefficient, samples kept, per-sample scale) from its
+    residuals, and the session's SNR slope."""
+    beta = snr_slope(shots, pred, keep_prev)
+    sig, rho, keep, scales = [], [], [], []
     for s, p, kp in zip(shots, pred, keep_prev):
-        r = s.v - p
+        sc = snr_scale(s, beta)
+        r = (s.v - p) / sc
         rs = _robust_sd(r[kp])
         k = np.abs(r - np.median(r[kp])) <= OUTLIER_K * max(rs, 1e-6)
         if k.sum() < 4:     # too few left: keep them all rather than fit nothing
@@ -321,7 +396,8 @@ def _noise(shots, pred, keep_prev):
         sig.append(max(sd, 1e-3))
         rho.append(float(np.clip(rr, 0.0, 0.95)))
         keep.append(k)
-    return np.asarray(sig), np.asarray(rho), keep
+        scales.append(sc)
+    return np.asarray(sig), np.asarray(rho), keep, scales, beta
 
 
 def _levels(problem, theta):
@@ -443,12 +519,14 @@ def fit_session(shots, model, *, fit_q=True, q_prior=None, orders=None, log=None
     keep = [np.ones(s.n, bool) for s in shots]
     sigma = np.array([st[2] for st in starts])
     rho = np.zeros(S)
+    scale, beta = None, 0.0
+    shape_sd = SHAPE_PRIOR_SD * c0
     tau = TAU_START
     for rnd in range(NOISE_ROUNDS):
-        prob = _Problem(model, shots, layout, sigma, rho, keep, tau, q_prior)
+        prob = _Problem(model, shots, layout, sigma, rho, keep, tau, q_prior, scale, shape_sd)
         theta = _solve(prob, theta)
         pred, mach = model.predict(theta, layout, shots)
-        sigma, rho, keep = _noise(shots, pred, keep)
+        sigma, rho, keep, scale, beta = _noise(shots, pred, keep)
         if log:
             log(f"session: noise round {rnd + 1}: median sd {np.median(sigma):.3g} m/s, rho {np.median(rho):.2f}")
     # the information-weighted Mach: the shots' Mach weighted by their samples over their noise
@@ -460,17 +538,21 @@ def fit_session(shots, model, *, fit_q=True, q_prior=None, orders=None, log=None
     model = replace(model, mach_center=mc, mach_half=max(0.5 * span, 0.02))
     # drag scatter across shots
     # each shot's own level: its offset free (a flat prior) with the curve held
-    loose = _Problem(model, shots, layout, sigma, rho, keep, LOOSE_TAU, q_prior)
+    loose = _Problem(model, shots, layout, sigma, rho, keep, LOOSE_TAU, q_prior, scale, shape_sd)
     theta_loose = _solve(loose, theta, fixed=np.arange(layout.n_shared))
     levels, level_sd = _levels(loose, theta_loose)
     tau = paule_mandel(levels, level_sd)
     # model order by the evidence
-    orders = list(orders) if orders is not None else list(range(1, _max_order(span) + 1))
+    # the slope is always a parameter where the span allows one (its prior keeps it honest): a
+    # fixed reference shape would claim the edge rows to the level's band when the bullet's shape
+    # is not the reference's; the evidence decides among the higher orders
+    orders = (list(orders) if orders is not None
+              else list(range(min(2, _max_order(span)), _max_order(span) + 1)))
     fits, bic = {}, {}
     for K in orders:
         lay = Layout(K, S, fit_q)
-        th = _solve(_Problem(model, shots, lay, sigma, rho, keep, tau, q_prior), _theta_with_order(theta, layout, lay))
-        r = _Problem(model, shots, lay, sigma, rho, keep, tau, q_prior).residual(th)
+        th = _solve(_Problem(model, shots, lay, sigma, rho, keep, tau, q_prior, scale, shape_sd), _theta_with_order(theta, layout, lay))
+        r = _Problem(model, shots, lay, sigma, rho, keep, tau, q_prior, scale, shape_sd).residual(th)
         n_data = int(sum(int(k.sum()) for k in keep))
         bic[K] = float(np.sum(r ** 2) + K * np.log(n_data))
         fits[K] = (lay, th)
@@ -478,7 +560,7 @@ def fit_session(shots, model, *, fit_q=True, q_prior=None, orders=None, log=None
             log(f"session: order {K}: BIC {bic[K]:.1f}")
     K = min(bic, key=bic.get)
     layout, theta = fits[K]
-    prob = _Problem(model, shots, layout, sigma, rho, keep, tau, q_prior)
+    prob = _Problem(model, shots, layout, sigma, rho, keep, tau, q_prior, scale, shape_sd)
     J = prob.jacobian(theta)
     try:
         cov = np.linalg.inv(J.T @ J)
@@ -490,7 +572,8 @@ def fit_session(shots, model, *, fit_q=True, q_prior=None, orders=None, log=None
     return SessionFit(theta=theta, cov=cov, layout=layout, model=model, shots=shots, sigma=sigma, rho=rho,
                       keep=tuple(keep), tau=float(tau), dof=S - 1, chi2=float(np.sum(r_all ** 2)), n_data=n_data,
                       bic=bic, residuals=tuple(s.v - p for s, p in zip(shots, pred)), mach=tuple(mach),
-                      levels=levels, level_sd=level_sd, q_prior=q_prior)
+                      levels=levels, level_sd=level_sd, q_prior=q_prior,
+                      scale=tuple(scale) if scale is not None else tuple(np.ones(x.n) for x in shots), snr_beta=beta)
 
 
 def _recentre(theta, layout, model, mc, half):

@@ -124,12 +124,19 @@ def session_record(fit, files, rnd, ref):
     if wind:
         declared["wind_sd"] = wind
     extra = math.sqrt(sum(v * v for v in declared.values()))
-    rows = claims.rows(fit, extra)
+    all_rows = claims.rows(fit, extra)
+    # a curve that goes through zero is no drag coefficient there: those rows are not written
+    rows = [r for r in all_rows if r["physical"]]
+    unphysical = [r["mach"] for r in all_rows if not r["physical"]]
     central = claims.central_row(fit, extra)
     determined = [r for r in rows if r["determined"]]
     chosen = determined or [central]
     ff, bc = {}, {}
     for name in STANDARDS:
+        if central["mean"] <= 0:
+            ff[name] = {"value": None, "sd": None, "rows": 0, "from": "no physical Cd"}
+            bc[name] = {"value": None, "sd": None, "unit": "lb/in^2", "value_kg_m2": None, "sd_kg_m2": None}
+            continue
         ff[name] = claims.form_factor(fit, read_standard_drag(name), chosen, extra)
         ff[name]["from"] = "the determined rows" if determined else "the central row (no row determined)"
         bc[name] = claims.ballistic_coefficient(ff[name], rnd.projectile.mass, rnd.projectile.diameter)
@@ -159,6 +166,10 @@ def session_record(fit, files, rnd, ref):
         warnings.append(f"the central row's band is {100 * central['rel_sd']:.2g} %: claimed (at most "
                         f"{100 * claims.CLAIM_REL_SD:g} %) but not determined (at most "
                         f"{100 * claims.DETERMINED_REL_SD:g} %)")
+    if unphysical or central["mean"] <= 0:
+        warnings.insert(0, f"the fitted curve is not a drag coefficient (Cd <= 0 at Mach {min(unphysical or [central['mach']]):.3f}"
+                           f"{'-' + format(max(unphysical), '.3f') if len(unphysical) > 1 else ''}): the shots do not "
+                           f"determine their deceleration there; no row is written there")
     skipped = [s for s in shots if s["skipped"]]
     air = rnd.atmosphere
     return {

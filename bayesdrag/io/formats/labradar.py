@@ -55,7 +55,7 @@ from ...errors import InputError
 from ...track import RadarTrack
 from ..csv import parse_number, read_bytes
 
-__all__ = ["NAME", "DESCRIPTION", "sniff", "read_labradar", "VELOCITY_UNITS", "DISTANCE_UNITS", "TIME_UNITS"]
+__all__ = ["NAME", "DESCRIPTION", "sniff", "read_labradar", "write_labradar", "VELOCITY_UNITS", "DISTANCE_UNITS", "TIME_UNITS"]
 
 #: the format's name in the registry (``read_track(path, format="labradar")``)
 NAME = "labradar"
@@ -316,3 +316,51 @@ def read_labradar(path: str | os.PathLike[str], *, keep_extrapolated: bool = Fal
         notes.append(f"{path}: dropped {len(no_value)} row(s) whose velocity is 'nan' (the device's mark for no "
                      f"value; line {', '.join(map(str, no_value[:5]))})")
     return RadarTrack(t, {"range_rate": v}, extra, str(path), tuple(notes))
+
+
+def write_labradar(path: str | os.PathLike[str], t, velocity, distance, snr, *, v0_extrapolated=None,
+                   series: int = 1, shot: int = 1, velocity_unit: str = "fps", distance_unit: str = "m",
+                   device_id: str = "LBR-0000000") -> Path:
+    """Write a track as a LabRadar device writes it to its card (the module docstring's layout).
+
+    Parameters
+    ----------
+    path : path
+        The file to write (``Shot0001 Track.csv``).
+    t : array_like, s
+        Sample times from the device's trigger.
+    velocity : array_like, m/s
+        The speed the device reports (its range rate after its own offset correction).
+    distance : array_like, m
+        The distance column (the device integrates it from its speed).
+    snr : array_like, dB
+    v0_extrapolated : float, m/s, optional
+        The device's extrapolation to the muzzle, written as the first row (t = 0, SNR ``-``).
+    series, shot : int
+    velocity_unit : str
+        One of :data:`VELOCITY_UNITS` (the device's setting; ``fps`` by default, as most are).
+    distance_unit : str
+        One of :data:`DISTANCE_UNITS`.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    from ..outputs import atomic_write
+
+    if velocity_unit not in VELOCITY_UNITS or distance_unit not in DISTANCE_UNITS:
+        raise ValueError(f"velocity unit {velocity_unit!r} or distance unit {distance_unit!r} not known")
+    fv, fd = VELOCITY_UNITS[velocity_unit], DISTANCE_UNITS[distance_unit]
+    lines = ["sep=;", f"Device ID;{device_id};;", f"Series No;{series:04d};;", f"Shot No;{shot:04d};;",
+             f"Units velocity;{velocity_unit};;", f"Units distances;{distance_unit};;", "",
+             f"Time (s);Vel ({velocity_unit});Dist ({distance_unit});SNR"]
+    if v0_extrapolated is not None:
+        lines.append(f"0.000000;{v0_extrapolated / fv:.2f};0.00;-")
+    for ti, vi, di, si in zip(np.asarray(t, float), np.asarray(velocity, float), np.asarray(distance, float),
+                              np.asarray(snr, float)):
+        lines.append(f"{ti:.6f};{vi / fv:.2f};{di / fd:.2f};{si:.2f}")
+    text = "\n".join(lines) + "\n"
+    path = Path(path)
+    atomic_write(path, lambda tmp: Path(tmp).write_bytes(text.encode()))
+    return path
