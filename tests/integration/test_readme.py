@@ -25,7 +25,8 @@ def test_readme_shell_tour_runs(tmp_path):
     p = subprocess.run(["bash", "-e", "-c", tour], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "track.csv").exists() and (tmp_path / "track6.csv").exists()
-    for out in ("fit/result.json", "fit2/result.json", "fitb/report.html", "fitb/posterior.nc", "diag/diagnosis.json"):
+    for out in ("fit/result.json", "fit2/result.json", "fitb/report.html", "fitb/posterior.nc", "diag/diagnosis.json",
+                "session/campaign.json", "session/Shot0001/shot.json"):
         assert (tmp_path / out).exists(), out
 
 

@@ -192,9 +192,12 @@ def session_record(fit, files, rnd, ref):
                 "rho_median": float(np.median(fit.rho))},
         "site": claims.site(fit, rnd.radar.device_offset),
         "uncertainty": {"declared": declared, "band": "Student t with the shots' degrees of freedom"},
-        "conditional_on": [] if (hasattr(air, "stated_error")) else
-        ["the stated air (density and speed of sound at the gun): a session cannot tell the air's density from "
-         "the Cd level"],
+        "conditional_on": ([] if hasattr(air, "stated_error") else
+                           ["the stated air (density and speed of sound at the gun): a session cannot tell the air's "
+                            "density from the Cd level"])
+        + ["the device's setup: its position along the line of fire and its own speed processing are not "
+           "determined by a range rate; one bullet measured in two setups differed by 25 % in level with bands "
+           "of 1 % (docs/real_data.md)"],
         "air": dict(zip(("rho", "sound_speed"), _air(rnd))),
         "determined": {"rows": n_det, "of": len(rows)},
         "warnings": warnings,
