@@ -21,7 +21,7 @@ import numpy as np
 from .atmosphere import R_AIR
 from ..validate import number
 
-__all__ = ["saturation_vapour_pressure", "enhancement_factor", "vapour_mole_fraction", "compressibility",
+__all__ = ["is_station_air", "STATION_SOURCE", "saturation_vapour_pressure", "enhancement_factor", "vapour_mole_fraction", "compressibility",
            "moist_air_density", "virtual_temperature", "humidity_density_ratio", "StationAir",
            "PRESSURE_RANGE", "TEMPERATURE_RANGE", "HUMIDITY_RANGE", "X_CO2"]
 
@@ -341,3 +341,13 @@ class StationAir:
     def vapour_pressure(self) -> float:
         """Partial pressure of the water vapour [Pa]: ``xv p``."""
         return float(vapour_mole_fraction(self.pressure, self.temperature, self.humidity) * self.pressure)
+
+
+#: how an atmosphere built from station readings names its source (:func:`is_station_air`)
+STATION_SOURCE = "station air"
+
+
+def is_station_air(atmosphere) -> bool:
+    """Whether an atmosphere was built from readings at the gun (``[atmosphere] pressure``,
+    ``temperature``, ``humidity``): air measured on the day, like a met profile."""
+    return str(getattr(atmosphere, "source", "")).startswith(STATION_SOURCE)

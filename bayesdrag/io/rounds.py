@@ -14,6 +14,7 @@ from pathlib import Path
 import tomli_w
 
 from ..air.atmosphere import Atmosphere, MetProfile
+from ..air.station import STATION_SOURCE, StationAir
 from ..errors import InputError
 from ..track import ALL_CHANNELS, ANGLE_CHANNELS, FILE_UNITS
 from ..round import (ANGLE_BIAS_SD_MAX, DEFAULT_ELEVATION_SD_DEG, DEFAULT_POSITION_SD, DEFAULT_VELOCITY_SD,
@@ -35,7 +36,8 @@ _SCHEMA = {
                "altitude": "m", "velocity_sd": "m/s", "elevation_sd": "deg", "position_sd": "m"},
     "atmosphere": {"model": "text", "profile": "CSV or METCM path", "metcm_zones": "CSV path",
                    "temperature_offset": "K", "pressure_ratio": "-", "density_ratio": "-",
-                   "density_sd": "relative", "temperature_sd": "K", "wind_sd": "m/s"},
+                   "density_sd": "relative", "temperature_sd": "K", "wind_sd": "m/s",
+                   "pressure": "Pa", "temperature": "K", "humidity": "-"},
     "radar": {"sigma": "table", "position_scale_sd": "relative", "velocity_scale_sd": "relative",
               "time_offset_sd": "s", "position": "table {x, y, z} in m", "range_bias_sd": "m",
               "azimuth_bias_sd": "deg", "elevation_bias_sd": "deg", "position_sd": "m", "device_offset": "m",
@@ -152,6 +154,40 @@ def _met_path(path, at, key):
     return Path(os.path.normpath(path.parent / rel))
 
 
+STATION_KEYS = ("pressure", "temperature", "humidity")
+
+
+def _station_air(path, at, model, launch):
+    """The standard atmosphere through the air a weather meter reads at the gun (``[atmosphere]
+    pressure`` [Pa], ``temperature`` [K], ``humidity`` [0-1]), or None without them.
+
+    The readings become the standard atmosphere's temperature offset and pressure ratio at the
+    gun, through the CIPM-2007 virtual temperature (:class:`bayesdrag.air.station.StationAir`):
+    the density at the gun is then the humid air's, and the air aloft follows the standard lapse
+    from there."""
+    given = [k for k in STATION_KEYS if k in at]
+    if not given:
+        return None
+    if model == "profile":
+        raise InputError(f"{path}: [atmosphere] {', '.join(given)} (station readings) with a met profile: the "
+                         f"profile gives the air itself; drop one of them")
+    missing = [k for k in ("pressure", "temperature") if k not in at]
+    if missing:
+        raise InputError(f"{path}: [atmosphere] {', '.join(given)} without {' and '.join(missing)}: the air at the gun "
+                         f"needs station pressure [Pa] and temperature [K] (humidity [0-1] optional)")
+    clash = [k for k in ("temperature_offset", "pressure_ratio", "density_ratio") if k in at]
+    if clash:
+        raise InputError(f"{path}: [atmosphere] {', '.join(clash)} with station readings: give the air one way")
+    try:
+        st = StationAir(at["pressure"], at["temperature"], at.get("humidity", 0.0))
+    except ValueError as exc:
+        raise InputError(f"{path}: [atmosphere] {exc}") from None
+    icao = Atmosphere(gun_altitude=launch.altitude).at_height(0.0)
+    return Atmosphere(temperature_offset=float(st.virtual_temperature - float(icao.temperature)),
+                      pressure_ratio=float(st.pressure / float(icao.pressure)), gun_altitude=launch.altitude,
+                      source=f"{STATION_SOURCE}: {st.pressure:g} Pa, {st.temperature:g} K, humidity {st.humidity:g}")
+
+
 def _read_atmosphere(path, at, lt, launch):
     """The round's atmosphere from its ``[atmosphere]`` table ``at`` (``lt``: the ``[launch]``
     table, to know whether ``azimuth`` was given): the standard atmosphere with its offsets, or
@@ -168,6 +204,9 @@ def _read_atmosphere(path, at, lt, launch):
         raise InputError(f"{path}: [atmosphere] model = 'icao' contradicts profile = {at['profile']!r}; "
                          f"use model = 'profile' (or leave model out) to fly through the profile, "
                          f"or drop profile for the standard atmosphere")
+    station = _station_air(path, at, model, launch)
+    if station is not None:
+        return station
     vals = {k: number(k, at.get(k, d), _SCHEMA["atmosphere"][k])
             for k, d in (("temperature_offset", 0.0), ("pressure_ratio", 1.0), ("density_ratio", 1.0))}
     _check_air_ratios(vals)

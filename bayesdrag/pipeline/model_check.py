@@ -595,11 +595,12 @@ def air(f1, gap):
 
 
 def air_measured(rnd):
-    """True when the round's air was measured on the day (a met profile or message), so that a
-    track contradicting it is news rather than a confound."""
+    """True when the round's air was measured on the day (a met profile or message, or station
+    readings at the gun), so that a track contradicting it is news rather than a confound."""
     from ..air.atmosphere import MetProfile
+    from ..air.station import is_station_air
 
-    return isinstance(rnd.atmosphere, MetProfile)
+    return isinstance(rnd.atmosphere, MetProfile) or is_station_air(rnd.atmosphere)
 
 
 def own_table(rnd):

@@ -146,3 +146,36 @@ def test_station_air_refuses_readings_naming_the_likely_unit(kwargs, match):
     readings = {"pressure": 101325.0, "temperature": 293.15, "humidity": 0.5} | kwargs
     with pytest.raises(ValueError, match=match):
         StationAir(**readings)
+
+
+# ---------------------------------------------------------------- [atmosphere] station readings
+def _round(tmp_path, atmosphere):
+    p = tmp_path / "r.toml"
+    p.write_text("[projectile]\nmass = 0.0092\ndiameter = 0.0067\n[launch]\naltitude = 670.0\n[atmosphere]\n"
+                 + atmosphere)
+    return p
+
+
+def test_station_readings_give_the_cipm_density_at_the_gun(tmp_path):
+    from bayesdrag.air.station import StationAir, is_station_air
+    from bayesdrag.io.rounds import read_round
+
+    rnd = read_round(_round(tmp_path, "pressure = 93500.0\ntemperature = 268.15\nhumidity = 0.6\n"))
+    air = rnd.atmosphere.at_height(0.0)
+    assert abs(float(air.density) / StationAir(93500.0, 268.15, 0.6).density - 1) < 1e-12
+    assert abs(float(air.pressure) - 93500.0) < 1e-6
+    assert is_station_air(rnd.atmosphere)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("pressure = 93500.0\n", "without temperature"),
+    ("pressure = 935.0\ntemperature = 268.15\n", "hPa"),
+    ("pressure = 93500.0\ntemperature = 268.15\ndensity_ratio = 1.01\n", "one way"),
+    ("pressure = 93500.0\ntemperature = 268.15\nhumidity = 60\n", "fraction|percent|0-1|0 .. 1"),
+])
+def test_station_readings_refused_with_the_reason(tmp_path, text, match):
+    from bayesdrag.errors import InputError
+    from bayesdrag.io.rounds import read_round
+
+    with pytest.raises(InputError, match=match):
+        read_round(_round(tmp_path, text))

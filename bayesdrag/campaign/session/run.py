@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import FitError, InputError
+from ...air.station import is_station_air
 from ...io.drag_tables import read_standard_drag
 from . import claims
 from .fit import fit_session
@@ -192,7 +193,7 @@ def session_record(fit, files, rnd, ref):
                 "rho_median": float(np.median(fit.rho))},
         "site": claims.site(fit, rnd.radar.device_offset),
         "uncertainty": {"declared": declared, "band": "Student t with the shots' degrees of freedom"},
-        "conditional_on": ([] if hasattr(air, "stated_error") else
+        "conditional_on": ([] if hasattr(air, "stated_error") or is_station_air(air) else
                            ["the stated air (density and speed of sound at the gun): a session cannot tell the air's "
                             "density from the Cd level"])
         + ["the device's setup: its position along the line of fire and its own speed processing are not "
