@@ -58,7 +58,7 @@ def run_session(tracks, round_path, out, *, verbosity=0, echo=print, figures=Tru
     from ..campaign.session.run import fit_chronograph_session
     from ..io.rounds import read_round
     from ..io.sessions import read_session
-    from ..report.session import write_session_report, write_shot
+    from ..report.session import write_drag_tables, write_session_report, write_shot
 
     talk, warn = verbosity == 0, verbosity <= 1
     files = read_session(tracks)
@@ -78,6 +78,9 @@ def run_session(tracks, round_path, out, *, verbosity=0, echo=print, figures=Tru
     inputs = {**round_files(round_path, rnd), **{f"shot {s.name}": s.path for s in files.shots}}
     with OutputRun(out, "session", inputs=inputs, echo=_err) as run:
         write_session_report(run.staging, record)
+        if record["cd"]:
+            write_drag_tables(run.staging, record, outcome.fit, rnd.projectile.mass, rnd.projectile.diameter,
+                              outcome.reference)
         for i, shot in enumerate(outcome.fit.shots):
             with OutputRun(out / shot.name, "session-shot", inputs={"track": shot.source}, echo=_err) as srun:
                 write_shot(srun.staging, record, outcome.fit, i, figures=figures)
@@ -88,5 +91,7 @@ def run_session(tracks, round_path, out, *, verbosity=0, echo=print, figures=Tru
             _err(f"bayesdrag: note: Cd is conditional on {w}")
     for line in session_summary(record):
         echo(line)
-    echo(f"  wrote {out / 'campaign.json'}, campaign.html, session_cd.png and {len(outcome.fit.shots)} shot folders")
+    echo(f"  wrote {out / 'campaign.json'}, campaign.html, session_cd.png"
+         + (", drag_table.json and .csv (py-ballisticcalc, mach,cd)" if record["cd"] else "")
+         + f" and {len(outcome.fit.shots)} shot folders")
     return 0

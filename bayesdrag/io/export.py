@@ -87,9 +87,11 @@ def density_match(pbc_atmo, atmosphere):
     return float(pbc_atmo.density_ratio) / (float(rho) / PBC_STANDARD_DENSITY)
 
 
-def drag_table(cd_fn, mach_range, dm=TABLE_DM):
-    """Dense ``[(Mach, Cd)]`` of ``cd_fn`` over ``mach_range`` with flat extensions to 0 and
-    :data:`MACH_MAX`.
+def drag_table(cd_fn, mach_range, dm=TABLE_DM, reference=None):
+    """Dense ``[(Mach, Cd)]`` of ``cd_fn`` over ``mach_range`` with extensions to 0 and
+    :data:`MACH_MAX`: flat, or, with a ``reference``, the reference's shape scaled to meet the
+    fitted curve at each end (a solver flies the whole table; a rifle bullet's Cd held flat from
+    Mach 2 down to 0 is 2-3 times too high at subsonic speed).
 
     Parameters
     ----------
@@ -97,11 +99,15 @@ def drag_table(cd_fn, mach_range, dm=TABLE_DM):
     mach_range : (lo, hi)
     dm : float
         Step [Mach].
+    reference : object with ``value(mach)``, optional
+        The reference drag (a table or a standard function) whose shape continues the curve.
 
     Returns
     -------
     (mach, cd) : ndarrays
     """
+    if reference is not None:
+        return _joined_table(cd_fn, mach_range, dm, reference)
     lo, hi = float(mach_range[0]), float(mach_range[1])
     if not (0 <= lo < hi <= MACH_MAX):
         raise ValueError(f"mach_range must satisfy 0 <= lo < hi <= {MACH_MAX}, got {mach_range}")
@@ -114,6 +120,39 @@ def drag_table(cd_fn, mach_range, dm=TABLE_DM):
     ext_hi = [x for x in ((hi + MACH_MAX) / 2, MACH_MAX) if x > hi + 1e-9]
     return (np.concatenate([ext_lo, m, ext_hi]),
             np.concatenate([[c[0]] * len(ext_lo), c, [c[-1]] * len(ext_hi)]))
+
+
+#: Mach step of the reference-shaped extensions beyond the fitted span
+EXTENSION_DM = 0.025
+
+
+def _joined_table(cd_fn, mach_range, dm, reference):
+    """:func:`drag_table` with the reference's shape beyond the fitted span, scaled at each end."""
+    lo, hi = float(mach_range[0]), float(mach_range[1])
+    if not (0 <= lo < hi <= MACH_MAX):
+        raise ValueError(f"mach_range must satisfy 0 <= lo < hi <= {MACH_MAX}, got {mach_range}")
+    n = max(int(math.ceil((hi - lo) / dm)), 1)
+    m = np.linspace(lo, hi, n + 1)
+    c = np.asarray(cd_fn(m), float)
+    if not np.all(np.isfinite(c)) or np.any(c <= 0):
+        raise ValueError("the Cd curve must be positive and finite over the exported range")
+    below = np.arange(0.0, lo - 1e-9, EXTENSION_DM)
+    above = np.arange(hi + EXTENSION_DM, MACH_MAX + 1e-9, EXTENSION_DM)
+    r_lo, r_hi = float(reference.value(lo)), float(reference.value(hi))
+    c_below = np.asarray(reference.value(below), float) * (c[0] / r_lo) if below.size else np.zeros(0)
+    c_above = np.asarray(reference.value(above), float) * (c[-1] / r_hi) if above.size else np.zeros(0)
+    return np.concatenate([below, m, above]), np.concatenate([c_below, c, c_above])
+
+
+def export_curve(path, cd_fn, mach_range, mass, diameter, source, reference=None, density_factor=1.0,
+                 dm=TABLE_DM):
+    """Write a fitted curve ``cd_fn`` over ``mach_range`` as a py-ballisticcalc table (``.json`` or
+    ``.csv`` by the suffix), continued beyond the span by the ``reference``'s shape when given.
+    Returns the document."""
+    m, c = drag_table(cd_fn, mach_range, dm, reference=reference)
+    beyond = (f"the reference's shape ({getattr(reference, 'source', '') or 'reference'}) scaled to meet the fitted "
+              f"curve" if reference is not None else None)
+    return _write(path, m, c, mass, diameter, mach_range, source, density_factor, beyond)
 
 
 def export_fit(path, drag_model, params, mach_range, mass, diameter, source="", density_factor=1.0,
@@ -158,10 +197,11 @@ def export_result(path, result_dir, mass, diameter, which="ml", density_factor=1
     return _write(path, mm, cc, mass, diameter, (lo, hi), src, density_factor)
 
 
-def _write(path, m, c, mass, diameter, fitted, source, density_factor):
+def _write(path, m, c, mass, diameter, fitted, source, density_factor, beyond=None):
     path = Path(path)
     bc = pbc_ballistic_coefficient(mass, diameter, density_factor)
-    notes = [f"Cd held at its end values outside Mach {fitted[0]:.3f}-{fitted[1]:.3f} (not measured there)",
+    beyond = beyond or "Cd held at its end values"
+    notes = [f"{beyond} outside Mach {fitted[0]:.3f}-{fitted[1]:.3f} (not measured there)",
              "bc makes the table the projectile's own Cd in py-ballisticcalc (form factor 1)"]
     doc = {"format": "py-ballisticcalc custom drag table", "bc": bc, "bc_units": "lb/in^2",
            "mass_kg": float(mass), "diameter_m": float(diameter), "mach_fitted": [float(fitted[0]), float(fitted[1])],

@@ -11,7 +11,28 @@ from ..io.outputs import write_bytes, write_json
 from ..plots.session import plot_session_cd, plot_shot_residuals
 from .render import figure_png, png_base64, render_report, versions
 
-__all__ = ["write_session_report", "write_shot", "shot_record"]
+__all__ = ["write_session_report", "write_shot", "shot_record", "write_drag_tables"]
+
+
+def write_drag_tables(out, record, fit, mass, diameter, reference):
+    """The session's Cd(M) for shooters' solvers: ``drag_table.json`` (a py-ballisticcalc custom
+    table with its bc) and ``drag_table.csv`` (plain ``mach,cd``), both over Mach 0-10: the fitted
+    curve over the flown span, the reference's shape scaled to meet it beyond, as each file says."""
+    from ..io.export import export_curve
+    from ..io.outputs import atomic_write
+
+    rows = record["cd"]
+    if not rows:
+        return []
+    span = (rows[0]["mach"], rows[-1]["mach"])
+    coefs = fit.layout.curve(fit.theta)
+    src = f"bayesdrag chronograph session {record['name']}"
+    doc = export_curve(Path(out) / "drag_table.json", lambda m: fit.model.cd(coefs, m), span, mass, diameter, src,
+                       reference=reference)
+    body = (f"# {src}: Cd(M) fitted over Mach {span[0]:.3f}-{span[1]:.3f}; {doc['notes'][0]}\nmach,cd\n"
+            + "".join(f"{p['Mach']:.6g},{p['CD']:.8g}\n" for p in doc["drag_table"]))
+    atomic_write(Path(out) / "drag_table.csv", lambda tmp: Path(tmp).write_text(body, encoding="utf-8"))
+    return ["drag_table.json", "drag_table.csv"]
 
 
 def write_session_report(out, record):

@@ -17,6 +17,8 @@ from bayesdrag.io.sessions import read_session
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "labradar"
 #: DESIGN's judging rule: right within 2 % of the truth or 3 of its sd
 REL_TOL, K_SD = 0.02, 3.0
+#: the table's 8 significant digits, relative, with room for a reference value's own rounding
+CSV_REL = 1e-6
 #: the issue's band at the central Mach for a centrefire rifle series of 8+ shots
 RIFLE_REL_SD_MAX = 0.015
 
@@ -129,3 +131,23 @@ def test_a_real_rifle_series_gives_one_cd_to_about_one_percent(tmp_path):
     c = doc["central"]
     assert 0.2 < c["mean"] < 0.35 and c["rel_sd"] <= RIFLE_REL_SD_MAX
     assert "conditional on the stated air" in res.stderr
+
+
+def test_the_session_exports_a_whole_drag_table_shaped_like_the_reference_beyond_its_span(series):
+    from bayesdrag.io.drag_tables import read_standard_drag
+
+    truth, out, _ = series
+    doc = json.loads((out / "campaign.json").read_text())
+    lines = [ln for ln in (out / "drag_table.csv").read_text().splitlines() if ln and ln[0].isdigit()]
+    m, cd = np.array([[float(x) for x in ln.split(",")] for ln in lines]).T
+    assert m[0] == 0.0 and m[-1] >= 5.0 and np.all(np.diff(m) > 0)
+    ref = read_standard_drag(truth["reference"])
+    lo, hi = doc["cd"][0]["mach"], doc["cd"][-1]["mach"]
+    below = m < lo - 1e-9
+    ratio = cd[below] / ref.value(m[below])
+    # beyond the span the table is the reference's shape times one factor, meeting the curve
+    assert np.ptp(ratio) < CSV_REL * ratio.mean()
+    assert abs(ratio[-1] * float(ref.value(lo)) / doc["cd"][0]["mean"] - 1) < 1e-3
+    assert "reference's shape" in (out / "drag_table.csv").read_text().splitlines()[0]
+    pbc = json.loads((out / "drag_table.json").read_text())
+    assert pbc["bc_units"] == "lb/in^2" and len(pbc["drag_table"]) == len(lines)

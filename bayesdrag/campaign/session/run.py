@@ -33,6 +33,7 @@ class SessionOutcome:
     fit: object = field(repr=False)
     record: dict = field(repr=False)
     shots: tuple = field(repr=False)
+    reference: object = field(default=None, repr=False)
 
 
 def _air(rnd):
@@ -115,7 +116,7 @@ def fit_chronograph_session(files, rnd, *, log=None):
     fit_q, q_prior = _q_mode(rnd)
     fit = fit_session(shots, model, fit_q=fit_q, q_prior=q_prior, log=log)
     record = session_record(fit, files, rnd, ref)
-    return SessionOutcome(fit, record, tuple(shots))
+    return SessionOutcome(fit, record, tuple(shots), ref)
 
 
 def session_record(fit, files, rnd, ref):

@@ -156,6 +156,9 @@ def _profiled(P, ld, N, A_other, g_other):
     """:func:`restricted_objective`'s value and white variance from the whitened products
     ``P = [e~ J~]' [e~ J~]`` and the whitening's ``sum log F`` (``ld``)."""
     ee, h, G = P[0, 0], P[1:, 0], P[1:, 1:]
+    # the other channels' terms come as scalars (0) when no other channel is fitted
+    A_other = np.broadcast_to(np.asarray(A_other, float), G.shape)
+    g_other = np.broadcast_to(np.asarray(g_other, float), h.shape)
     s2 = max(ee / N, 1e-300)
     rhs = np.empty((G.shape[0], G.shape[0] + 1))
     rhs[:, 1:] = G
