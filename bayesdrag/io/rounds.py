@@ -28,6 +28,9 @@ from .met import met_file_kind, read_met_profile, write_met_profile, write_wind_
 __all__ = ["read_round", "write_round", "round_files"]
 
 
+#: the air at the gun as a weather meter reads it: ``[atmosphere]`` keys and their units
+STATION_KEYS = ("pressure", "temperature", "humidity")
+STATION_UNITS = ("Pa", "K", "-")
 _SCHEMA = {
     "projectile": {"name": "text", "mass": "kg", "diameter": "m",
                    "reference_drag": "CSV path, or G1, G2, G5, G6, G7, G8, GI, GS",
@@ -37,7 +40,7 @@ _SCHEMA = {
     "atmosphere": {"model": "text", "profile": "CSV or METCM path", "metcm_zones": "CSV path",
                    "temperature_offset": "K", "pressure_ratio": "-", "density_ratio": "-",
                    "density_sd": "relative", "temperature_sd": "K", "wind_sd": "m/s",
-                   "pressure": "Pa", "temperature": "K", "humidity": "-"},
+                   **dict(zip(STATION_KEYS, STATION_UNITS))},
     "radar": {"sigma": "table", "position_scale_sd": "relative", "velocity_scale_sd": "relative",
               "time_offset_sd": "s", "position": "table {x, y, z} in m", "range_bias_sd": "m",
               "azimuth_bias_sd": "deg", "elevation_bias_sd": "deg", "position_sd": "m", "device_offset": "m",
@@ -154,9 +157,6 @@ def _met_path(path, at, key):
     return Path(os.path.normpath(path.parent / rel))
 
 
-STATION_KEYS = ("pressure", "temperature", "humidity")
-
-
 def _station_air(path, at, model, launch):
     """The standard atmosphere through the air a weather meter reads at the gun (``[atmosphere]
     pressure`` [Pa], ``temperature`` [K], ``humidity`` [0-1]), or None without them.
@@ -171,7 +171,8 @@ def _station_air(path, at, model, launch):
     if model == "profile":
         raise InputError(f"{path}: [atmosphere] {', '.join(given)} (station readings) with a met profile: the "
                          f"profile gives the air itself; drop one of them")
-    missing = [k for k in ("pressure", "temperature") if k not in at]
+    p_key, t_key, h_key = STATION_KEYS
+    missing = [k for k in (p_key, t_key) if k not in at]
     if missing:
         raise InputError(f"{path}: [atmosphere] {', '.join(given)} without {' and '.join(missing)}: the air at the gun "
                          f"needs station pressure [Pa] and temperature [K] (humidity [0-1] optional)")
@@ -179,7 +180,7 @@ def _station_air(path, at, model, launch):
     if clash:
         raise InputError(f"{path}: [atmosphere] {', '.join(clash)} with station readings: give the air one way")
     try:
-        st = StationAir(at["pressure"], at["temperature"], at.get("humidity", 0.0))
+        st = StationAir(at[p_key], at[t_key], at.get(h_key, 0.0))
     except ValueError as exc:
         raise InputError(f"{path}: [atmosphere] {exc}") from None
     icao = Atmosphere(gun_altitude=launch.altitude).at_height(0.0)

@@ -91,8 +91,8 @@ def _track_files(folder):
     files = sorted(p for p in where.iterdir() if p.is_file() and p.suffix.lower() == ".csv"
                    and "report" not in p.name.lower())
     if not files:
-        raise InputError(f"{folder}: no shot files (TRK/Shot#### Track.csv) in this folder; a session is a "
-                         f"LabRadar series folder or a list of shot files")
+        raise InputError(f"{folder}: track expected, found a directory without shot files (TRK/Shot#### Track.csv): "
+                         f"a folder is read as a LabRadar series; give a track file or a series folder")
     return files
 
 
