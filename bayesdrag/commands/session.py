@@ -69,13 +69,16 @@ def run_session(tracks, round_path, out, *, verbosity=0, echo=print, figures=Tru
     if talk:
         for n in files.notes:
             _err(f"bayesdrag: note: {n}")
+    if warn:        # a shot left out is a warning: -q still says it
         for s in files.shots:
             if s.skipped:
                 _err(f"bayesdrag: warning: shot {s.name} skipped: {s.skipped}")
+    if talk:
         _err(f"bayesdrag: fitting {len(files.usable)} shots of {files.name} as one session ...")
     outcome = fit_chronograph_session(files, rnd, log=None)
     record = outcome.record
-    inputs = {**round_files(round_path, rnd), **{f"shot {s.name}": s.path for s in files.shots}}
+    # the manifest hashes the shots read (a skipped one may be a pipe, which must not be opened)
+    inputs = {**round_files(round_path, rnd), **{f"shot {s.name}": s.path for s in files.usable}}
     with OutputRun(out, "session", inputs=inputs, echo=_err) as run:
         write_session_report(run.staging, record)
         if record["cd"]:

@@ -88,7 +88,9 @@ def _shot_number(name):
 def _track_files(folder):
     trk = folder / "TRK"
     where = trk if trk.is_dir() else folder
-    files = sorted(p for p in where.iterdir() if p.is_file() and p.suffix.lower() == ".csv"
+    # every .csv entry but the report, regular file or not: a pipe or a device named like a shot
+    # is read through the guarded reader, which refuses it, and is listed as a skipped shot
+    files = sorted(p for p in where.iterdir() if not p.is_dir() and p.suffix.lower() == ".csv"
                    and "report" not in p.name.lower())
     if not files:
         raise InputError(f"{folder}: track expected, found a directory without shot files (TRK/Shot#### Track.csv): "

@@ -151,3 +151,19 @@ def test_the_session_exports_a_whole_drag_table_shaped_like_the_reference_beyond
     assert "reference's shape" in (out / "drag_table.csv").read_text().splitlines()[0]
     pbc = json.loads((out / "drag_table.json").read_text())
     assert pbc["bc_units"] == "lb/in^2" and len(pbc["drag_table"]) == len(lines)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_a_pipe_named_like_a_shot_is_skipped_and_never_opened(series, tmp_path):
+    """A hostile series folder: a named pipe among the shots would block whoever opens it."""
+    _, out, _ = series
+    folder = tmp_path / "SR0003" / "TRK"
+    folder.mkdir(parents=True)
+    for f in sorted((out.parent / "SR0001" / "TRK").glob("*.csv"))[:3]:
+        shutil.copy(f, folder / f.name)
+    os.mkfifo(folder / "Shot0099 Track.csv")
+    res = _cli("fit", tmp_path / "SR0003", out.parent / "SR0001" / "round.toml", "-o", tmp_path / "o", "-q")
+    assert res.returncode == 0, res.stderr
+    assert "Shot0099 skipped" in res.stderr and "pipe" in res.stderr
+    doc = json.loads((tmp_path / "o" / "campaign.json").read_text())
+    assert [s["name"] for s in doc["shots"] if s["skipped"]] == ["Shot0099"]
