@@ -108,6 +108,15 @@ def drag_table(cd_fn, mach_range, dm=TABLE_DM, reference=None):
     """
     if reference is not None:
         return _joined_table(cd_fn, mach_range, dm, reference)
+    lo, hi, m, c = _fitted_part(cd_fn, mach_range, dm)
+    ext_lo = [x for x in (0.0, lo / 2) if x < lo - 1e-9]
+    ext_hi = [x for x in ((hi + MACH_MAX) / 2, MACH_MAX) if x > hi + 1e-9]
+    return (np.concatenate([ext_lo, m, ext_hi]),
+            np.concatenate([[c[0]] * len(ext_lo), c, [c[-1]] * len(ext_hi)]))
+
+
+def _fitted_part(cd_fn, mach_range, dm):
+    """(lo, hi, Mach grid, Cd) of the fitted curve over ``mach_range`` every ``dm``, checked."""
     lo, hi = float(mach_range[0]), float(mach_range[1])
     if not (0 <= lo < hi <= MACH_MAX):
         raise ValueError(f"mach_range must satisfy 0 <= lo < hi <= {MACH_MAX}, got {mach_range}")
@@ -116,10 +125,7 @@ def drag_table(cd_fn, mach_range, dm=TABLE_DM, reference=None):
     c = np.asarray(cd_fn(m), float)
     if not np.all(np.isfinite(c)) or np.any(c <= 0):
         raise ValueError("the Cd curve must be positive and finite over the exported range")
-    ext_lo = [x for x in (0.0, lo / 2) if x < lo - 1e-9]
-    ext_hi = [x for x in ((hi + MACH_MAX) / 2, MACH_MAX) if x > hi + 1e-9]
-    return (np.concatenate([ext_lo, m, ext_hi]),
-            np.concatenate([[c[0]] * len(ext_lo), c, [c[-1]] * len(ext_hi)]))
+    return lo, hi, m, c
 
 
 #: Mach step of the reference-shaped extensions beyond the fitted span
@@ -128,14 +134,7 @@ EXTENSION_DM = 0.025
 
 def _joined_table(cd_fn, mach_range, dm, reference):
     """:func:`drag_table` with the reference's shape beyond the fitted span, scaled at each end."""
-    lo, hi = float(mach_range[0]), float(mach_range[1])
-    if not (0 <= lo < hi <= MACH_MAX):
-        raise ValueError(f"mach_range must satisfy 0 <= lo < hi <= {MACH_MAX}, got {mach_range}")
-    n = max(int(math.ceil((hi - lo) / dm)), 1)
-    m = np.linspace(lo, hi, n + 1)
-    c = np.asarray(cd_fn(m), float)
-    if not np.all(np.isfinite(c)) or np.any(c <= 0):
-        raise ValueError("the Cd curve must be positive and finite over the exported range")
+    lo, hi, m, c = _fitted_part(cd_fn, mach_range, dm)
     below = np.arange(0.0, lo - 1e-9, EXTENSION_DM)
     above = np.arange(hi + EXTENSION_DM, MACH_MAX + 1e-9, EXTENSION_DM)
     r_lo, r_hi = float(reference.value(lo)), float(reference.value(hi))
