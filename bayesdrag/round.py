@@ -269,7 +269,8 @@ class Radar:
         How well the device's true distance from the line of fire is known, when it may differ
         from the typed ``device_offset``: a chronograph session then fits what a range rate sees
         of it (docs/radar.md, "Chronograph sessions"). A session without ``device_offset`` fits it
-        with no prior.
+        with no prior. Also the ``position_sd`` when the round gives none: one shot fitted as a
+        round then carries the site as its declared ``radar_position``.
     """
 
     sigma: dict = field(default_factory=dict)
@@ -316,6 +317,9 @@ class Radar:
                 raise ValueError(f"{key} = {val:g} m is not a chronograph radar's offset from the line of fire "
                                  f"(allowed 0 .. {DEVICE_OFFSET_MAX:g} m)")
             object.__setattr__(self, key, val)
+        if self.device_offset_sd is not None and self.position_sd is None:
+            # one shot fitted as a round carries the device's site as the declared radar_position
+            object.__setattr__(self, "position_sd", self.device_offset_sd)
 
 
 #: the systematic sources a round may declare: key stem -> (round-file section, unit, largest

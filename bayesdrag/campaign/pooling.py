@@ -58,6 +58,11 @@ NODE_FINE = 0.02
 TRANSONIC_BAND = (0.86, 1.20)
 
 
+#: node spacing of a round whose Mach span holds fewer than two nodes of the other lattices
+#: [Mach]: a chronograph shot spans 0.02-0.15 (a pistol bullet's 0.02 held no node at 0.05)
+NODE_NARROW = 0.01
+
+
 #: relative sd floor added independently at every node of a round (representation error of
 #: the round's spline and conditioning of its covariance)
 REL_FLOOR = 5e-4
@@ -76,11 +81,13 @@ COVARIANCES = ("colored", "crb")
 BAND = (0.05, 0.95)
 
 
-def mach_nodes(mach_min, mach_max, spacing=NODE_SPACING, fine=NODE_FINE, band=TRANSONIC_BAND):
+def mach_nodes(mach_min, mach_max, spacing=NODE_SPACING, fine=NODE_FINE, band=TRANSONIC_BAND, narrow=NODE_NARROW):
     """Campaign Mach nodes inside ``[mach_min, mach_max]``.
 
     The nodes lie on one fixed lattice (multiples of ``spacing``, plus multiples of ``fine``
-    inside ``band``) so that rounds with different Mach spans share nodes where they overlap.
+    inside ``band``) so that rounds with different Mach spans share nodes where they overlap; a
+    span holding fewer than two of them takes the multiples of ``narrow`` instead (a
+    chronograph shot), and a span narrower than ``narrow`` may hold none.
 
     Returns
     -------
@@ -91,7 +98,10 @@ def mach_nodes(mach_min, mach_max, spacing=NODE_SPACING, fine=NODE_FINE, band=TR
     a, b = max(band[0], lo), min(band[1], hi)
     dense = np.arange(math.ceil(a / fine - 1e-9), math.floor(b / fine + 1e-9) + 1) * fine if a <= b else []
     m = np.unique(np.round(np.concatenate([coarse, dense]), 6))
-    return m[(m >= lo - 1e-9) & (m <= hi + 1e-9)]
+    m = m[(m >= lo - 1e-9) & (m <= hi + 1e-9)]
+    if m.size < 2:      # a narrow span: a finer lattice, still shared by rounds that overlap
+        m = np.round(np.arange(math.ceil(lo / narrow - 1e-9), math.floor(hi / narrow + 1e-9) + 1) * narrow, 6)
+    return m
 
 
 def pooling_input(res, drag_model, reference=None, covariance="colored", name=""):
@@ -197,6 +207,9 @@ def check_input(doc):
         raise ValueError(f"name or drag_model is longer than {MAX_TEXT} characters")
     if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi <= 10.0):
         raise ValueError("mach_range is not an interval of Mach numbers in (0, 10]")
+    if mach_nodes(lo, hi).size == 0:
+        raise ValueError(f"its Mach span {lo:.4f}-{hi:.4f} holds no campaign node (multiples of {NODE_NARROW:g}): "
+                         f"too narrow to pool")
     if m.ndim != 1 or not 1 <= m.size <= MAX_NODES or m.shape != mach_nodes(lo, hi).shape \
             or not np.allclose(m, mach_nodes(lo, hi), rtol=0.0, atol=1e-6):
         raise ValueError("mach is not the campaign's nodes of its mach_range")

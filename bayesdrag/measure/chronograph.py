@@ -18,7 +18,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["reported_speed", "offset_term"]
+__all__ = ["reported_speed", "offset_term", "chronograph_site", "CHRONOGRAPH_SITE_SD", "CHRONOGRAPH_SITE_Y",
+           "NEAR_MUZZLE", "CHRONOGRAPH_REACH"]
+
+#: a range-rate track whose first sample lies closer than this to the muzzle [m] and that ends
+#: within CHRONOGRAPH_REACH [s] is a chronograph beside the gun (it sees the first 100 m or so):
+#: its sideways distance moves the speed it reports by d^2 / (2 R^2) there. A Doppler radar
+#: tracking a shell for seconds is not one: its missing site stays a stated condition
+NEAR_MUZZLE, CHRONOGRAPH_REACH = 20.0, 1.0
+#: the sd [m] of a chronograph's site per axis when the round does not give it, and the sideways
+#: distance [m] the fit starts it at: a device stands 0.2-1 m beside the muzzle, and at 0 the
+#: reported speed has no slope in the distance (it enters squared), so the fit could not move it
+CHRONOGRAPH_SITE_SD, CHRONOGRAPH_SITE_Y = 1.0, 0.5
 
 
 def offset_term(site_y, typed_offset):
@@ -50,3 +61,36 @@ def reported_speed(x, z, vx, vz, q, site_x=0.0, site_z=0.0):
     """
     dx, dz = np.asarray(x) - site_x, np.asarray(z) - site_z
     return (dx * vx + dz * vz) / np.sqrt(np.maximum(dx * dx + dz * dz + q, 1e-6))
+
+
+def chronograph_site(track, rnd, chans):
+    """The round for one chronograph shot whose site the round does not give, and a note.
+
+    A track of range rate alone starting within :data:`NEAR_MUZZLE` of the muzzle and ending
+    within :data:`CHRONOGRAPH_REACH` comes from a device beside it; when the round gives neither
+    ``[radar] position``, ``position_sd`` nor ``device_offset``, the site is fitted (its declared
+    ``radar_position``, sd :data:`CHRONOGRAPH_SITE_SD` per axis) instead of being taken at the muzzle, which biased the
+    Cd of a real-like shot by 4 of its sd. Without a typed offset the fit assumes the device
+    corrected for none: a device that over-corrected (typed more than its true distance) leaves a
+    misfit near the muzzle, which the fit's quality reports.
+
+    Returns
+    -------
+    (Round, str or None)
+        The round (unchanged when the rule does not apply) and the note saying what was assumed.
+    """
+    from dataclasses import replace
+
+    ra = rnd.radar
+    if tuple(chans) != ("range_rate",) or any(ra.position) or ra.position_sd is not None \
+            or ra.device_offset is not None:
+        return rnd, None
+    t, v = np.asarray(track.t, float), np.abs(np.asarray(track.channels["range_rate"], float))
+    if not t.size or float(t[0]) * float(v[0]) > NEAR_MUZZLE or float(t[-1]) > CHRONOGRAPH_REACH:
+        return rnd, None
+    note = (f"a chronograph track (range rate from {float(t[0]) * float(v[0]):.1f} m) whose round gives no [radar] "
+            f"device_offset or position: the device's site beside the muzzle is fitted (started {CHRONOGRAPH_SITE_Y:g} m "
+            f"to the side, sd {CHRONOGRAPH_SITE_SD:g} m per axis) and taken as uncorrected; give device_offset (and "
+            f"device_offset_sd) as typed into the device")
+    site = replace(ra, position=(0.0, CHRONOGRAPH_SITE_Y, 0.0), position_sd=CHRONOGRAPH_SITE_SD)
+    return replace(rnd, radar=site), note

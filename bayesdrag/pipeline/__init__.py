@@ -18,6 +18,7 @@ import numpy as np
 from .._runtime.beside import computed_beside, started_beside
 from .._runtime.threads import single_blas
 from ..errors import FitError, InputError
+from ..estimate.build.model_size import narrow_shape_sd
 from ..estimate.cd.headline import headline
 from ..estimate.cd.model_error import add_in_squares, fold_into_budget
 from ..estimate.cd.quality import assess, check_against_flexible, intervals
@@ -32,6 +33,7 @@ from ..results import DiagnosisResult, FitResult
 from ..round import Round
 from .sampling import mcmc_json, posterior_json, run_sampler, sampled_rows
 from ..track import RadarTrack, thin_for_fit
+from ..measure.chronograph import chronograph_site
 from ..effects import RADAR_POSITION, WIND_PROFILE
 
 __all__ = ["fit", "diagnose", "summary_line"]
@@ -87,22 +89,24 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
         if missing:
             raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
                              f"track (it has {', '.join(track.names)})")
+    rnd, site_note = chronograph_site(track, rnd, chans or track.names)
     if opts.scheme == 2:
         opts.check_windows(track.n)       # a bound on the windows, before any is fitted
         return _fit_scheme2(track, rnd, opts, chans, log, t_start)
-    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress)
+    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
+                        notes=(site_note,) if site_note else ())
 
 
-def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None):
+def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None, notes=()):
     check = opts.model_check and opts.with_effects != "auto"
     # the model check's diagnosis reads the track and the round only: it runs in a forked process
     # beside the ML fit, and beside the sampling too where the check cannot change what is sampled
     with started_beside(functools.partial(diagnosis_record, track, rnd, chans), fork=check) as diag:
         return _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
-                        diag if check else None)
+                        diag if check else None, notes)
 
 
-def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress, diag):
+def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress, diag, notes=()):
     timing = {"beside": []}
     with_effects, with_note, layers = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
@@ -173,7 +177,11 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         if deferred:
             gap, _ = _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)
     placement = _placement_error(f1, grid, rows)
+    if (f1.model_size or {}).get("narrow_span"):   # one factor on the table: the shape may lean
+        add_in_squares(rows, narrow_shape_sd(f1.model_size["narrow_span"], grid, [r["ml"] for r in rows]))
     quality = assess(f1, rows, track, rnd.radar.sigma)
+    if notes:
+        quality["notes"] = list(notes) + list(quality.get("notes") or [])
     if gap is not None:
         note_model_error(gap, quality, grid, rows)
     quality["air"] = air(f1, gap)
@@ -353,7 +361,7 @@ def _rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
     converge, ``quality.rigid_check`` and a note say so and the rows stand as fitted."""
     try:
         ff = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not opts.fix_ic,
-                         likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start)
+                         likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start, span_rule=False)
     except (InputError, FitError) as exc:
         ff, why = None, str(exc)
     else:

@@ -67,7 +67,13 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         keep = tuple(n for n in keep if n not in carried)
     if keep:
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep))
-        if alt is not None:
+        if alt is not None and (f1.model_size or {}).get("narrow_span") and not own_table(rnd) \
+                and aliased_with_cd(band, alt[1]):
+            # one factor over a narrow span cannot be told from them (their fit beside it leaves Cd
+            # undetermined) and the table is not this projectile's: Cd is the flight's effective
+            # drag, them included (a long flight's effect confounded with Cd stays model error)
+            rec["absorbed_in_cd"], keep = list(keep), ()
+        elif alt is not None:
             parts["effects"] = shift_sd(ml, band, alt[0], alt[1])
             effects_fit = alt[2]
             confounded = level_shift(grid, ml, profiles, [n for n in keep if n in LEVEL_EFFECTS])
@@ -348,6 +354,20 @@ def gross_outliers(track, f1, sigma=None):
 LEVEL_EFFECTS = partly_trading_with_cd()
 
 
+#: the Cd sd grows by more than this factor when an effect is fitted beside it: the two are one
+#: signature on this track (a canonical correlation above 0.995), as a decaying yaw or a head wind
+#: and the drag level on a chronograph shot of 0.1 s
+ALIAS_INFLATION = 10.0
+
+
+def aliased_with_cd(band, band_with):
+    """Whether fitting the effects beside Cd leaves Cd undetermined: the median ratio of the rows'
+    sd with them (``band_with``) to without (``band``) exceeds :data:`ALIAS_INFLATION`."""
+    band, band_with = np.asarray(band, float), np.asarray(band_with, float)
+    ok = band > 0
+    return bool(ok.any() and np.median(band_with[ok] / band[ok]) > ALIAS_INFLATION)
+
+
 def level_shift(grid, ml, profiles, names):
     """Cd shift [Cd] at each grid row of effects that trade with Cd, as the diagnosis sized them
     against the firing table (its ``cd_shift`` profile: the Cd change a fit that ignores the
@@ -502,6 +522,11 @@ def note_model_error(gap, quality, grid, rows):
         quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
         quality["problems"].append(SITE_NOT_GIVEN)
         quality["ok"] = False
+    if gap.get("absorbed_in_cd"):
+        eff = ", ".join(gap["absorbed_in_cd"])
+        quality.setdefault("notes", []).append(
+            f"the diagnosis finds {eff}, which this track cannot tell from Cd (fitted beside it, Cd is undetermined): "
+            f"Cd is the flight's effective drag, {eff} included")
     if gap["effects"] and "effects" in gap["parts"] and not gap.get("site_not_given"):
         eff, them = ", ".join(gap["effects"]), "it" if len(gap["effects"]) == 1 else "them"
         quality["problems"].append(

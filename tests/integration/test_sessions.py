@@ -1,6 +1,7 @@
 """Chronograph sessions end to end: ``bayesdrag fit SERIES ROUND`` on a synthetic LabRadar series
 with a known truth (an independent integrator writing the device's files) and on a real series."""
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -12,6 +13,7 @@ import pytest
 
 from support.synthetic_labradar import make_series
 
+from bayesdrag.estimate.build.launch import FLAT_FIRE_SD_DEG
 from bayesdrag.io.sessions import read_session
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "labradar"
@@ -21,6 +23,8 @@ REL_TOL, K_SD = 0.02, 3.0
 CSV_REL = 1e-6
 #: the issue's band at the central Mach for a centrefire rifle series of 8+ shots
 RIFLE_REL_SD_MAX = 0.015
+#: one shot alone: its band at the middle row is some percent, not the 20-40 % of a free slope
+SINGLE_SHOT_REL_SD_MAX = 0.10
 
 
 def _cli(*args):
@@ -82,6 +86,30 @@ def test_the_session_recovers_the_truth_within_its_band(series):
             assert abs(row["mean"] - t) <= max(REL_TOL * t, K_SD * row["sd"]), (row, t)
     v0 = doc["muzzle_velocity"]
     assert 500 < v0["mean"] < 1100 and v0["extreme_spread"] >= 0
+
+
+def test_one_shot_file_is_a_round_of_one_factor_on_the_table_within_its_band(series, tmp_path):
+    """One shot alone spans ~0.1 Mach in ~0.1 s: the round fits one factor on the table, its path
+    angle held near flat fire, no wind added, and its band holds the truth."""
+    truth, out, _ = series
+    shot = sorted((out.parent / "SR0001" / "TRK").glob("*.csv"))[0]
+    res = _cli("fit", shot, out.parent / "SR0001" / "round.toml", "-o", tmp_path / "one", "--no-mcmc")
+    assert res.returncode == 0, res.stderr
+    doc = json.loads((tmp_path / "one" / "result.json").read_text())
+    ml = doc["ml"]
+    assert doc["drag_model"] == "reference-scale" and ml["model_size"]["coefficients"] == 1
+    assert "narrower than" in ml["model_size"]["note"]
+    assert not any("exceeds its value" in w for w in ml["warnings"])
+    assert not doc.get("effects", {}).get("added")
+    p = ml["params"]
+    assert abs(math.degrees(math.atan2(p["Uz0"], p["Ux0"]))) < 3 * FLAT_FIRE_SD_DEG
+    from support.synthetic_labradar import truth_cd
+
+    cd = truth_cd(truth["shape"], truth["ff"], truth["slope"], truth["m_ref"])
+    row = doc["cd"][len(doc["cd"]) // 2]
+    t = float(cd(row["mach"]))
+    assert abs(row["ml"] - t) <= K_SD * row["band_sd"], (row, t)
+    assert row["band_sd"] / row["ml"] < SINGLE_SHOT_REL_SD_MAX
 
 
 def test_a_list_of_shot_files_and_a_broken_shot(series, tmp_path):

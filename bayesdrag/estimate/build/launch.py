@@ -21,7 +21,8 @@ from ..model.layout import ParameterLayout
 from ..model.problem import Prior
 
 __all__ = ["LAUNCH_CONFLICT_K", "ORIGIN_NOISE_K", "launch_state_priors", "unseen_launch_priors",
-           "checked_launch_priors", "origin_offset"]
+           "checked_launch_priors", "origin_offset", "path_angle_prior", "PATH_ANGLE_TURN_MAX",
+           "FLAT_FIRE_SD_DEG", "FLAT_FIRE_REACH"]
 
 #: a launch prior that disagrees with the track by more than this many combined sd is dropped
 LAUNCH_CONFLICT_K = 4.0
@@ -72,6 +73,67 @@ def unseen_launch_priors(track, rnd, chans):
     if "z" not in chans:
         out += ["Z0_muzzle", "elevation"]
     return tuple(out)
+
+
+#: a speed-only flight that turns by less than this [rad] over its track cannot tell its path
+#: angle from its drag level: gravity's along-path part is then a constant deceleration
+PATH_ANGLE_TURN_MAX = 0.05
+#: without a stated elevation a speed-only track this short [s since launch] is taken as flat
+#: fire (a chronograph beside a rifle); a longer one keeps its path angle free (not determined)
+FLAT_FIRE_REACH = 1.0
+#: the path angle's sd [deg] when flat fire is assumed: a rifle aimed at a target a few degrees
+#: up or down; on a chronograph track 2 deg moves Cd by about 0.1 %
+FLAT_FIRE_SD_DEG = 2.0
+
+
+def path_angle_prior(track, rnd, chans, P):
+    """A Gaussian prior on the path angle at the first sample of a speed-only track that cannot
+    see it, or ``()``.
+
+    With no position channel the fit sees the path angle ``gamma`` only through gravity's
+    along-path deceleration ``g sin(gamma)``; over a track on which the flight turns by less than
+    :data:`PATH_ANGLE_TURN_MAX` that is a constant, the same as a drag level, and the two trade
+    exactly (a free vertical velocity went to -19 m/s on a real 720 m/s LabRadar shot). The prior
+    is the round's elevation less the gravity turn to the first sample, with its
+    ``elevation_sd``; without a stated elevation, flat fire (0 +/- :data:`FLAT_FIRE_SD_DEG`) on a
+    track shorter than :data:`FLAT_FIRE_REACH` s, else no prior.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    chans : tuple of str
+        The channels fitted.
+    P : int
+        Drag coefficients before the initial state in the parameter vector.
+
+    Returns
+    -------
+    tuple of Prior
+        ``(Prior("path_angle", ...),)`` in degrees, or ``()``.
+    """
+    seen = gun_equivalent(chans)
+    if any(c in seen for c in ("x", "y", "z")) or "v" not in seen:
+        return ()
+    t = np.asarray(track.t, float)
+    speed = np.asarray(track.channels.get("v", track.channels.get("range_rate")), float)
+    v_min = float(np.min(np.abs(speed))) if speed is not None and speed.size else 0.0
+    if v_min <= 0.0:
+        return ()
+    if 9.80665 * float(t[-1]) / v_min > PATH_ANGLE_TURN_MAX:
+        return ()
+    L = rnd.launch
+    if L.elevation_deg is not None:
+        el0, sd = math.radians(L.elevation_deg), L.elevation_sd_deg
+        mean = math.degrees(el0 - 9.80665 * math.cos(el0) * float(t[0]) / float(abs(speed[0])))
+    elif float(t[-1]) <= FLAT_FIRE_REACH:
+        mean, sd = 0.0, FLAT_FIRE_SD_DEG
+    else:
+        return ()
+    lay = ParameterLayout(P)
+    vx, vy, vz = (lay.index(c) for c in ("vx", "vy", "vz"))
+    return (Prior("path_angle", lambda th: np.degrees(np.arctan2(th[..., vz], np.hypot(th[..., vx], th[..., vy]))),
+                  mean, sd, depends=(vx, vy, vz)),)
 
 
 def _prior_value_sd(prior, theta, cov, steps):

@@ -26,7 +26,8 @@ from ..model.layout import ParameterLayout
 from .basis import KNOT_TOL, NEAR_FINE, RISE_SPACING, adaptive_knots, coefficient_budget, rise_regions, sparse_knots
 from .launch import unseen_launch_priors
 
-__all__ = ["MIN_FIT_SAMPLES", "check_determinable", "default_knots", "free_mask"]
+__all__ = ["MIN_FIT_SAMPLES", "NARROW_SPAN_MACH", "SHAPE_SLOPE_SD", "check_determinable", "default_knots", "free_mask",
+           "narrow_shape_sd", "narrow_span_model"]
 
 #: the knots follow the start's shape to no finer than this many times its own noise
 KNOT_NOISE_FACTOR = 2.0
@@ -83,6 +84,36 @@ def check_constant_channels(track, chans):
         if vals.size and np.ptp(vals) == 0.0 and (ch != "y" or len(chans) == 1):
             raise InputError(f"{track.source or 'track'}: channel {ch} is constant ({vals[0]:g}); it carries no "
                              f"information — drop the column or fix the track")
+
+
+#: a track spanning less Mach than this [-] cannot tell a slope of Cd / table from its noise and
+#: its initial speed: with a table the default model is then one factor on it, whose shape the
+#: pipeline checks against the flexible fit of the same track (a chronograph shot spans 0.05-0.2;
+#: a chronograph session, whose shots spread in speed, fits its slope itself)
+NARROW_SPAN_MACH = 0.3
+
+
+#: how far Cd / table may depart from the table's shape per Mach [1/Mach] when one factor on it
+#: is fitted over a narrow span: a bullet's supersonic Cd departs from G1 or G7 by a few per
+#: cent over 0.2 Mach (the session's shape prior says the same)
+SHAPE_SLOPE_SD = 0.15
+
+
+def narrow_shape_sd(span, grid, ml):
+    """The shape error [Cd] of one factor on the table at each row (Mach ``grid``, Cd ``ml``):
+    :data:`SHAPE_SLOPE_SD` times the distance from the middle of the data's Mach ``span``, so
+    the middle is the factor's own and the ends carry how far the shape may lean."""
+    mid = 0.5 * (float(span[0]) + float(span[1]))
+    return SHAPE_SLOPE_SD * np.abs(np.asarray(grid, float) - mid) * np.abs(np.asarray(ml, float))
+
+
+def narrow_span_model(span, table, drag, knots):
+    """The model-size rule by Mach span: ``"reference-scale"`` when the default spline was asked
+    (``drag == "spline"``, no explicit ``knots``), the round has a ``table`` and the data's Mach
+    ``span`` (lo, hi) is narrower than :data:`NARROW_SPAN_MACH`, else None."""
+    if drag != "spline" or knots is not None or not table:
+        return None
+    return "reference-scale" if float(span[1]) - float(span[0]) < NARROW_SPAN_MACH else None
 
 
 def check_determinable(track, rnd, chans, free_ic=True, drag="spline", knots=None):

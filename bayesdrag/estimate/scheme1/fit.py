@@ -55,8 +55,8 @@ from ...drag import ReferenceScale, ReferenceTable, Spline, TableSpline, default
 from ...dynamics.pointmass import PointMassModel
 from ...dynamics.trajectory import initial_state
 from ...errors import FitError, InputError
-from ..build.launch import checked_launch_priors, launch_state_priors, unseen_launch_priors
-from ..build.model_size import check_determinable, default_knots, free_mask
+from ..build.launch import checked_launch_priors, launch_state_priors, path_angle_prior, unseen_launch_priors
+from ..build.model_size import NARROW_SPAN_MACH, SHAPE_SLOPE_SD, check_determinable, default_knots, free_mask, narrow_span_model
 from ..model.ml import MLResult
 from ..model import colored
 from ..model.contamination import contamination_refit
@@ -238,7 +238,7 @@ def build_drag_model(drag, reference, start, knots=None, penalise=True, span=Non
 @single_blas
 def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
                 penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white", with_effects=(),
-                progress=None, wind_layers=None):
+                progress=None, wind_layers=None, span_rule=True):
     """Scheme 1 ML fit of one track.
 
     Parameters
@@ -278,6 +278,8 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         The layers of a ``wind_profile`` in ``with_effects``, or the axis to lay them on (the
         diagnosis's); default: laid over the fitted flight on the better axis
         (:func:`bayesdrag.estimate.build.sources.fit_with_sources`).
+    span_rule : bool
+        The model-size rule by Mach span (:func:`~bayesdrag.estimate.build.model_size.narrow_span_model`).
 
     Returns
     -------
@@ -288,14 +290,15 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     chans = tuple(channels) if channels is not None else track.names
     smaller = check_determinable(track, rnd, chans, free_ic, drag, knots)
     check_heights(track, rnd)
-    if smaller is not None:
-        drag = smaller
+    drag = smaller or drag
     site = site_of(rnd, chans)
     seen = track.with_channels(chans) if set(chans) != set(track.names) else track
     own_start = start is None           # a start passed in (a refit's) has its shape chosen already
     if own_start:
         start = data_start(start_view(seen, rnd, site), rnd)
     check_gravity_units(start.kinematics, track.source)
+    narrow = narrow_span_model(start.mach_span, span_rule and rnd.reference_drag is not None, drag, knots)
+    drag = narrow or drag
     L = rnd.launch
     t0 = float(track.t[0])
     s0 = start.state0
@@ -320,7 +323,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
     say = progress if progress is not None else (lambda step: None)
     say("the initial state and one scale of the drag read off the track")
-    a_pri = launch_state_priors(L, 1, names=unseen) if unseen else ()
+    a_pri = _unseen_priors(track, rnd, chans, unseen, 1, (0.0, 1.0))
     # no speed measured: a poor start curve lets the initial position wander, so it is held at the
     # track's own start until the whole curve has its shape (:func:`_better_start_shape`)
     anchored = own_start and free_ic and "v" not in seen_as and any(c in seen_as for c in ("x", "y", "z"))
@@ -333,7 +336,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     size = {}
     dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
     P = dm.n_params
-    fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
+    fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, (0.0, 0.0) if narrow else span)
     free_b = free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span)
     prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m),
                                state if free_ic else s0, free_b, sig, chans, likelihood, fixed_pri, site)
@@ -354,7 +357,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         cur = (dm, res_b.drag_params.copy())
         dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
         P = dm.n_params
-        fixed_pri = launch_state_priors(L, P, names=unseen) if unseen else ()
+        fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, (0.0, 0.0) if narrow else span)
         prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
                                    res_b.state0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig, chans,
                                    likelihood, fixed_pri, site)
@@ -375,17 +378,38 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     if pen is not None:
         prob, res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
     else:
-        prob = prob.replace(priors=used)
-        res = prob.fit(fallback=True) if used else res_b
+        prob, res = prob.replace(priors=used), (prob.replace(priors=used).fit(fallback=True) if used else res_b)
     prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = _noise_and_effects(
         prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
     if pen is not None:
         res = drop_coefficient_correlations(res, P)
+    _size_note(size, track, chans, smaller, narrow, start.mach_span)
+    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
+                      before if fitted_effects else None, size, placements)
+
+
+def _unseen_priors(track, rnd, chans, unseen, P, span):
+    """The priors on launch values the channels cannot see: the round's (:func:`unseen_launch_priors`)
+    and, over a Mach ``span`` narrower than :data:`NARROW_SPAN_MACH` (the drag level is all that is
+    fitted there; known once the start has its shape, so not in stage A), a speed-only track's path angle (:func:`path_angle_prior`). Over a wider span the
+    angle stays free as it was: held, it left the fit of a chronograph track with one-sided
+    outliers at a worse optimum of its site (docs/radar.md, "One-sided outliers")."""
+    held = float(span[1]) - float(span[0]) < NARROW_SPAN_MACH
+    return ((launch_state_priors(rnd.launch, P, names=unseen) if unseen else ())
+            + (path_angle_prior(track, rnd, chans, P) if held else ()))
+
+
+def _size_note(size, track, chans, smaller, narrow, span):
+    """Say in ``size`` (``ml.model_size``) why the default spline gave way to one factor on the table."""
     if smaller is not None:
         size["note"] = (f"{track.n} samples x {len(chans)} channels are too few for the default spline: Cd is the "
                         f"firing table times one fitted factor (reference-scale)")
-    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
-                      before if fitted_effects else None, size, placements)
+    elif narrow is not None:
+        size["narrow_span"] = [float(f"{v:.6g}") for v in span]
+        size["note"] = (f"the track spans Mach {span[0]:.3f}-{span[1]:.3f}, narrower than {NARROW_SPAN_MACH:g}: too "
+                        f"little to tell a slope of Cd from the noise, so Cd is the firing table times one fitted "
+                        f"factor (reference-scale), its band leaning {SHAPE_SLOPE_SD:g} per Mach from the middle for the table's "
+                        f"shape; a series of shots fitted as one session also fits the slope")
 
 
 def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say):
