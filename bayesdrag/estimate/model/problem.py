@@ -100,6 +100,14 @@ def outputs(traj_state, channels, site=None, measured=None, offset=None, site_sh
         The radar's site moved per trajectory: its native channels are seen from there.
     """
     site = RadarSite() if site is None else site
+    # a trial step that made a trajectory diverge gives inf or nan outputs, which the fit rejects:
+    # numpy's overflow warnings would only alarm the user (a real rifle shot printed several)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _outputs(traj_state, channels, site, measured, offset, site_shift)
+
+
+def _outputs(traj_state, channels, site, measured, offset, site_shift):
+    """:func:`outputs` with the site settled."""
     out = channel_values(traj_state, channels, site)
     native = [j for j, c in enumerate(channels) if c in NATIVE_CHANNELS]
     if site_shift is not None and native:
