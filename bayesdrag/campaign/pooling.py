@@ -207,11 +207,12 @@ def check_input(doc):
         raise ValueError(f"name or drag_model is longer than {MAX_TEXT} characters")
     if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi <= 10.0):
         raise ValueError("mach_range is not an interval of Mach numbers in (0, 10]")
-    if mach_nodes(lo, hi).size == 0:
+    nodes = mach_nodes(lo, hi)
+    if nodes.size == 0:
         raise ValueError(f"its Mach span {lo:.4f}-{hi:.4f} holds no campaign node (multiples of {NODE_NARROW:g}): "
                          f"too narrow to pool")
-    if m.ndim != 1 or not 1 <= m.size <= MAX_NODES or m.shape != mach_nodes(lo, hi).shape \
-            or not np.allclose(m, mach_nodes(lo, hi), rtol=0.0, atol=1e-6):
+    if m.ndim != 1 or not 1 <= m.size <= MAX_NODES or m.shape != nodes.shape \
+            or not np.allclose(m, nodes, rtol=0.0, atol=1e-6):
         raise ValueError("mach is not the campaign's nodes of its mach_range")
     n = m.size
     if cd.shape != (n,) or not np.all(np.isfinite(cd)) or not np.all(cd > 0.0):

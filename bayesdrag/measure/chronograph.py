@@ -69,8 +69,8 @@ def chronograph_site(track, rnd, chans):
     A track of range rate alone starting within :data:`NEAR_MUZZLE` of the muzzle and ending
     within :data:`CHRONOGRAPH_REACH` comes from a device beside it; when the round gives neither
     ``[radar] position``, ``position_sd`` nor ``device_offset``, the site is fitted (its declared
-    ``radar_position``, sd :data:`CHRONOGRAPH_SITE_SD` per axis) instead of being taken at the muzzle, which biased the
-    Cd of a real-like shot by 4 of its sd. Without a typed offset the fit assumes the device
+    ``radar_position``, sd :data:`CHRONOGRAPH_SITE_SD` per axis) instead of being taken at the
+    muzzle, which biased the Cd of a real-like shot by 4 of its sd. Without a typed offset the fit assumes the device
     corrected for none: a device that over-corrected (typed more than its true distance) leaves a
     misfit near the muzzle, which the fit's quality reports.
 

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ...air.atmosphere import G0
 from ...measure import gun_equivalent
 from ..model.layout import ParameterLayout
 from ..model.problem import Prior
@@ -116,16 +117,14 @@ def path_angle_prior(track, rnd, chans, P):
     if any(c in seen for c in ("x", "y", "z")) or "v" not in seen:
         return ()
     t = np.asarray(track.t, float)
-    speed = np.asarray(track.channels.get("v", track.channels.get("range_rate")), float)
-    v_min = float(np.min(np.abs(speed))) if speed is not None and speed.size else 0.0
-    if v_min <= 0.0:
-        return ()
-    if 9.80665 * float(t[-1]) / v_min > PATH_ANGLE_TURN_MAX:
+    speed = np.abs(np.asarray(track.channels["v" if "v" in track.channels else "range_rate"], float))
+    v_min = float(np.min(speed))
+    if v_min <= 0.0 or G0 * float(t[-1]) / v_min > PATH_ANGLE_TURN_MAX:
         return ()
     L = rnd.launch
     if L.elevation_deg is not None:
         el0, sd = math.radians(L.elevation_deg), L.elevation_sd_deg
-        mean = math.degrees(el0 - 9.80665 * math.cos(el0) * float(t[0]) / float(abs(speed[0])))
+        mean = math.degrees(el0 - G0 * math.cos(el0) * float(t[0]) / float(speed[0]))
     elif float(t[-1]) <= FLAT_FIRE_REACH:
         mean, sd = 0.0, FLAT_FIRE_SD_DEG
     else:

@@ -297,8 +297,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     if own_start:
         start = data_start(start_view(seen, rnd, site), rnd)
     check_gravity_units(start.kinematics, track.source)
-    narrow = narrow_span_model(start.mach_span, span_rule and rnd.reference_drag is not None, drag, knots)
-    drag = narrow or drag
+    drag = (narrow := narrow_span_model(start.mach_span, span_rule and rnd.reference_drag is not None, drag, knots)) or drag
     L = rnd.launch
     t0 = float(track.t[0])
     s0 = start.state0
@@ -323,7 +322,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
     say = progress if progress is not None else (lambda step: None)
     say("the initial state and one scale of the drag read off the track")
-    a_pri = _unseen_priors(track, rnd, chans, unseen, 1, (0.0, 1.0))
+    a_pri = _unseen_priors(track, rnd, chans, unseen, 1, False)
     # no speed measured: a poor start curve lets the initial position wander, so it is held at the
     # track's own start until the whole curve has its shape (:func:`_better_start_shape`)
     anchored = own_start and free_ic and "v" not in seen_as and any(c in seen_as for c in ("x", "y", "z"))
@@ -336,7 +335,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     size = {}
     dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
     P = dm.n_params
-    fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, (0.0, 0.0) if narrow else span)
+    fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, _angle_held(narrow, span))
     free_b = free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span)
     prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m),
                                state if free_ic else s0, free_b, sig, chans, likelihood, fixed_pri, site)
@@ -357,7 +356,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         cur = (dm, res_b.drag_params.copy())
         dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
         P = dm.n_params
-        fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, (0.0, 0.0) if narrow else span)
+        fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, _angle_held(narrow, span))
         prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
                                    res_b.state0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig, chans,
                                    likelihood, fixed_pri, site)
@@ -378,7 +377,8 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     if pen is not None:
         prob, res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
     else:
-        prob, res = prob.replace(priors=used), (prob.replace(priors=used).fit(fallback=True) if used else res_b)
+        prob = prob.replace(priors=used)
+        res = prob.fit(fallback=True) if used else res_b
     prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = _noise_and_effects(
         prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
     if pen is not None:
@@ -388,15 +388,20 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
                       before if fitted_effects else None, size, placements)
 
 
-def _unseen_priors(track, rnd, chans, unseen, P, span):
+def _angle_held(narrow, span):
+    """Whether a speed-only track's path angle is held by its prior: over a narrow Mach ``span``
+    (or where the narrow-span rule chose the model), where the drag level is all that is fitted.
+    Over a wider span the angle stays free as it was: held, it left the fit of a chronograph track
+    with one-sided outliers at a worse optimum of its site (docs/radar.md, "One-sided outliers")."""
+    return narrow is not None or float(span[1]) - float(span[0]) < NARROW_SPAN_MACH
+
+
+def _unseen_priors(track, rnd, chans, unseen, P, angle_held):
     """The priors on launch values the channels cannot see: the round's (:func:`unseen_launch_priors`)
-    and, over a Mach ``span`` narrower than :data:`NARROW_SPAN_MACH` (the drag level is all that is
-    fitted there; known once the start has its shape, so not in stage A), a speed-only track's path angle (:func:`path_angle_prior`). Over a wider span the
-    angle stays free as it was: held, it left the fit of a chronograph track with one-sided
-    outliers at a worse optimum of its site (docs/radar.md, "One-sided outliers")."""
-    held = float(span[1]) - float(span[0]) < NARROW_SPAN_MACH
+    and, when ``angle_held`` (:func:`_angle_held`; not in stage A, before the span is known), a
+    speed-only track's path angle (:func:`path_angle_prior`)."""
     return ((launch_state_priors(rnd.launch, P, names=unseen) if unseen else ())
-            + (path_angle_prior(track, rnd, chans, P) if held else ()))
+            + (path_angle_prior(track, rnd, chans, P) if angle_held else ()))
 
 
 def _size_note(size, track, chans, smaller, narrow, span):
@@ -408,8 +413,8 @@ def _size_note(size, track, chans, smaller, narrow, span):
         size["narrow_span"] = [float(f"{v:.6g}") for v in span]
         size["note"] = (f"the track spans Mach {span[0]:.3f}-{span[1]:.3f}, narrower than {NARROW_SPAN_MACH:g}: too "
                         f"little to tell a slope of Cd from the noise, so Cd is the firing table times one fitted "
-                        f"factor (reference-scale), its band leaning {SHAPE_SLOPE_SD:g} per Mach from the middle for the table's "
-                        f"shape; a series of shots fitted as one session also fits the slope")
+                        f"factor (reference-scale), its band leaning {SHAPE_SLOPE_SD:g} per Mach from the middle "
+                        f"for the table's shape; a series of shots fitted as one session also fits the slope")
 
 
 def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say):
