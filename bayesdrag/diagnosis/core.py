@@ -312,7 +312,6 @@ def _baseline_summary(setup, track, b):
     }
 
 
-@single_blas
 def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=ALPHA, cd_shifts=True,
              material_cd_shift=MATERIAL_CD_SHIFT, material_end_sd=MATERIAL_END_SD):
     """Diagnose the gap between a radar track and the nominal simulation of its round.
@@ -359,91 +358,92 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         radar effect among ``candidates`` has no channel to act on (``range_bias`` without
         ``range``, an angle bias without its angle, ``radar_position`` without a native channel).
     """
-    if not (material_cd_shift >= 0 and material_end_sd >= 0):
-        raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
-                         f"material_end_sd={material_end_sd!r}")
-    if candidates is not None:    # a radar's bias asked of a track without its channel
-        check_radar_effects(candidates, tuple(channels) if channels is not None else track.names,
-                            track.source or "track")
-    setup = make_setup(track, rnd, sigma=sigma, channels=channels)
-    chans = setup.channels
-    sig_vec = np.array([setup.sigma[c] for c in chans])
-    b = _baseline(setup)
-    unseen = unseen_effects(setup, candidates)
-    if any(c in NATIVE_CHANNELS for c in chans) and not ("x" in chans and "z" in chans):
-        # the radar's own channels: where the shell is comes from the baseline's flight
-        setup.path = gun_path(setup, b.theta)
-    if unseen:
-        candidates = [n for n in (candidates if candidates is not None else EFFECTS) if n not in unseen]
+    with single_blas():   # the kernel's threads use the cores, not BLAS's
+        if not (material_cd_shift >= 0 and material_end_sd >= 0):
+            raise ValueError(f"materiality thresholds must be >= 0, got material_cd_shift={material_cd_shift!r}, "
+                             f"material_end_sd={material_end_sd!r}")
+        if candidates is not None:    # a radar's bias asked of a track without its channel
+            check_radar_effects(candidates, tuple(channels) if channels is not None else track.names,
+                                track.source or "track")
+        setup = make_setup(track, rnd, sigma=sigma, channels=channels)
+        chans = setup.channels
+        sig_vec = np.array([setup.sigma[c] for c in chans])
+        b = _baseline(setup)
+        unseen = unseen_effects(setup, candidates)
+        if any(c in NATIVE_CHANNELS for c in chans) and not ("x" in chans and "z" in chans):
+            # the radar's own channels: where the shell is comes from the baseline's flight
+            setup.path = gun_path(setup, b.theta)
+        if unseen:
+            candidates = [n for n in (candidates if candidates is not None else EFFECTS) if n not in unseen]
 
-    effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span, b.fit[2])
-    skipped.update(unseen)
-    K = max(len(effs), 1)
-    rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
-    if WIND_PROFILE.name in fits:  # its signature with the layers the evidence chose
-        sigs.update(signatures(setup, b.theta, [EFFECTS[WIND_PROFILE.name]]))
-    mark_confounded(rows, sigs, alpha, K)
-    for r in rows:   # what the radar's own channels cannot see is said, not reported as a value
-        held = held_params(setup, EFFECTS[r["name"]])
-        if held:
-            r["not_identifiable"] = held
+        effs, sigs, skipped = screen_candidates(setup, candidates, b.theta, b.span, b.fit[2])
+        skipped.update(unseen)
+        K = max(len(effs), 1)
+        rows, fits = fit_candidates(setup, effs, b.fit, b.gap, alpha, K, skipped)
+        if WIND_PROFILE.name in fits:  # its signature with the layers the evidence chose
+            sigs.update(signatures(setup, b.theta, [EFFECTS[WIND_PROFILE.name]]))
+        mark_confounded(rows, sigs, alpha, K)
+        for r in rows:   # what the radar's own channels cannot see is said, not reported as a value
+            held = held_params(setup, EFFECTS[r["name"]])
+            if held:
+                r["not_identifiable"] = held
 
-    opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
-    by_name = {r["name"]: r for r in rows}
-    shape_rival = None
-    for _ in range(2):  # a second time without a profile the data cannot tell from a table's shape
-        found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
-        found, selected_fit, drop_one, wind_choice = _wind_beside_others(setup, found, selected_fit, drop_one,
-                                                                         fits, by_name, b, sig_vec, alpha)
-        if shape_rival is not None:
-            break
-        shape_rival = _profile_against_shape(setup, found, selected_fit, fits, by_name, b.fit[0])
-        if shape_rival is None or shape_rival["named"]:
-            break
-    joint = _joint(setup, found, selected_fit, drop_one, by_name, b.chi2, b.gap)
-    if wind_choice and joint:
-        joint["wind_models"] = wind_choice
-    # the pairs the data cannot separate: verdict members in their joint fit, a wind against
-    # warmer or thinner air or a table's shape fitted beside it (diagnosis.winds)
-    separate = cannot_separate(setup, found, selected_fit if len(found) > 1 else None, fits, by_name,
-                               _fit_names(setup)) + ([shape_rival] if shape_rival is not None else [])
-    judge_impacts(setup, rows, found, selected_fit, fits, **opts)
-    verdict, immaterial, found = _verdict(setup, rows, found, by_name, wrong_table)
-    best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
+        opts = dict(cd_shifts=cd_shifts, material_cd_shift=material_cd_shift, material_end_sd=material_end_sd)
+        by_name = {r["name"]: r for r in rows}
+        shape_rival = None
+        for _ in range(2):  # a second time without a profile the data cannot tell from a table's shape
+            found, selected_fit, drop_one, wrong_table = _select(setup, rows, fits, b.gap, sig_vec, alpha, K, opts)
+            found, selected_fit, drop_one, wind_choice = _wind_beside_others(setup, found, selected_fit, drop_one,
+                                                                             fits, by_name, b, sig_vec, alpha)
+            if shape_rival is not None:
+                break
+            shape_rival = _profile_against_shape(setup, found, selected_fit, fits, by_name, b.fit[0])
+            if shape_rival is None or shape_rival["named"]:
+                break
+        joint = _joint(setup, found, selected_fit, drop_one, by_name, b.chi2, b.gap)
+        if wind_choice and joint:
+            joint["wind_models"] = wind_choice
+        # the pairs the data cannot separate: verdict members in their joint fit, a wind against
+        # warmer or thinner air or a table's shape fitted beside it (diagnosis.winds)
+        separate = cannot_separate(setup, found, selected_fit if len(found) > 1 else None, fits, by_name,
+                                   _fit_names(setup)) + ([shape_rival] if shape_rival is not None else [])
+        judge_impacts(setup, rows, found, selected_fit, fits, **opts)
+        verdict, immaterial, found = _verdict(setup, rows, found, by_name, wrong_table)
+        best_name, resid_best = _after(track, chans, rows, found, fits, selected_fit)
 
-    y_base = b.fit[2]
-    z_model = y_base[:, chans.index("z")] if "z" in chans else (None if setup.path is None else setup.path[:, 2])
-    where = where_segments(track.t, b.resid / sig_vec[None, :], setup.weights, b.mach, z_model, chans)
-    where = with_launch_misfit(where, track.t[0], b.prior_terms, b.gap)
-    x_end = float(y_base[-1, chans.index("x")]) if "x" in chans else (
-        0.0 if setup.path is None else float(setup.path[-1, 0]))
-    absorbed = absorbed_by_launch(b.prior_terms, {p.name: p.sd for p in setup.priors}, x_end)
-    for r in rows:
-        r.pop("inflation_raw", None)
-    summary = {
-        "baseline": _baseline_summary(setup, track, b),
-        "where": where,
-        "absorbed": absorbed,
-        "effects": rows,
-        "verdict": verdict,
-        "immaterial": immaterial,
-        "joint": joint,
-        "cannot_separate": separate,
-        "materiality": {"cd_shift": material_cd_shift, "end_sd": material_end_sd,
-                        "rule": "material when ignoring it would shift a fitted Cd by more than cd_shift "
-                                "(relative) anywhere in the flown Mach range or move the track's last sample by "
-                                "more than end_sd noise sd; detected effects are judged in their joint fit"},
-        "skipped": skipped,
-        "outliers": {c: [int(i) for i in np.flatnonzero(setup.outliers[:, j])] for j, c in enumerate(chans)},
-        "tests": {"alpha": alpha, "candidates": K, "per_test_alpha": alpha / K,
-                  "rule": "chi2 drop / colored inflation > chi2_k quantile at alpha/K"},
-        "notes": setup.notes,
-        "reference_drag": setup.has_reference,
-    }
-    try:
-        found = found_atmosphere(summary, rnd)
-    except ValueError as exc:  # an air no met file can hold (beyond the atmosphere model): said, not written
-        setup.notes.append(f"the air found could not be written as a met file ({exc})")
-        found = None
-    return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
-                     b.mach, setup.weights, best_name, found)
+        y_base = b.fit[2]
+        z_model = y_base[:, chans.index("z")] if "z" in chans else (None if setup.path is None else setup.path[:, 2])
+        where = where_segments(track.t, b.resid / sig_vec[None, :], setup.weights, b.mach, z_model, chans)
+        where = with_launch_misfit(where, track.t[0], b.prior_terms, b.gap)
+        x_end = float(y_base[-1, chans.index("x")]) if "x" in chans else (
+            0.0 if setup.path is None else float(setup.path[-1, 0]))
+        absorbed = absorbed_by_launch(b.prior_terms, {p.name: p.sd for p in setup.priors}, x_end)
+        for r in rows:
+            r.pop("inflation_raw", None)
+        summary = {
+            "baseline": _baseline_summary(setup, track, b),
+            "where": where,
+            "absorbed": absorbed,
+            "effects": rows,
+            "verdict": verdict,
+            "immaterial": immaterial,
+            "joint": joint,
+            "cannot_separate": separate,
+            "materiality": {"cd_shift": material_cd_shift, "end_sd": material_end_sd,
+                            "rule": "material when ignoring it would shift a fitted Cd by more than cd_shift "
+                                    "(relative) anywhere in the flown Mach range or move the track's last sample by "
+                                    "more than end_sd noise sd; detected effects are judged in their joint fit"},
+            "skipped": skipped,
+            "outliers": {c: [int(i) for i in np.flatnonzero(setup.outliers[:, j])] for j, c in enumerate(chans)},
+            "tests": {"alpha": alpha, "candidates": K, "per_test_alpha": alpha / K,
+                      "rule": "chi2 drop / colored inflation > chi2_k quantile at alpha/K"},
+            "notes": setup.notes,
+            "reference_drag": setup.has_reference,
+        }
+        try:
+            found = found_atmosphere(summary, rnd)
+        except ValueError as exc:  # an air no met file can hold (beyond the atmosphere model): said, not written
+            setup.notes.append(f"the air found could not be written as a met file ({exc})")
+            found = None
+        return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
+                         b.mach, setup.weights, best_name, found)

@@ -3,7 +3,7 @@
 This module is deliberately small and free of Python objects: everything arrives as arrays so
 that numba compiles it once (``cache=True`` writes the machine code next to this file, or to
 ``NUMBA_CACHE_DIR``, so a new process does not recompile) and runs the blocks of a batch on
-several threads (:func:`bayesdrag._runtime.threads.run_split`: the compiled code releases the GIL).
+several threads (:func:`bayesdrag.dynamics.threads.run_split`: the compiled code releases the GIL).
 
 State per trajectory: ``[x, y, z, vx, vy, vz]`` (m, m/s), ground-relative, in the track frame
 frame (x downrange, y right, z up). Acceleration (paper Eqs. 20-22 in 3-D, plus effects):
@@ -66,7 +66,7 @@ import numpy as np
 from numba import njit
 from numba.core.compiler import CompilerBase, DefaultPassBuilder
 
-from .._runtime.threads import run_split
+from .threads import run_split
 
 P_KREF = 0       # pi d^2 / (8 m)  [m^2/kg]
 P_WX = 1         # wind [m/s]
@@ -485,7 +485,7 @@ def integrate_batch(y0, t_start, h, n_steps, out_step, out_theta, par, cd_flat, 
         Filled in place with the Mach number at the output rows.
     n_threads : int
         Threads that integrate the blocks side by side (at most one per block): the calling
-        thread and ``n_threads - 1`` helper threads (:func:`bayesdrag._runtime.threads.run_split`),
+        thread and ``n_threads - 1`` helper threads (:func:`bayesdrag.dynamics.threads.run_split`),
         each a contiguous range of blocks; the results do not depend on it. Each thread uses
         the scratch arrays its slot of the pool keeps for this batch shape (fresh ones when
         another thread is using the pool).

@@ -4,11 +4,10 @@ level, :class:`ShapedTable`, flown by :class:`DragShapeModel`)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..drag import DragModel, ReferenceTable, Spline
+from ..drag import ReferenceTable, ShapedTable
 from ..dynamics import kernel as K
 from .base import Effect
 from .inputs import ExtraParam
@@ -100,87 +99,6 @@ def drag_shape_knots(reference, mach_min, mach_max, max_params=DRAG_SHAPE_MAX, s
     knots = np.unique(np.round(np.concatenate([[lo], inner, [hi]]), 2))
     knots[0], knots[-1] = min(knots[0], lo), max(knots[-1], hi)
     return knots
-
-
-@dataclass(frozen=True, eq=False)
-
-
-class ShapedTable(DragModel):
-    """Cd(M) = table(M) (c_0 + sum_k c_k phi_k(M)), ``phi_k = B_k - a_k`` (k = 1..K): the drag
-    curve of the ``drag_shape`` effect. ``c_0 = 1`` always (the effect's coefficients are
-    ``c_1..c_K``); ``B_1..B_K`` are the cubic B-splines on ``knots`` (:class:`bayesdrag.drag.Spline`)
-    less the first, and ``a_k`` constants: by default their Mach means over the knot span (a
-    correction of zero Mach mean); the diagnosis sets them so that each shape function moves the
-    track orthogonally to a constant factor (:func:`level_free_offsets`).
-
-    Attributes
-    ----------
-    reference : ReferenceTable
-    knots : tuple of float
-    offsets : tuple of float or None
-        ``a_1..a_K`` (None: the Mach means).
-    """
-
-    reference: ReferenceTable = None
-    knots: tuple = ()
-    offsets: tuple | None = None
-    name: str = field(default="table-shape", init=False)
-
-    def __post_init__(self):
-        if not isinstance(self.reference, ReferenceTable):
-            raise ValueError("drag_shape needs a reference drag table (round's projectile.reference_drag)")
-        spl = Spline(tuple(self.knots))
-        if self.offsets is None:
-            m = np.linspace(spl.knots[0], spl.knots[-1], 801)
-            off = spl.basis(m).mean(axis=0)[1:]
-        else:
-            off = np.asarray(self.offsets, float)
-            if off.shape != (spl.n_params - 1,) or not np.all(np.isfinite(off)):
-                raise ValueError(f"drag_shape offsets must be {spl.n_params - 1} finite numbers, got {self.offsets!r}")
-        object.__setattr__(self, "knots", spl.knots)
-        object.__setattr__(self, "_spline", spl)
-        object.__setattr__(self, "offsets", tuple(float(v) for v in off))
-        object.__setattr__(self, "_means", np.concatenate([[0.0], off]))
-
-    @property
-    def n_shape(self):
-        """Number of shape coefficients K (B-splines less one)."""
-        return self._spline.n_params - 1
-
-    @property
-    def param_names(self):
-        return ("c0",) + tuple(f"s{i + 1}" for i in range(self.n_shape))
-
-    def shape_basis(self, mach):
-        """Zero-mean shape functions (N, K) at ``mach``."""
-        return self._spline.basis(np.asarray(mach, float))[..., 1:] - self._means[1:]
-
-    def shape_slope(self, mach):
-        return self._spline.basis_slope(np.asarray(mach, float))[..., 1:]
-
-    def correction(self, coefs, mach):
-        """Relative Cd change ``sum_k s_k phi_k(M)`` for coefficients (K,) at ``mach``."""
-        return self.shape_basis(mach) @ np.asarray(coefs, float)
-
-    def basis(self, mach):
-        m = np.asarray(mach, dtype=float)
-        t = self.reference.value(m)[..., None]
-        return np.concatenate([t, t * self.shape_basis(m)], axis=-1)
-
-    def basis_slope(self, mach):
-        m = np.asarray(mach, dtype=float)
-        t, dt = self.reference.value(m)[..., None], self.reference.slope(m)[..., None]
-        phi = self.shape_basis(m)
-        return np.concatenate([dt, dt * phi + t * self.shape_slope(m)], axis=-1)
-
-    @property
-    def bounds(self):
-        P = self.n_params
-        return np.full(P, -20.0), np.full(P, 20.0)
-
-    @property
-    def fit_range(self):
-        return (self.knots[0], self.knots[-1])
 
 
 def drag_shape_model(reference, mach_span, offsets=None):

@@ -189,7 +189,6 @@ def smoothed_state(t, positions, i, smooth, polyorder=POLYORDER):
     return state, np.array([np.linalg.norm(c0), np.linalg.norm(c1)])
 
 
-@single_blas
 def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, free_ic=True,
                 smooth=None, polyorder=POLYORDER, progress=None):
     """Scheme 2 ML fit: a constant Cd in each window of samples.
@@ -220,63 +219,64 @@ def fit_scheme2(track, rnd, window=50, overlap=0, channels=None, sigma=None, fre
     -------
     Scheme2Result
     """
-    chans = tuple(channels) if channels is not None else track.names
-    site = site_of(rnd, chans)
-    seen = track.with_channels(chans) if set(chans) != set(track.names) else track
-    # window starts from positions: the gun-frame ones, or a radar's range and angles turned into them
-    view = gun_frame_track(seen, site) if ("x" not in chans or "z" not in chans) else seen
-    if view is None or "x" not in view.channels or "z" not in view.channels:
-        raise InputError(f"{track.source}: Scheme 2 needs x and z (or the radar's range, azimuth and elevation) in "
-                         f"the track to start each window (it has {', '.join(track.names)}); fit a speed-only "
-                         f"track with Scheme 1")
-    slices = window_slices(track.n, window, overlap)
-    if smooth is None:
-        smooth = max(window | 1, 4 * polyorder + 1)
-    if smooth <= polyorder + 1:
-        raise InputError(f"Scheme 2: smoothing block of {smooth} samples is too short for order {polyorder}")
-    model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, Constant(), rnd.atmosphere,
-                           coriolis=coriolis_of(rnd))
-    ref = rnd.reference_drag
-    sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
-    positions = [view.channels.get(c) for c in ("x", "y", "z")]
-    t = track.t
-    windows, results, problems, smoothed = [], [], [], []
-    # the track's own noise, for each window's goodness of fit; the start curve for each
-    # window's starting Cd (the round's table may be another shell's, or absent)
-    sig_data, source, _ = noise_and_outliers(track, chans, sig)
-    try:
-        start = data_start(view, rnd)
-    except InputError:
-        start = None
-    for k, (i0, i1) in enumerate(slices):
-        s0, _ = smoothed_state(t, positions, i0, smooth, polyorder)
-        sub = track.subset(np.arange(i0, i1))
-        cd0 = _start_cd(model, s0, ref, start)
-        theta0 = np.concatenate([[cd0], s0])
-        free = np.ones(7, bool)
-        if not free_ic:
-            free[1:] = False
-        if "y" not in gun_equivalent(chans):
-            free[[2, 5]] = False
-        prob = OutputErrorProblem(model, sub, theta0, free=free, sigma=sig, channels=chans, site=site)
-        res = prob.fit(fallback=True)
-        mach = res.mach[np.isfinite(res.mach)] if res.mach is not None else np.array([np.nan])
-        mmean = float(np.mean(mach))
-        windows.append({
-            "t_start": float(t[i0]), "t_end": float(t[i1 - 1]), "i_start": int(i0), "i_end": int(i1),
-            "n": int(i1 - i0), "mach": mmean, "mach_min": float(np.min(mach)), "mach_max": float(np.max(mach)),
-            "ml": float(res.theta[0]), "crb_sd": float(res.crb[0]), "crb_sd_colored": float(res.crb_colored[0]),
-            "reference": float(ref.value(mmean)) if ref is not None else None,
-            "converged": bool(res.converged), "message": res.message, "warnings": list(res.warnings),
-            **assess_window(res, chans, (sig_data, source)),
-        })
-        results.append(res)
-        problems.append(prob)
-        smoothed.append(s0)
-        if progress is not None:
-            progress(k + 1, len(slices))
-    return Scheme2Result(windows, tuple(results), tuple(problems), np.array(smoothed), int(window),
-                         int(overlap), bool(free_ic))
+    with single_blas():   # the kernel's threads use the cores, not BLAS's
+        chans = tuple(channels) if channels is not None else track.names
+        site = site_of(rnd, chans)
+        seen = track.with_channels(chans) if set(chans) != set(track.names) else track
+        # window starts from positions: the gun-frame ones, or a radar's range and angles turned into them
+        view = gun_frame_track(seen, site) if ("x" not in chans or "z" not in chans) else seen
+        if view is None or "x" not in view.channels or "z" not in view.channels:
+            raise InputError(f"{track.source}: Scheme 2 needs x and z (or the radar's range, azimuth and elevation) in "
+                             f"the track to start each window (it has {', '.join(track.names)}); fit a speed-only "
+                             f"track with Scheme 1")
+        slices = window_slices(track.n, window, overlap)
+        if smooth is None:
+            smooth = max(window | 1, 4 * polyorder + 1)
+        if smooth <= polyorder + 1:
+            raise InputError(f"Scheme 2: smoothing block of {smooth} samples is too short for order {polyorder}")
+        model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, Constant(), rnd.atmosphere,
+                               coriolis=coriolis_of(rnd))
+        ref = rnd.reference_drag
+        sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
+        positions = [view.channels.get(c) for c in ("x", "y", "z")]
+        t = track.t
+        windows, results, problems, smoothed = [], [], [], []
+        # the track's own noise, for each window's goodness of fit; the start curve for each
+        # window's starting Cd (the round's table may be another shell's, or absent)
+        sig_data, source, _ = noise_and_outliers(track, chans, sig)
+        try:
+            start = data_start(view, rnd)
+        except InputError:
+            start = None
+        for k, (i0, i1) in enumerate(slices):
+            s0, _ = smoothed_state(t, positions, i0, smooth, polyorder)
+            sub = track.subset(np.arange(i0, i1))
+            cd0 = _start_cd(model, s0, ref, start)
+            theta0 = np.concatenate([[cd0], s0])
+            free = np.ones(7, bool)
+            if not free_ic:
+                free[1:] = False
+            if "y" not in gun_equivalent(chans):
+                free[[2, 5]] = False
+            prob = OutputErrorProblem(model, sub, theta0, free=free, sigma=sig, channels=chans, site=site)
+            res = prob.fit(fallback=True)
+            mach = res.mach[np.isfinite(res.mach)] if res.mach is not None else np.array([np.nan])
+            mmean = float(np.mean(mach))
+            windows.append({
+                "t_start": float(t[i0]), "t_end": float(t[i1 - 1]), "i_start": int(i0), "i_end": int(i1),
+                "n": int(i1 - i0), "mach": mmean, "mach_min": float(np.min(mach)), "mach_max": float(np.max(mach)),
+                "ml": float(res.theta[0]), "crb_sd": float(res.crb[0]), "crb_sd_colored": float(res.crb_colored[0]),
+                "reference": float(ref.value(mmean)) if ref is not None else None,
+                "converged": bool(res.converged), "message": res.message, "warnings": list(res.warnings),
+                **assess_window(res, chans, (sig_data, source)),
+            })
+            results.append(res)
+            problems.append(prob)
+            smoothed.append(s0)
+            if progress is not None:
+                progress(k + 1, len(slices))
+        return Scheme2Result(windows, tuple(results), tuple(problems), np.array(smoothed), int(window),
+                             int(overlap), bool(free_ic))
 
 
 def _start_cd(model, s0, reference, start=None):

@@ -39,7 +39,6 @@ from ..effects import RADAR_POSITION, WIND_PROFILE
 __all__ = ["fit", "diagnose", "summary_line"]
 
 
-@single_blas
 def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, chain_path: Any = None,
         resume: bool = False, log: Callable[[str], None] | None = None, progress: bool = False,
         ml_progress: Callable[[str], None] | None = None, **kwargs: Any) -> FitResult:
@@ -78,23 +77,24 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
     FitError
         No solution: the message says why.
     """
-    t_start = time.perf_counter()
-    track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
-    opts = options if options is not None else FitOptions()
-    if kwargs:
-        opts = FitOptions(**{**opts.to_dict(), **kwargs})
-    chans = opts.channels
-    if chans is not None:
-        missing = [c for c in chans if c not in track.names]
-        if missing:
-            raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
-                             f"track (it has {', '.join(track.names)})")
-    rnd, site_note = chronograph_site(track, rnd, chans or track.names)
-    if opts.scheme == 2:
-        opts.check_windows(track.n)       # a bound on the windows, before any is fitted
-        return _fit_scheme2(track, rnd, opts, chans, log, t_start)
-    return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
-                        notes=(site_note,) if site_note else ())
+    with single_blas():   # the kernel's threads use the cores, not BLAS's
+        t_start = time.perf_counter()
+        track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
+        opts = options if options is not None else FitOptions()
+        if kwargs:
+            opts = FitOptions(**{**opts.to_dict(), **kwargs})
+        chans = opts.channels
+        if chans is not None:
+            missing = [c for c in chans if c not in track.names]
+            if missing:
+                raise InputError(f"{track.source or 'track'}: channel(s) {', '.join(missing)} asked for but not in the "
+                                 f"track (it has {', '.join(track.names)})")
+        rnd, site_note = chronograph_site(track, rnd, chans or track.names)
+        if opts.scheme == 2:
+            opts.check_windows(track.n)       # a bound on the windows, before any is fitted
+            return _fit_scheme2(track, rnd, opts, chans, log, t_start)
+        return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
+                            notes=(site_note,) if site_note else ())
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None, notes=()):
@@ -255,7 +255,8 @@ def _effect_sizes_record(track, rnd, opts, chans, f1):
     """The added effects' sizes (:func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes`)
     and their ``seconds``, JSON-ready (for :func:`~bayesdrag._runtime.beside.computed_beside`)."""
     t0 = time.perf_counter()
-    return {"sizes": effect_sizes(track, rnd, opts, chans, f1), "seconds": time.perf_counter() - t0}
+    return {"sizes": effect_sizes(track, rnd, chans, f1, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
+                                   nu=opts.ml_nu, noise_model=opts.noise_model), "seconds": time.perf_counter() - t0}
 
 
 def _with_effects_record(f1, with_note, sizes, placement):

@@ -578,7 +578,6 @@ class CasePlan:
         return self.sd / self.cd
 
 
-@single_blas
 def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=0.0, lock_on=None, loss=None,
               assumed_drag=None, seed=PLAN_SEED):
     """Predict the Cd sd by Mach of one planned case (module docstring: how and why).
@@ -609,60 +608,61 @@ def plan_case(rnd, elevation_deg, velocity, *, dt=DEFAULT_DT, rounds=1, scatter=
     -------
     CasePlan
     """
-    truth, _, _ = drag_assumption(rnd, assumed_drag)
-    chans, sigma = radar_channels(rnd)
-    rc = case_round(rnd, elevation_deg, velocity)
-    t, state, mach, t_imp = nominal_flight(rc, truth, dt, lock_on, loss)
-    thinned = int(round((t[1] - t[0]) / dt))          # k > 1: every k-th radar sample (nominal_flight)
-    site = site_of(rc, chans)
-    _check_line_of_sight(rc, chans, site, t, state, elevation_deg, velocity)
-    out = _outputs(state, chans, site)
-    flat = [c for c in chans if c in NATIVE_CHANNELS
-            and np.ptp(out[c]) <= 1e-12 * max(1.0, float(np.max(np.abs(out[c]))))]
-    if len(flat) == len(chans):
-        flat = []                     # nothing left to plan with: the track's own check says why
-    if flat:
-        # a radar on the line of fire sees a constant azimuth: no information, and no track has it
-        chans = tuple(c for c in chans if c not in flat)
-        sigma = {c: sigma[c] for c in chans}
-        out = {c: out[c] for c in chans}
-    track = RadarTrack(t, out, {}, source=f"planned QE {elevation_deg:g} deg, {velocity:g} m/s")
-    noisy = add_noise(track, sigma, np.random.default_rng(seed))
-    start = data_start(start_view(noisy, rc, site_of(rc, chans)), rc)   # as the fit reads its start
-    lo, hi = float(mach.min()), float(mach.max())
-    span = (min(start.mach_span[0], lo), max(start.mach_span[1], hi))
-    dm, base = build_drag_model("spline", rnd.reference_drag, start, span=span)
-    m = np.linspace(*dm.fit_range, 400)
-    theta_drag = dm.params_for(m, truth.value(m))
-    info = case_information(rc, dm, track, state[0], theta_drag, sigma, chans)
-    smoothing, Finv = _choose_smoothing(info, penalty(dm, base), theta_drag)
-    grid = case_mach_grid(lo, hi)
-    cd = truth.value(grid)
-    stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"], level_shares(rc, cd))
-    smoothing.pop("R")
-    notes = []
-    if flat:
-        notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: the radar at {list(rc.radar.position)} m sees a "
-                     f"constant {', '.join(flat)} (on the line of fire): planned without it")
-    if thinned > 1:
-        notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: samples every {dt:g} s are more than a fit uses "
-                     f"({MAX_FIT_SAMPLES}): planned with one sample in {thinned} ({t.size} samples), as the fit "
-                     f"thins such a track")
-    if loss is not None and loss > t_imp:
-        notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s lands at {t_imp:.1f} s, before the loss at "
-                     f"{loss:g} s: tracked to impact")
-    hi_table = truth.mach_range[1]
-    if hi > hi_table + 0.05:
-        notes.append(f"the flight reaches Mach {hi:.2f}, beyond the assumed drag table's last row "
-                     f"(Mach {hi_table:.2f}): Cd is held at its end value above it")
-    kind = "the table times a spline correction" if base is not None and base[0] is not None else "spline in Cd"
-    radar = None
-    if any(c in NATIVE_CHANNELS for c in chans):
-        radar = {"position": [float(v) for v in rc.radar.position], "channels": list(chans)}
-    return CasePlan(float(elevation_deg), float(velocity), int(rounds), float(scatter), float(dt),
-                    (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, cd,
-                    stat, shares, smoothing, f"{kind}, {dm.n_params} coefficients", tuple(notes),
-                    dm, base, theta_drag, radar)
+    with single_blas():   # the kernel's threads use the cores, not BLAS's
+        truth, _, _ = drag_assumption(rnd, assumed_drag)
+        chans, sigma = radar_channels(rnd)
+        rc = case_round(rnd, elevation_deg, velocity)
+        t, state, mach, t_imp = nominal_flight(rc, truth, dt, lock_on, loss)
+        thinned = int(round((t[1] - t[0]) / dt))          # k > 1: every k-th radar sample (nominal_flight)
+        site = site_of(rc, chans)
+        _check_line_of_sight(rc, chans, site, t, state, elevation_deg, velocity)
+        out = _outputs(state, chans, site)
+        flat = [c for c in chans if c in NATIVE_CHANNELS
+                and np.ptp(out[c]) <= 1e-12 * max(1.0, float(np.max(np.abs(out[c]))))]
+        if len(flat) == len(chans):
+            flat = []                     # nothing left to plan with: the track's own check says why
+        if flat:
+            # a radar on the line of fire sees a constant azimuth: no information, and no track has it
+            chans = tuple(c for c in chans if c not in flat)
+            sigma = {c: sigma[c] for c in chans}
+            out = {c: out[c] for c in chans}
+        track = RadarTrack(t, out, {}, source=f"planned QE {elevation_deg:g} deg, {velocity:g} m/s")
+        noisy = add_noise(track, sigma, np.random.default_rng(seed))
+        start = data_start(start_view(noisy, rc, site_of(rc, chans)), rc)   # as the fit reads its start
+        lo, hi = float(mach.min()), float(mach.max())
+        span = (min(start.mach_span[0], lo), max(start.mach_span[1], hi))
+        dm, base = build_drag_model("spline", rnd.reference_drag, start, span=span)
+        m = np.linspace(*dm.fit_range, 400)
+        theta_drag = dm.params_for(m, truth.value(m))
+        info = case_information(rc, dm, track, state[0], theta_drag, sigma, chans)
+        smoothing, Finv = _choose_smoothing(info, penalty(dm, base), theta_drag)
+        grid = case_mach_grid(lo, hi)
+        cd = truth.value(grid)
+        stat, shares = _budget(info, Finv, dm.jacobian(grid), smoothing["R"], level_shares(rc, cd))
+        smoothing.pop("R")
+        notes = []
+        if flat:
+            notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: the radar at {list(rc.radar.position)} m sees a "
+                         f"constant {', '.join(flat)} (on the line of fire): planned without it")
+        if thinned > 1:
+            notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s: samples every {dt:g} s are more than a fit uses "
+                         f"({MAX_FIT_SAMPLES}): planned with one sample in {thinned} ({t.size} samples), as the fit "
+                         f"thins such a track")
+        if loss is not None and loss > t_imp:
+            notes.append(f"QE {elevation_deg:g}° at {velocity:g} m/s lands at {t_imp:.1f} s, before the loss at "
+                         f"{loss:g} s: tracked to impact")
+        hi_table = truth.mach_range[1]
+        if hi > hi_table + 0.05:
+            notes.append(f"the flight reaches Mach {hi:.2f}, beyond the assumed drag table's last row "
+                         f"(Mach {hi_table:.2f}): Cd is held at its end value above it")
+        kind = "the table times a spline correction" if base is not None and base[0] is not None else "spline in Cd"
+        radar = None
+        if any(c in NATIVE_CHANNELS for c in chans):
+            radar = {"position": [float(v) for v in rc.radar.position], "channels": list(chans)}
+        return CasePlan(float(elevation_deg), float(velocity), int(rounds), float(scatter), float(dt),
+                        (float(t[0]), float(t[-1])), t_imp, int(t.size), (lo, hi), grid, cd,
+                        stat, shares, smoothing, f"{kind}, {dm.n_params} coefficients", tuple(notes),
+                        dm, base, theta_drag, radar)
 
 
 def _choose_smoothing(info, pen, theta_drag):

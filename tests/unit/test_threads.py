@@ -1,4 +1,4 @@
-"""The kernel's helper threads (``bayesdrag._runtime.threads.run_split``): every call runs once, errors
+"""The kernel's helper threads (``bayesdrag.dynamics.threads.run_split``): every call runs once, errors
 reach the caller, a second caller while the helpers are busy runs its calls itself, and nothing
 shows up as a ``threading`` thread (the report forks its figure process only when none runs)."""
 import threading
@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from bayesdrag._runtime.threads import run_split
+from bayesdrag.dynamics.threads import run_split
 
 
 def test_every_call_runs_once_on_another_thread_than_the_first():

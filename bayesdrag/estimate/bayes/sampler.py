@@ -178,7 +178,6 @@ def _fingerprint(post, nwalkers, moves, label):
     return h.hexdigest()[:16]
 
 
-@single_blas
 def sample_posterior(post, *, nwalkers=None, max_steps=20000, min_steps=100, check_every=None, rng=None,
                      seed=None, moves="auto", move_options=None, backend_path=None, resume=False,
                      progress=False, log=None):
@@ -228,30 +227,31 @@ def sample_posterior(post, *, nwalkers=None, max_steps=20000, min_steps=100, che
     InputError
         Bad walkers or moves, or a chain file that cannot be resumed (one line naming it).
     """
-    D = post.ndim
-    nwalkers = int(DEFAULT_WALKERS if nwalkers is None else nwalkers)
-    nwalkers += nwalkers % 2
-    if nwalkers < 2 * D and moves != "auto":
-        raise InputError(f"--walkers {nwalkers}: ensemble moves need at least 2 x {D} walkers")
-    if nwalkers < 8:
-        raise InputError(f"--walkers {nwalkers}: at least 8 walkers are needed")
-    # a check reads the whole chain (autocorrelation FFT, split R-hat): its cost grows with the
-    # walkers, so larger ensembles check less often (128 walkers every 25 steps: ~85 % of the run)
-    check_every = int(check_every or CHECK_EVERY * max(1, nwalkers // DEFAULT_WALKERS))
-    streams = _streams(rng, seed)
-    move_list = make_moves(moves, post, nwalkers=nwalkers, **(move_options or {}))
-    backend, resumed = _open_backend(backend_path, resume, post, nwalkers, check_every,
-                                     _fingerprint(post, nwalkers, moves, streams.label))
-    sampler = emcee.EnsembleSampler(nwalkers, D, post, moves=move_list, vectorize=True, backend=backend,
-                                    blobs_dtype=float)
-    state = None
-    if not resumed:
-        state = emcee.State(post.initial_walkers(nwalkers, rng=streams.start), random_state=streams.emcee_state)
-    t0 = time.perf_counter()
-    converged, message, tau, tau_hist = _run(sampler, state, post, backend, resumed, max_steps, min_steps,
-                                             check_every, progress, log)
-    elapsed = time.perf_counter() - t0
-    return _collect(post, sampler, tau, converged, message, elapsed, moves, streams.noise, resumed, tau_hist)
+    with single_blas():   # the kernel's threads use the cores, not BLAS's
+        D = post.ndim
+        nwalkers = int(DEFAULT_WALKERS if nwalkers is None else nwalkers)
+        nwalkers += nwalkers % 2
+        if nwalkers < 2 * D and moves != "auto":
+            raise InputError(f"--walkers {nwalkers}: ensemble moves need at least 2 x {D} walkers")
+        if nwalkers < 8:
+            raise InputError(f"--walkers {nwalkers}: at least 8 walkers are needed")
+        # a check reads the whole chain (autocorrelation FFT, split R-hat): its cost grows with the
+        # walkers, so larger ensembles check less often (128 walkers every 25 steps: ~85 % of the run)
+        check_every = int(check_every or CHECK_EVERY * max(1, nwalkers // DEFAULT_WALKERS))
+        streams = _streams(rng, seed)
+        move_list = make_moves(moves, post, nwalkers=nwalkers, **(move_options or {}))
+        backend, resumed = _open_backend(backend_path, resume, post, nwalkers, check_every,
+                                         _fingerprint(post, nwalkers, moves, streams.label))
+        sampler = emcee.EnsembleSampler(nwalkers, D, post, moves=move_list, vectorize=True, backend=backend,
+                                        blobs_dtype=float)
+        state = None
+        if not resumed:
+            state = emcee.State(post.initial_walkers(nwalkers, rng=streams.start), random_state=streams.emcee_state)
+        t0 = time.perf_counter()
+        converged, message, tau, tau_hist = _run(sampler, state, post, backend, resumed, max_steps, min_steps,
+                                                 check_every, progress, log)
+        elapsed = time.perf_counter() - t0
+        return _collect(post, sampler, tau, converged, message, elapsed, moves, streams.noise, resumed, tau_hist)
 
 
 def _open_backend(path, resume, post, nwalkers, check_every, fingerprint):

@@ -65,7 +65,7 @@ def _bound(res, j):
     return max(sds) if sds else float("nan")
 
 
-def _part_fits(track, rnd, opts, channels, f1):
+def _part_fits(track, rnd, channels, f1, fit_options):
     """Fits of the track without its last :data:`SPLIT_SHARES` of samples, with the same effects
     and options (the ones that fail or do not converge are left out)."""
     from .fit import fit_scheme1
@@ -76,8 +76,7 @@ def _part_fits(track, rnd, opts, channels, f1):
         idx = np.arange(0, n - int(round(share * n)))
         try:
             f = fit_scheme1(track.subset(idx), rnd, drag=f1.drag_model.name, channels=channels,
-                            free_ic=not opts.fix_ic, likelihood=opts.likelihood, nu=opts.ml_nu,
-                            noise_model=opts.noise_model, with_effects=tuple(f1.effects))
+                            with_effects=tuple(f1.effects), **fit_options)
         except (InputError, FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
             continue
         if f.ml.success and tuple(f.effects) == tuple(f1.effects):
@@ -85,7 +84,7 @@ def _part_fits(track, rnd, opts, channels, f1):
     return out
 
 
-def effect_sizes(track, rnd, opts, channels, f1):
+def effect_sizes(track, rnd, channels, f1, **fit_options):
     """``ml.with_effects.sizes``: each added effect parameter (wind layers apart) with the sd the
     fit stands by.
 
@@ -93,12 +92,13 @@ def effect_sizes(track, rnd, opts, channels, f1):
     ----------
     track : RadarTrack
     rnd : Round
-    opts : FitOptions
-        The fit's options (drag, likelihood, noise model, fixed launch state).
     channels : sequence of str
         The fitted channels.
     f1 : Scheme1Fit
         The fit with the effects.
+    **fit_options
+        The fit's other keywords of :func:`~bayesdrag.estimate.scheme1.fit.fit_scheme1`
+        (``free_ic``, ``likelihood``, ``nu``, ``noise_model``), given to the split fits alike.
 
     Returns
     -------
@@ -114,7 +114,7 @@ def effect_sizes(track, rnd, opts, channels, f1):
     if not idx:
         return {}
     structured = any(m == "ar1" for m in (getattr(f1.problem, "noise_model", None) or {}).values())
-    parts = _part_fits(track, rnd, opts, channels, f1) if structured else []
+    parts = _part_fits(track, rnd, channels, f1, fit_options) if structured else []
     out = {}
     for j in idx:
         n = names[j]

@@ -235,7 +235,6 @@ def build_drag_model(drag, reference, start, knots=None, penalise=True, span=Non
     return Spline(tuple(k)), (None, shape)
 
 
-@single_blas
 def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic=True, knots=None,
                 penalise=True, likelihood="gaussian", nu=ROBUST_NU, start=None, noise_model="white", with_effects=(),
                 progress=None, wind_layers=None, span_rule=True):
@@ -285,107 +284,107 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
     -------
     Scheme1Fit
     """
-    if likelihood not in LIKELIHOODS:
-        raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
-    chans = tuple(channels) if channels is not None else track.names
-    smaller = check_determinable(track, rnd, chans, free_ic, drag, knots)
-    check_heights(track, rnd)
-    drag = smaller or drag
-    site = site_of(rnd, chans)
-    seen = track.with_channels(chans) if set(chans) != set(track.names) else track
-    own_start = start is None           # a start passed in (a refit's) has its shape chosen already
-    if own_start:
-        start = data_start(start_view(seen, rnd, site), rnd)
-    check_gravity_units(start.kinematics, track.source)
-    drag = (narrow := narrow_span_model(start.mach_span, span_rule and rnd.reference_drag is not None, drag, knots)) or drag
-    L = rnd.launch
-    t0 = float(track.t[0])
-    s0 = start.state0
-    if not free_ic and abs(t0) < 1e-9 and L.velocity is not None and L.elevation_deg is not None:
-        s0 = initial_state(L.velocity, L.elevation_deg)
-    sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
-    seen_as = gun_equivalent(chans)      # what a radar's own channels observe in the gun's frame
-    if not any(c in seen_as for c in ("x", "y", "z")):
-        s0 = s0.copy()
-        s0[:3] = 0.0 if abs(t0) < 1e-9 else start_position(s0, t0, chans)[:3]
-    # launch values the channels cannot see (no z: the muzzle height and the elevation) are
-    # priors from the start; the others are checked against the track first
-    unseen = unseen_launch_priors(track, rnd, chans)
-    if unseen and abs(t0) < 1e-9 and "z" not in seen_as:
-        s0 = s0.copy()
-        s0[2] = 0.0
-    # stage A: the initial state and one scale of the start curve; its trajectory also gives the
-    # Mach span better than the smoothed speed, whose ends are the least certain part of it
-    table = ReferenceTable(tuple(start.mach), tuple(start.cd), source="start curve from the track")
-    base_model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ReferenceScale(table),
-                                rnd.atmosphere, coriolis=coriolis_of(rnd))
-    ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
-    say = progress if progress is not None else (lambda step: None)
-    say("the initial state and one scale of the drag read off the track")
-    a_pri = _unseen_priors(track, rnd, chans, unseen, 1, False)
-    # no speed measured: a poor start curve lets the initial position wander, so it is held at the
-    # track's own start until the whole curve has its shape (:func:`_better_start_shape`)
-    anchored = own_start and free_ic and "v" not in seen_as and any(c in seen_as for c in ("x", "y", "z"))
-    held = ic_free & np.array([not anchored] * 3 + [True] * 3)
-    start, shape, (state, scale, span_a, _) = _better_start_shape(
-        start, rnd, lambda model: _stage_scale(model, track, s0, held, sig, chans, likelihood, a_pri, site=site),
-        base_model, others=anchored)
-    span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
-                                                   max(start.mach_span[1], span_a[1]))
-    size = {}
-    dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
-    P = dm.n_params
-    fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, _angle_held(narrow, span))
-    free_b = free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span)
-    prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m),
-                               state if free_ic else s0, free_b, sig, chans, likelihood, fixed_pri, site)
-    # stage B: the full curve without the checked launch priors, then check them against it
-    say(f"the whole curve ({P} drag coefficients)")
-    if anchored:    # the curve takes its shape with the initial position held, then all is free
-        first = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m), state,
-                               _position_held(free_b, P), sig, chans, likelihood, fixed_pri, site)[0].fit(fallback=True)
-        prob = prob.replace(theta0=first.theta) if np.all(np.isfinite(first.theta)) else prob
-    res_b = prob.fit(fallback=True)
-    if res_b.success or np.all(np.isfinite(res_b.theta)):
-        prob = prob.replace(theta0=res_b.theta)
-    wider = _wider_span(dm, res_b, span)
-    if wider is not None and knots is None:
-        # the fitted flight reaches beyond the model's Mach span (the smoothed speed's ends
-        # were low): rebuild the model over the flight's span and refit from this curve
-        span = wider
-        cur = (dm, res_b.drag_params.copy())
+    with single_blas():   # the kernel's threads use the cores, not BLAS's
+        if likelihood not in LIKELIHOODS:
+            raise InputError(f"likelihood {likelihood!r} is not allowed; use gaussian or student-t")
+        chans = tuple(channels) if channels is not None else track.names
+        smaller = check_determinable(track, rnd, chans, free_ic, drag, knots)
+        check_heights(track, rnd)
+        drag = smaller or drag
+        site = site_of(rnd, chans)
+        seen = track.with_channels(chans) if set(chans) != set(track.names) else track
+        own_start = start is None           # a start passed in (a refit's) has its shape chosen already
+        if own_start:
+            start = data_start(start_view(seen, rnd, site), rnd)
+        check_gravity_units(start.kinematics, track.source)
+        drag = (narrow := narrow_span_model(start.mach_span, span_rule and rnd.reference_drag is not None, drag, knots)) or drag
+        L = rnd.launch
+        t0 = float(track.t[0])
+        s0 = start.state0
+        if not free_ic and abs(t0) < 1e-9 and L.velocity is not None and L.elevation_deg is not None:
+            s0 = initial_state(L.velocity, L.elevation_deg)
+        sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
+        seen_as = gun_equivalent(chans)      # what a radar's own channels observe in the gun's frame
+        if not any(c in seen_as for c in ("x", "y", "z")):
+            s0 = s0.copy()
+            s0[:3] = 0.0 if abs(t0) < 1e-9 else start_position(s0, t0, chans)[:3]
+        # launch values no channel sees (no z: muzzle height, elevation) are priors; the rest is checked first
+        unseen = unseen_launch_priors(track, rnd, chans)
+        if unseen and abs(t0) < 1e-9 and "z" not in seen_as:
+            s0 = s0.copy()
+            s0[2] = 0.0
+        # stage A: the initial state and one scale of the start curve; its trajectory also gives the
+        # Mach span better than the smoothed speed, whose ends are the least certain part of it
+        table = ReferenceTable(tuple(start.mach), tuple(start.cd), source="start curve from the track")
+        base_model = PointMassModel(rnd.projectile.mass, rnd.projectile.diameter, ReferenceScale(table),
+                                    rnd.atmosphere, coriolis=coriolis_of(rnd))
+        ic_free = free_mask(0, 6, chans, free_ic, "", (0, 0))
+        say = progress if progress is not None else (lambda step: None)
+        say("the initial state and one scale of the drag read off the track")
+        a_pri = _unseen_priors(track, rnd, chans, unseen, 1, False)
+        # no speed measured: a poor start curve lets the initial position wander, so it is held at the
+        # track's own start until the whole curve has its shape (:func:`_better_start_shape`)
+        anchored = own_start and free_ic and "v" not in seen_as and any(c in seen_as for c in ("x", "y", "z"))
+        held = ic_free & np.array([not anchored] * 3 + [True] * 3)
+        start, shape, (state, scale, span_a, _) = _better_start_shape(
+            start, rnd, lambda model: _stage_scale(model, track, s0, held, sig, chans, likelihood, a_pri, site=site),
+            base_model, others=anchored)
+        span = start.mach_span if span_a is None else (min(start.mach_span[0], span_a[0]),
+                                                       max(start.mach_span[1], span_a[1]))
+        size = {}
         dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
         P = dm.n_params
         fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, _angle_held(narrow, span))
-        prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
-                                   res_b.state0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig, chans,
-                                   likelihood, fixed_pri, site)
-        say(f"the whole curve over the flight's Mach span ({P} drag coefficients)")
+        free_b = free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span)
+        prob, pen = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m),
+                                   state if free_ic else s0, free_b, sig, chans, likelihood, fixed_pri, site)
+        # stage B: the full curve without the checked launch priors, then check them against it
+        say(f"the whole curve ({P} drag coefficients)")
+        if anchored:    # the curve takes its shape with the initial position held, then all is free
+            first = _curve_problem(base_model, dm, base, track, lambda m: scale * shape(m), state,
+                                   _position_held(free_b, P), sig, chans, likelihood, fixed_pri, site)[0].fit(fallback=True)
+            prob = prob.replace(theta0=first.theta) if np.all(np.isfinite(first.theta)) else prob
         res_b = prob.fit(fallback=True)
-        if np.all(np.isfinite(res_b.theta)):
+        if res_b.success or np.all(np.isfinite(res_b.theta)):
             prob = prob.replace(theta0=res_b.theta)
-    model = prob.model
-    say("checking the round's launch values against the track")
-    clock = RADAR_TIME.name in with_effects or rnd.systematics.time_offset is not None
-    used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen, start=start, sigma=sig,
-                                        clock_fitted=clock)
-    used = fixed_pri + tuple(used)
-    if unseen:
-        check["applied"] = list(unseen) + check["applied"]
-        check["unchecked"] = list(unseen)
-    smoothing = rejected = None
-    if pen is not None:
-        prob, res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
-    else:
-        prob = prob.replace(priors=used)
-        res = prob.fit(fallback=True) if used else res_b
-    prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = _noise_and_effects(
-        prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
-    if pen is not None:
-        res = drop_coefficient_correlations(res, P)
-    _size_note(size, track, chans, smaller, narrow, start.mach_span)
-    return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
-                      before if fitted_effects else None, size, placements)
+        wider = _wider_span(dm, res_b, span)
+        if wider is not None and knots is None:
+            # the fitted flight reaches beyond the model's Mach span (the smoothed speed's ends
+            # were low): rebuild the model over the flight's span and refit from this curve
+            span = wider
+            cur = (dm, res_b.drag_params.copy())
+            dm, base = build_drag_model(drag, rnd.reference_drag, start, knots, penalise, span=span, info=size)
+            P = dm.n_params
+            fixed_pri = _unseen_priors(track, rnd, chans, unseen, P, _angle_held(narrow, span))
+            prob, pen = _curve_problem(base_model, dm, base, track, lambda m: np.clip(cur[0].cd(cur[1], m), 1e-3, None),
+                                       res_b.state0, free_mask(P, ParameterLayout(P).size, chans, free_ic, dm.name, span), sig, chans,
+                                       likelihood, fixed_pri, site)
+            say(f"the whole curve over the flight's Mach span ({P} drag coefficients)")
+            res_b = prob.fit(fallback=True)
+            if np.all(np.isfinite(res_b.theta)):
+                prob = prob.replace(theta0=res_b.theta)
+        model = prob.model
+        say("checking the round's launch values against the track")
+        clock = RADAR_TIME.name in with_effects or rnd.systematics.time_offset is not None
+        used, check = checked_launch_priors(track, rnd, model, res_b, P, skip=unseen, start=start, sigma=sig,
+                                            clock_fitted=clock)
+        used = fixed_pri + tuple(used)
+        if unseen:
+            check["applied"] = list(unseen) + check["applied"]
+            check["unchecked"] = list(unseen)
+        smoothing = rejected = None
+        if pen is not None:
+            prob, res, smoothing = fit_penalised(prob, used, P, pen, progress=say)
+        else:
+            prob = prob.replace(priors=used)
+            res = prob.fit(fallback=True) if used else res_b
+        prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = _noise_and_effects(
+            prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
+        if pen is not None:
+            res = drop_coefficient_correlations(res, P)
+        _size_note(size, track, chans, smaller, narrow, start.mach_span)
+        return Scheme1Fit(res, prob, start, smoothing, check, rejected, base, noise, sources, white_ml, fitted_effects,
+                          before if fitted_effects else None, size, placements)
 
 
 def _angle_held(narrow, span):
