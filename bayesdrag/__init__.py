@@ -69,6 +69,9 @@ _API = {
     "InputError": "bayesdrag.errors",
     "FitError": "bayesdrag.errors",
     "MissingDataError": "bayesdrag.errors",
+    # warnings
+    "BayesdragWarning": "bayesdrag.errors",
+    "FitWarning": "bayesdrag.errors",
 }
 
 __all__ = sorted(_API) + ["__version__"]
@@ -85,7 +88,7 @@ if TYPE_CHECKING:
     from .commands.plan import plan
     from .commands.simulate import simulate
     from .drag import ReferenceTable
-    from .errors import FitError, InputError, MissingDataError
+    from .errors import BayesdragWarning, FitError, FitWarning, InputError, MissingDataError
     from .io.drag_tables import load_m101, read_drag_table
     from .io.rounds import read_round, write_round
     from .io.tracks import read_track, write_track

@@ -20,6 +20,8 @@ import threading
 import warnings
 from typing import Any, Callable, Iterator
 
+from ..errors import FitWarning
+
 __all__ = ["free_core", "started_beside", "BesideJob", "computed_beside", "Beside", "plain_json"]
 
 
@@ -62,10 +64,13 @@ def _others_running() -> int | None:
 
 
 def plain_json(obj: Any) -> Any:
-    """``json.dumps``'s ``default``: numpy arrays as lists, numpy scalars as Python numbers."""
+    """``json.dumps``'s ``default``: numpy arrays as lists, numpy scalars as Python numbers, a
+    fit's warning as its sentence."""
     tolist = getattr(obj, "tolist", None)
     if tolist is not None:
         return tolist()
+    if isinstance(obj, FitWarning):
+        return str(obj)
     raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
 

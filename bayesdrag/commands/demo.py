@@ -135,7 +135,7 @@ def _demo_run(run, track, rnd, track_path, round_path, seed, quiet):
         "max_rel_diff_posterior_mean_to_reference_in_determined_range": worst,
         "ml_fit": {"message": res.message, "iterations": res.iterations, "sigma": res.sigma,
                    "mach_range_determined": det, "max_rel_diff_to_reference_in_determined_range": worst_ml,
-                   "warnings": list(res.warnings)},
+                   "warnings": [str(w) for w in res.warnings]},
         "mcmc": {k: result["mcmc"][k] for k in ("converged", "message", "steps", "walkers", "tau_max", "seconds")},
         "report": str((run.folder / "report.html").resolve()),
         "compiled_code": compile_summary(),

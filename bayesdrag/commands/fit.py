@@ -4,9 +4,10 @@ print the outcome."""
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import BayesdragWarning, InputError
 from ..options import FitOptions
 from ..pipeline import fit, summary_line
 from ..results import PARTIAL
@@ -93,8 +94,10 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
 
             chain = ChainFile(partial, inputs=run.inputs_digest, max_steps=opts.max_steps)
         ml_progress = StageProgress(_echo_err) if talk else None
-        result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar,
-                     ml_progress=ml_progress)
+        with warnings.catch_warnings():    # the command prints them itself, below, once
+            warnings.simplefilter("ignore", BayesdragWarning)
+            result = fit(track, rnd, opts, chain_path=chain, resume=resume, log=log, progress=show_bar,
+                         ml_progress=ml_progress)
         result.write_into(run, sources={"track": str(track_path), "round": str(round_path)})
         if also is not None:
             also(result, run.staging)

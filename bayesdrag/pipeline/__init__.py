@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import functools
 import time
+import warnings as py_warnings
 from typing import Any, Callable
 
 import numpy as np
 
 from .._runtime.beside import computed_beside, started_beside
 from .._runtime.threads import single_blas
-from ..errors import FitError, InputError
+from ..errors import BayesdragWarning, FitError, FitWarning, InputError
 from ..estimate.build.model_size import narrow_shape_sd
 from ..estimate.cd.headline import headline
 from ..estimate.cd.model_error import add_in_squares, fold_into_budget
@@ -70,6 +71,12 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
     FitResult
         Frozen; ``to_dict()`` is the content of ``result.json``.
 
+    Warns
+    -----
+    BayesdragWarning
+        Each of the result's ``warnings`` (misfits, undetermined ranges, sampler problems), after
+        the fit; filter the category to silence them.
+
     Raises
     ------
     InputError
@@ -92,9 +99,17 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
         rnd, site_note = chronograph_site(track, rnd, chans or track.names)
         if opts.scheme == 2:
             opts.check_windows(track.n)       # a bound on the windows, before any is fitted
-            return _fit_scheme2(track, rnd, opts, chans, log, t_start)
-        return _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
-                            notes=(site_note,) if site_note else ())
+            return _emitted(_fit_scheme2(track, rnd, opts, chans, log, t_start))
+        return _emitted(_fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
+                                     notes=(site_note,) if site_note else ()))
+
+
+def _emitted(result):
+    """``result``, each of its warnings emitted through :mod:`warnings` as a
+    :class:`~bayesdrag.errors.BayesdragWarning` (attributed to the caller of :func:`fit`)."""
+    for w in result.warnings:
+        py_warnings.warn(w.message, BayesdragWarning, stacklevel=3)
+    return result
 
 
 def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress=None, notes=()):
@@ -213,7 +228,7 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         budget["by_source"]["noise_model"] = [float(f"{v:.6g}") for v in nm]
     fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
-    warnings = [w for w in res.warnings if "is at its bound" not in w] + list(quality["problems"])
+    warnings = [w for w in res.warnings if w.kind != "at_bound"] + list(quality["problems"])
     warnings += clock_note(summary["ml"])
     if opts.mcmc:
         rows, cd = sampled_rows(bayes, f1, rows, grid)
@@ -523,8 +538,8 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
     if not ok:
         raise FitError(f"{track.source or 'track'}: no Scheme 2 window converged ({r2.results[0].message})")
     rows = windows_table(r2)
-    warnings = [f"window {k} ({rows[k]['t_start']:.2f}-{rows[k]['t_end']:.2f} s): {r2.results[k].message}"
-                for k in range(len(rows)) if k not in ok]
+    warnings = [FitWarning("not_converged", f"window {k} ({rows[k]['t_start']:.2f}-{rows[k]['t_end']:.2f} s): "
+                                            f"{r2.results[k].message}") for k in range(len(rows)) if k not in ok]
     draws = {}
     if opts.mcmc:
         for k in ok:
@@ -541,7 +556,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
                            mcmc_converged=b.converged, steps=b.steps)
             draws[k] = cd
             if not b.converged:
-                warnings.append(f"window {k}: {b.message}")
+                warnings.append(FitWarning("sampler", f"window {k}: {b.message}"))
             if log:
                 log(f"window {k + 1}/{len(rows)} (Mach {rows[k]['mach']:.2f}): {b.message}")
     budget = _window_budget(rows, ok, draws, rnd, opts.seed)
@@ -561,7 +576,7 @@ def _fit_scheme2(track, rnd, opts, chans, log, t_start):
                            "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
     det = determined_range(cd_rows)
     summary["headline"] = headline(cd_rows, det, quality["ok"],
-                                   "; ".join(quality["problems"][:1]) or None)
+                                   "; ".join(str(p) for p in quality["problems"][:1]) or None)
     return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme2=r2,
                      window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
@@ -636,7 +651,7 @@ def _stitched_rows(rows, ok, mach, grid, rnd, sampled):
         r["determined"] = bool(inside[i] and det_w[j_lo[i]] and det_w[j_hi[i]])
         r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
         cd_rows.append(r)
-    problems = [f"window {k} (Mach {rows[k]['mach']:.2f}): {p}" for k in ok for p in rows[k]["quality"]["problems"]]
+    problems = [p.within(f"window {k} (Mach {rows[k]['mach']:.2f}): ") for k in ok for p in rows[k]["quality"]["problems"]]
     quality = {"ok": not problems and len(ok) == len(rows),
                "undetermined": intervals(grid, ~np.array([r["determined"] for r in cd_rows])),
                "windows_determined": int(det_w.sum()), "problems": problems}

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import FitError, InputError
+from ..errors import FitError, FitWarning, InputError
 from ..estimate.cd.model_error import add_in_squares, check_sd, combine, describe, shift_sd
 from ..estimate.cd.quality import assess
 from ..estimate.cd.table import cd_table, model_error_floor
@@ -501,7 +501,7 @@ def _part_problem(quality, rows, gap, part, words):
     row's band (:func:`_beyond_half_band`); the answer is then not clean."""
     shift = _beyond_half_band(rows, gap["parts"][part]) if part in gap["parts"] else None
     if shift is not None:
-        quality["problems"].append(words(shift))
+        quality["problems"].append(FitWarning("model_error", words(shift)))
         quality["ok"] = False
 
 
@@ -520,7 +520,7 @@ def note_model_error(gap, quality, grid, rows):
         for r in rows:            # unsized, as an effect whose shift could not be sized: no row is claimed
             r["determined"] = False
         quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
-        quality["problems"].append(SITE_NOT_GIVEN)
+        quality["problems"].append(FitWarning("model_error", SITE_NOT_GIVEN))
         quality["ok"] = False
     if gap.get("absorbed_in_cd"):
         eff = ", ".join(gap["absorbed_in_cd"])
@@ -529,20 +529,20 @@ def note_model_error(gap, quality, grid, rows):
             f"Cd is the flight's effective drag, {eff} included")
     if gap["effects"] and "effects" in gap["parts"] and not gap.get("site_not_given"):
         eff, them = ", ".join(gap["effects"]), "it" if len(gap["effects"]) == 1 else "them"
-        quality["problems"].append(
-            f"the diagnosis finds {eff} that the round does not declare: "
+        quality["problems"].append(FitWarning(
+            "model_error", f"the diagnosis finds {eff} that the round does not declare: "
             f"{'fitting ' + them if 'effects_from' not in gap else 'by its own estimate ' + them} moves Cd by "
             f"{describe(grid, ml, gap['parts']['effects'])}; the bands include this as model error and rows whose "
             f"band then exceeds 1 % are not determined (`bayesdrag fit ... --with {','.join(gap['effects'])}` fits "
-            f"the cause)")
+            f"the cause)", tuple(gap["effects"])))
         quality["ok"] = False
     if gap["noise_check"] and "noise" in gap["parts"]:
         shift = _beyond_half_band(rows, gap["parts"]["noise"])
         if shift is not None:
-            quality["problems"].append(
-                f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
+            quality["problems"].append(FitWarning(
+                "model_error", f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
-                f"it as model error")
+                f"it as model error"))
     alt = gap.get("alternative") or {}
     _part_problem(quality, rows, gap, "alternative", lambda shift: (
         f"{' and '.join(alt['effects'])} explain{'s' if len(alt['effects']) == 1 else ''} the track nearly as "
@@ -559,16 +559,17 @@ def note_model_error(gap, quality, grid, rows):
         for r in rows:
             r["determined"] = False
         quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
-        quality["problems"].append(
-            f"the diagnosis finds {', '.join(gap['unsized'])}, which could not be fitted with Cd nor its Cd shift "
-            f"sized: no row is claimed determined (`bayesdrag diagnose TRACK ROUND -o DIR` shows the gap)")
+        quality["problems"].append(FitWarning(
+            "model_error", f"the diagnosis finds {', '.join(gap['unsized'])}, which could not be fitted with Cd nor its "
+            f"Cd shift sized: no row is claimed determined (`bayesdrag diagnose TRACK ROUND -o DIR` shows the gap)",
+            tuple(gap["unsized"])))
         quality["ok"] = False
     why = gap.get("diagnosis_skipped") or gap.get("diagnosis_failed")
     if why:
         # a check that could not run cannot vouch for the answer: not clean, with the reason
-        quality["problems"].append(
-            f"the model check could not run the diagnosis ({why}): the bands hold no model error for an undeclared "
-            f"effect, so no row's band is known to hold one")
+        quality["problems"].append(FitWarning(
+            "model_error", f"the model check could not run the diagnosis ({why}): the bands hold no model error for an "
+            f"undeclared effect, so no row's band is known to hold one"))
         quality["ok"] = False
     if gap["conditional_air"]:
         quality.setdefault("notes", []).append(
@@ -647,10 +648,10 @@ def air_contradiction(rnd, air_record, quality):
         return
     if air_measured(rnd) and own_table(rnd):
         air_record["rule"] = "contradicted"      # measured air, the projectile's own table: not clean
-        quality["problems"].append(
-            f"the track contradicts the measured air (the diagnosis finds {', '.join(dict.fromkeys(found))} unlike the "
-            f"met profile's) although the reference is this projectile's own table: the met data (its datum, time "
-            f"or place) or the table is wrong, and Cd carries the difference")
+        quality["problems"].append(FitWarning(
+            "air", f"the track contradicts the measured air (the diagnosis finds {', '.join(dict.fromkeys(found))} unlike "
+            f"the met profile's) although the reference is this projectile's own table: the met data (its datum, time "
+            f"or place) or the table is wrong, and Cd carries the difference"))
         quality["ok"] = False
     else:
         air_record["rule"] = "confound"          # air not measured, or another projectile's table: named
@@ -678,9 +679,9 @@ def clock_note(ml):
     if sd is None or not abs(dt) > CLOCK_NOTE_SD * sd:
         return []
     when, how = ("after", "late") if dt > 0 else ("before", "early")
-    return [f"radar_time.dt = {dt:.4g} +- {sd:.2g} s: the track's time origin is {abs(dt):.3g} s {when} the launch, "
-            f"or the radar clock is that {how}; Cd is fitted with the offset (shift t so that t = 0 is the "
-            f"launch, or declare time_offset_sd in the round)"]
+    return [FitWarning("clock", f"radar_time.dt = {dt:.4g} +- {sd:.2g} s: the track's time origin is {abs(dt):.3g} s "
+                       f"{when} the launch, or the radar clock is that {how}; Cd is fitted with the offset (shift t so "
+                       f"that t = 0 is the launch, or declare time_offset_sd in the round)", ("radar_time.dt",))]
 
 
 def why_not_clean(quality):

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FitWarning, InputError
 from ..io.outputs import read_json
 
 __all__ = ["jsonable", "read_document", "Check", "NUMBER", "INTEGER", "BOOLEAN", "STRING", "optional", "list_of",
@@ -52,6 +52,8 @@ def jsonable(o: Any) -> Any:
         return int(o)
     if isinstance(o, (float, np.floating)):
         return float(o) if np.isfinite(o) else None
+    if isinstance(o, FitWarning):
+        return str(o)               # the sentence: result.json holds a warning's words
     return o
 
 

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import InputError, MissingDataError
+from ..errors import FitWarning, InputError, MissingDataError, as_warning
 from ..io.hdf5_guard import Hdf5Limits
 from ..track import MAX_FIT_SAMPLES
 from .cd import CdTable, band_z
@@ -98,9 +98,12 @@ class FitResult:
         Scheme 2: the windows whose fit converged.
     grid : ndarray
         The Mach grid of ``cd``.
-    warnings : tuple of str
+    warnings : tuple of FitWarning
         Everything the user should read (misfits, undetermined ranges, launch conflicts, sampler
-        problems); the command prints them on stderr.
+        problems; :class:`~bayesdrag.errors.FitWarning`, tested by ``kind``, ``str()`` its
+        sentence); the command prints them on stderr, :func:`bayesdrag.fit` also emits them as
+        :class:`~bayesdrag.errors.BayesdragWarning`. Read back from a folder, their kind is
+        ``recorded``.
     seconds : float
         Wall-clock time of the fit [s].
     folder : Path or None
@@ -128,7 +131,7 @@ class FitResult:
     window_draws: dict[int, np.ndarray] | None
     windows_ok: tuple[int, ...]
     grid: np.ndarray
-    warnings: tuple[str, ...]
+    warnings: tuple[FitWarning, ...]
     seconds: float
     folder: Path | None
     _cache: dict[Any, Any]
@@ -138,7 +141,7 @@ class FitResult:
                  posterior: BayesResult | None = None, log_posterior: LogPosterior | None = None,
                  scheme2: Scheme2Result | None = None, window_draws: dict[int, np.ndarray] | None = None,
                  windows_ok: tuple[int, ...] | None = None, grid: np.ndarray | None = None,
-                 warnings: tuple[str, ...] = (), seconds: float = 0.0, *, summary: dict[str, Any] | None = None,
+                 warnings: tuple[FitWarning, ...] = (), seconds: float = 0.0, *, summary: dict[str, Any] | None = None,
                  inference_data: arviz.InferenceData | None = None, folder: Path | None = None,
                  cd_draws: np.ndarray | None = None) -> None:
         if (record is None) == (summary is None):
@@ -151,7 +154,8 @@ class FitResult:
         values = dict(record=rec, cd=table, track=track, round=round, options=options, scheme1=scheme1,
                       posterior=posterior, log_posterior=log_posterior, scheme2=scheme2, window_draws=window_draws,
                       windows_ok=tuple(int(k) for k in windows_ok),
-                      grid=np.asarray(grid if grid is not None else table.mach, float), warnings=tuple(warnings),
+                      grid=np.asarray(grid if grid is not None else table.mach, float),
+                      warnings=tuple(as_warning(w) for w in warnings),
                       seconds=float(seconds), folder=None if folder is None else Path(folder),
                       _cache={} if inference_data is None else {("idata", LOG_LIKELIHOOD_DRAWS): inference_data})
         if cd_draws is not None:   # the draws result.json's rows were made of: one set for rows, idata and report
@@ -645,7 +649,7 @@ def _observations(qualities: list[Any]) -> int:
     return sum(counts) if counts else MAX_FIT_SAMPLES * UNRECORDED_CHANNELS
 
 
-def _recorded_warnings(record: dict[str, Any]) -> tuple[str, ...]:
+def _recorded_warnings(record: dict[str, Any]) -> tuple[FitWarning, ...]:
     """The warnings ``result.json`` records: the quality gate's problems, the ML fit's notes and
     the sampler's message when it did not converge."""
     ml = record.get("ml", {})
@@ -654,4 +658,4 @@ def _recorded_warnings(record: dict[str, Any]) -> tuple[str, ...]:
     mc = record.get("mcmc") or {}
     if mc and mc.get("converged") is False and mc.get("message"):
         out.append(str(mc["message"]))
-    return tuple(out)
+    return tuple(as_warning(w) for w in out)

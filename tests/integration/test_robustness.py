@@ -68,7 +68,7 @@ def test_blind_parameter_is_named(track):
     th0 = np.r_[0.6, -0.2, 0.03, initial_state(818.0, 15.0)]
     res = OutputErrorProblem(model, track, th0, sigma=SIGMA).fit(max_iter=3)
     assert not res.success
-    assert any("no information on" in w and "Y0" in w for w in res.warnings)
+    assert any(w.kind == "no_information" and "Y0" in w.params for w in res.warnings)
 
 
 def test_cli_unfittable_track_exit_2(tmp_path, capsys, m101):

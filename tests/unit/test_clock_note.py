@@ -14,13 +14,16 @@ def _ml(dt, sd=None, crb=None):
 
 
 def test_a_determined_late_origin_is_said_with_the_numbers_the_json_holds():
-    (note,) = clock_note(_ml(0.5001, sd=0.0012, crb=0.0011))
+    (warning,) = clock_note(_ml(0.5001, sd=0.0012, crb=0.0011))
+    assert warning.kind == "clock" and warning.params == ("radar_time.dt",)
+    note = str(warning)
     assert note.startswith("radar_time.dt = 0.5001 +- 0.0012 s") and "0.5 s after the launch" in note
     assert "shift t so that t = 0 is the launch" in note
 
 
 def test_an_early_clock_is_said_so():
-    (note,) = clock_note(_ml(-0.06, crb=0.002))          # no sizes: the bound is the sd
+    (warning,) = clock_note(_ml(-0.06, crb=0.002))       # no sizes: the bound is the sd
+    note = str(warning)
     assert "0.06 s before the launch" in note and "that early" in note
 
 

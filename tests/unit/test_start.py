@@ -204,7 +204,7 @@ def test_quality_gate_flags_a_withheld_cross_wind(m101):
     q = assess(f1, rows, track, rnd.radar.sigma)
     assert not q["ok"]
     assert q["channels"]["y"]["chi2_per_sample"] > CHI2_LIMIT
-    assert any(p.startswith("channel y") for p in q["problems"])
+    assert any(p.kind == "misfit" and str(p).startswith("channel y") for p in q["problems"])
     assert q["band"] == "colored"
     assert all(r["band_sd"] >= r["crb_sd"] for r in rows)
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..._runtime.threads import single_blas
 from ..._runtime.signals import deferred_interrupt
-from ...errors import InputError
+from ...errors import FitWarning, InputError
 from ...io.chain import ChainFile
 from .chain_diagnostics import ess, integrated_time, split_rank_rhat, summarize
 from .coords import TEMPERATURE
@@ -392,15 +392,15 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, 
         names = post.names
     thetas = post.full_theta(flat).reshape(W, S, -1)
     summary = summarize(full, names)
-    warns = [] if converged else [message]
+    warns = [] if converged else [FitWarning("sampler", message)]
     bad_r = [n for n, r in zip(summary.index, summary["r_hat"]) if not r < RHAT_MAX]
     if bad_r:
-        warns.append(f"r_hat >= {RHAT_MAX} for {', '.join(bad_r[:6])}")
+        warns.append(FitWarning("sampler", f"r_hat >= {RHAT_MAX} for {', '.join(bad_r[:6])}", tuple(bad_r[:6])))
     acc = float(np.mean(sampler.acceptance_fraction))
     if acc < 0.1:
-        warns.append(f"mean acceptance {acc:.3f} is very low: the chain barely moves"
-                     + (" (the posterior is far from its Gaussian approximation, e.g. a poorly "
-                        "identified drag model; try --moves de)" if moves == "auto" else ""))
+        warns.append(FitWarning("sampler", f"mean acceptance {acc:.3f} is very low: the chain barely moves"
+                                + (" (the posterior is far from its Gaussian approximation, e.g. a poorly "
+                                   "identified drag model; try --moves de)" if moves == "auto" else "")))
     return BayesResult(names, full, lp, thetas, np.asarray(tau), int(sampler.iteration), burn, thin, W,
                        acc, converged, message, summary, elapsed, describe_moves(moves), post.likelihood,
                        tuple(warns), resumed, tau_hist, sampler.get_chain())

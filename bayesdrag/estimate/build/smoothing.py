@@ -146,9 +146,7 @@ def drop_coefficient_correlations(res, P):
     """Neighbouring coefficients of a penalised spline are strongly correlated by design; only
     correlations that involve an initial condition (e.g. Cd at the top Mach vs Ux0) are news."""
     drag_names = set(res.names[:P])
-    kept = tuple(w for w in res.warnings
-                 if not (w.startswith("parameters ") and "strongly correlated" in w
-                         and set(w.split()[1:4:2]) <= drag_names))
+    kept = tuple(w for w in res.warnings if not (w.kind == "correlated" and set(w.params) <= drag_names))
     return replace(res, warnings=kept)
 
 

@@ -57,6 +57,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ...errors import FitWarning
 from ...effects.inputs import ExtraParam
 from ...effects import LAUNCH_YAW_DECAY, T_NODE_MIN, T_NODE_SDS, confounded_with_cd, effect_sources, \
     partly_trading_with_cd, sources_context, sources_fn  # noqa: F401  (T_NODE_*: re-exported, their old home)
@@ -322,7 +323,7 @@ def fit_with_sources(prob, res, rnd, effects=(), wind_layers=None):
         fit's warnings. ``placements``: the wind layers' equivalent placements
         (:func:`.winds.equivalent_placements`), None without placed layers.
     """
-    unused = tuple(radar_unused(rnd, prob.channels).values())
+    unused = tuple(FitWarning("radar_unused", why, (stem,)) for stem, why in radar_unused(rnd, prob.channels).items())
     out = _fit_sources_effects(prob, res, rnd, effects, wind_layers)
     out = tuple(out) + (None,) * (5 - len(out))
     if not unused:

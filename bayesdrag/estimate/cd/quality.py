@@ -56,6 +56,7 @@ import math
 
 import numpy as np
 
+from ...errors import FitWarning
 from ..model.noise import noise_and_outliers
 from .table import DETERMINED_REL_SD
 
@@ -292,15 +293,15 @@ def assess(fit1, rows, track, sigma_given=None):
                   and f["chi2_per_sample"] > STRUCTURED_CHI2_MIN]
     for c in misfit:
         f = fit[c]
-        problems.append(f"channel {c}: residual rms {f['rms']:.3g} against a noise sd of {f['noise_sd']:.3g} "
-                        f"({'the round' if f['noise_source'] == 'round' else 'estimated from the track'}): "
-                        f"the model misses the track (chi2 per sample {f['chi2_per_sample']:.1f})")
+        problems.append(FitWarning("misfit", f"channel {c}: residual rms {f['rms']:.3g} against a noise sd of "
+                                   f"{f['noise_sd']:.3g} ({'the round' if f['noise_source'] == 'round' else 'estimated from the track'}): "
+                                   f"the model misses the track (chi2 per sample {f['chi2_per_sample']:.1f})"))
     ar = set(prob.ar_channels)
     for c in structured:
         how = ("fitted as white noise plus an AR(1) model-error process (generalised least squares)"
                if c in ar else "the band uses the colored-residual sd")
-        problems.append(f"channel {c}: residuals strongly autocorrelated (lag-1 {fit[c]['lag1']:.2f}): model "
-                        f"error, not noise; {how}")
+        problems.append(FitWarning("autocorrelated", f"channel {c}: residuals strongly autocorrelated (lag-1 "
+                                   f"{fit[c]['lag1']:.2f}): model error, not noise; {how}"))
     honest_colored = bool(misfit or structured or any(f["chi2_per_sample"] > 1.5 for f in fit.values()))
     mach = np.array([r["mach"] for r in rows], float)
     ml = np.array([r["ml"] for r in rows], float)
@@ -350,22 +351,23 @@ def assess(fit1, rows, track, sigma_given=None):
         r["determined"] = bool(d)
     if clamped.any():
         for a, b in intervals(mach, clamped):
-            problems.append(f"Cd is held flat over Mach {a:.3f}-{b:.3f} (beyond the drag model's span): "
-                            f"not determined there")
+            problems.append(FitWarning("cd_held_flat", f"Cd is held flat over Mach {a:.3f}-{b:.3f} (beyond the drag "
+                                       f"model's span): not determined there"))
     if bound_names:
         for a, b in intervals(mach, bound_rows):
-            problems.append(f"Cd sits at a bound of its model over Mach {a:.3f}-{b:.3f} "
-                            f"({', '.join(bound_names)}): not determined there")
-    ic_bound = [w for w in res.warnings if "is at its bound" in w and not any(n in w for n in bound_names)]
+            problems.append(FitWarning("cd_at_bound", f"Cd sits at a bound of its model over Mach {a:.3f}-{b:.3f} "
+                                       f"({', '.join(bound_names)}): not determined there", tuple(bound_names)))
+    ic_bound = [w for w in res.warnings if w.kind == "at_bound" and not set(w.params) & set(bound_names)]
     problems += ic_bound
     sm = fit1.smoothing
     if sm and sm.get("at_grid_end") == "flexible":
-        problems.append("the smoothing weight is at the flexible end of its grid: the data ask for more "
-                        "freedom than the drag model has (the band may be too narrow where Cd bends)")
+        problems.append(FitWarning("smoothing_edge", "the smoothing weight is at the flexible end of its grid: the "
+                                   "data ask for more freedom than the drag model has (the band may be too narrow "
+                                   "where Cd bends)"))
     lc = fit1.launch_check or {}
     for c in lc.get("conflicts", []):
         if not c.get("secondary"):
-            problems.append(c["message"])
+            problems.append(FitWarning("launch_conflict", c["message"]))
     undetermined = intervals(mach, ~det)
     outliers = one_sided_outliers(fit1)
     if outliers is not None:
@@ -451,10 +453,10 @@ def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
     if off.any():
         a, b = mach[off].min(), mach[off].max()
         rel = (rows[worst]["ml"] / f_cd[worst] - 1.0) * 100.0
-        quality["problems"].append(
-            f"the {model_name} curve misses the flexible fit of the same track by up to {z[worst]:.1f} sd "
+        quality["problems"].append(FitWarning(
+            "rigid_model", f"the {model_name} curve misses the flexible fit of the same track by up to {z[worst]:.1f} sd "
             f"({rel:+.1f} % at Mach {mach[worst]:.2f}) over Mach {a:.2f}-{b:.2f}: its band does not hold "
-            f"its shape error; not determined there")
+            f"its shape error; not determined there"))
         quality["ok"] = False
         quality["undetermined"] = intervals(mach, ~np.array([r["determined"] for r in rows]))
     return quality
@@ -481,18 +483,19 @@ def assess_window(res, channels, noise):
     misfit = [c for c, f in fit.items() if f["chi2_per_sample"] > CHI2_LIMIT]
     structured = [c for c, f in fit.items() if f["lag1"] > ACF_LIMIT and f["n"] > 20]
     for c in misfit:
-        problems.append(f"channel {c}: residual rms {fit[c]['rms']:.3g} against a noise sd of "
-                        f"{fit[c]['noise_sd']:.3g}: the constant Cd misses this window")
+        problems.append(FitWarning("misfit", f"channel {c}: residual rms {fit[c]['rms']:.3g} against a noise sd of "
+                                   f"{fit[c]['noise_sd']:.3g}: the constant Cd misses this window"))
     for c in structured:
-        problems.append(f"channel {c}: residuals autocorrelated (lag-1 {fit[c]['lag1']:.2f}): model error")
+        problems.append(FitWarning("autocorrelated", f"channel {c}: residuals autocorrelated (lag-1 "
+                                   f"{fit[c]['lag1']:.2f}): model error"))
     colored = bool(misfit or structured or any(f["chi2_per_sample"] > 1.5 for f in fit.values()))
     cd = float(res.theta[0])
     band = max(float(res.crb[0]), float(res.crb_colored[0])) if colored else float(res.crb[0])
-    at_bound = any("is at its bound" in w for w in res.warnings)
+    at_bound = any(w.kind == "at_bound" for w in res.warnings)
     if at_bound:
-        problems.append("Cd or the window's state sits at a bound")
+        problems.append(FitWarning("at_bound", "Cd or the window's state sits at a bound"))
     if not res.converged:
-        problems.append(f"not converged: {res.message}")
+        problems.append(FitWarning("not_converged", f"not converged: {res.message}"))
     det = bool(res.converged and not at_bound and cd > 0 and np.isfinite(band)
                and band / cd < DETERMINED_REL_SD)
     return {"band_sd": band, "determined": det,

@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layout import ParameterLayout
-from ...errors import FitError
+from ...errors import FitError, FitWarning
 from .filters import autocovariance_window, convolve_same
 from .noise_spread import noise_covariance
 
@@ -95,7 +95,9 @@ class MLResult:
     success : bool
     message : str
     iterations : int
-    warnings : tuple of str
+    warnings : tuple of FitWarning
+        What the fit says of its parameters (:class:`~bayesdrag.errors.FitWarning`: tested by
+        ``kind``).
     residuals : dict channel -> (N,) ndarray
         Measured minus model.
     fitted : dict channel -> (N,) ndarray
@@ -388,9 +390,10 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
     dg = np.diag(M).copy()
     blind = [problem.names[j] for j, d in zip(idx, dg) if not d > 0]
     if blind:
-        warnings.append(f"the track carries no information on {', '.join(blind)} (zero sensitivity): "
-                        f"fix {'it' if len(blind) == 1 else 'them'} or add the channel that sees "
-                        f"{'it' if len(blind) == 1 else 'them'}")
+        warnings.append(FitWarning("no_information",
+                                   f"the track carries no information on {', '.join(blind)} (zero sensitivity): "
+                                   f"fix {'it' if len(blind) == 1 else 'them'} or add the channel that sees "
+                                   f"{'it' if len(blind) == 1 else 'them'}", tuple(blind)))
     if not np.all(np.isfinite(M)):
         cond = np.inf
     else:
@@ -400,15 +403,16 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
         except np.linalg.LinAlgError:
             cond = np.inf
     if not np.isfinite(cond) or cond > 1e12:
-        warnings.append(f"information matrix is ill-conditioned (condition number of the scaled "
-                        f"matrix {cond:.2g}): some parameters are not identifiable from this track")
+        warnings.append(FitWarning("ill_conditioned", f"information matrix is ill-conditioned (condition number of "
+                                   f"the scaled matrix {cond:.2g}): some parameters are not identifiable from this "
+                                   f"track"))
     try:
         Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) and not blind else np.full_like(M, np.nan)
     except np.linalg.LinAlgError:
         Minv = np.full_like(M, np.nan)
     if not np.all(np.isfinite(Minv)):
         Minv = np.full_like(M, np.nan)
-        warnings.append("information matrix is singular: no Cramér-Rao bounds")
+        warnings.append(FitWarning("singular_information", "information matrix is singular: no Cramér-Rao bounds"))
     # colored-residual correction (Morelli & Klein 1997), on the whitened residuals and
     # sensitivities (for white channels the residuals and R^-1 S themselves)
     D = np.zeros_like(M)
@@ -448,16 +452,18 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
         name = problem.names[j]
         span = problem.upper[j] - problem.lower[j]
         if np.isfinite(span) and (theta[j] - problem.lower[j] < 1e-6 * span or problem.upper[j] - theta[j] < 1e-6 * span):
-            warnings.append(f"parameter {name} = {theta[j]:.6g} is at its bound "
-                            f"[{problem.lower[j]:.4g}, {problem.upper[j]:.4g}]")
+            warnings.append(FitWarning("at_bound", f"parameter {name} = {theta[j]:.6g} is at its bound "
+                                                   f"[{problem.lower[j]:.4g}, {problem.upper[j]:.4g}]", (name,)))
         if j < problem.P and crb[j] > abs(theta[j]) and theta[j] != 0:
-            warnings.append(f"parameter {name}: Cramér-Rao sd {crb[j]:.3g} exceeds its value {theta[j]:.3g}")
+            warnings.append(FitWarning("sd_exceeds_value", f"parameter {name}: Cramér-Rao sd {crb[j]:.3g} exceeds its "
+                                                           f"value {theta[j]:.3g}", (name,)))
     corr = cov / np.where(np.outer(crb, crb) > 0, np.outer(crb, crb), 1.0)
     iu = np.triu_indices(n, 1)
     hit = np.flatnonzero(np.abs(corr[iu]) > 0.98)[:5]      # in the order of the pairs, as listed below
     strong = [(problem.names[a], problem.names[b], corr[a, b]) for a, b in zip(iu[0][hit], iu[1][hit])]
     for a, b, c in strong[:5]:
-        warnings.append(f"parameters {a} and {b} are strongly correlated (rho = {c:+.3f})")
+        warnings.append(FitWarning("correlated", f"parameters {a} and {b} are strongly correlated (rho = {c:+.3f})",
+                                   (a, b)))
     success = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(crb)) and converged)
     fitted = {c: y[:, j] for j, c in enumerate(problem.channels)}
     resids = {c: resid[:, j] for j, c in enumerate(problem.channels)}

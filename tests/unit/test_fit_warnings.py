@@ -1,0 +1,122 @@
+"""A fit's warnings are typed records (kind, params, message) that code tests by kind; the Python
+API emits them through ``warnings`` as :class:`bayesdrag.BayesdragWarning`; ``result.json`` holds
+their sentences unchanged."""
+from __future__ import annotations
+
+import ast
+import dataclasses
+import json
+import warnings
+from pathlib import Path
+
+import pytest
+
+import bayesdrag
+from bayesdrag._runtime.beside import plain_json
+from bayesdrag.errors import WARNING_KINDS, BayesdragWarning, FitWarning, as_warning
+from bayesdrag.results.document import jsonable
+
+PKG = Path(bayesdrag.__file__).resolve().parent
+#: the iterables whose items are warnings, by the name the package gives them
+WARNING_LISTS = {"warnings", "problems", "warns"}
+
+
+def test_record_is_its_sentence_and_frozen():
+    w = FitWarning("at_bound", "parameter c3 = 20 is at its bound [-20, 20]", ["c3"])
+    assert str(w) == w.message and f"{w}" == w.message
+    assert w.params == ("c3",)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        w.kind = "correlated"   # type: ignore[misc]
+
+
+def test_unknown_kind_is_refused():
+    with pytest.raises(ValueError, match="warning kind 'typo' is not one of"):
+        FitWarning("typo", "anything")
+
+
+def test_json_holds_the_sentence():
+    w = FitWarning("correlated", "parameters a0 and a1 are strongly correlated (rho = -0.993)", ("a0", "a1"))
+    doc = {"ml": {"warnings": [w], "quality": {"problems": [w.within("window 2: ")]}}}
+    assert json.loads(json.dumps(jsonable(doc))) == {
+        "ml": {"warnings": [w.message], "quality": {"problems": ["window 2: " + w.message]}}}
+    assert json.loads(json.dumps([w], default=plain_json)) == [w.message]   # the forked helper's answer
+
+
+def test_read_back_sentences_are_recorded_kind():
+    w = as_warning("a sentence from result.json")
+    assert (w.kind, w.message) == ("recorded", "a sentence from result.json")
+    assert "recorded" in WARNING_KINDS
+
+
+def _substring_tests(tree):
+    """Comprehensions over a warning list whose condition compares the item with ``in``/``not in``
+    or calls a string method on it: a warning found by its words."""
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, (ast.ListComp, ast.GeneratorExp, ast.SetComp)):
+            continue
+        for gen in node.generators:
+            src = gen.iter
+            name = src.attr if isinstance(src, ast.Attribute) else (
+                src.slice.value if isinstance(src, ast.Subscript) and isinstance(src.slice, ast.Constant) else
+                src.id if isinstance(src, ast.Name) else None)
+            if name not in WARNING_LISTS or not isinstance(gen.target, ast.Name):
+                continue
+            item = gen.target.id
+            for cond in [n for c in gen.ifs for n in ast.walk(c)] + [n for n in ast.walk(node.elt)]:
+                if isinstance(cond, ast.Compare) and any(isinstance(op, (ast.In, ast.NotIn)) for op in cond.ops) \
+                        and any(isinstance(c, ast.Name) and c.id == item for c in cond.comparators):
+                    found.append(node.lineno)
+                if isinstance(cond, ast.Call) and isinstance(cond.func, ast.Attribute) \
+                        and isinstance(cond.func.value, ast.Name) and cond.func.value.id == item \
+                        and cond.func.attr in {"startswith", "endswith", "find", "split", "lower"}:
+                    found.append(node.lineno)
+    return found
+
+
+def test_no_warning_is_found_by_its_words():
+    hits = {}
+    for f in sorted(PKG.rglob("*.py")):
+        lines = _substring_tests(ast.parse(f.read_text(encoding="utf-8")))
+        if lines:
+            hits[str(f.relative_to(PKG))] = lines
+    assert hits == {}, f"warnings tested by substring (test their kind instead): {hits}"
+
+
+def test_the_scan_sees_a_substring_test():
+    # the scan above is no test if it cannot find what it looks for
+    tree = ast.parse('kept = [w for w in res.warnings if "is at its bound" not in w]\n'
+                     'x = any(p.startswith("channel") for p in quality["problems"])\n')
+    assert _substring_tests(tree) == [1, 2]
+
+
+def test_fit_emits_its_warnings(demo_track_and_round):
+    track, rnd = demo_track_and_round
+    # a quadratic Cd over the whole flight: it misses the track, and its coefficients correlate
+    with pytest.warns(BayesdragWarning) as got:
+        res = bayesdrag.fit(track.subset(range(0, track.n, 4)), rnd, mcmc=False, drag="poly2", model_check=False)
+    assert res.warnings, "this fit should warn"
+    emitted = [str(w.message) for w in got if issubclass(w.category, BayesdragWarning)]
+    assert emitted == [w.message for w in res.warnings]
+    kinds = {w.kind for w in res.warnings}
+    assert {"correlated", "misfit"} <= kinds
+    assert all(set(w.params) <= set(res.scheme1.ml.names) for w in res.warnings if w.kind == "correlated")
+    # result.json holds the sentences, as it did when warnings were strings
+    assert res.to_dict()["ml"]["warnings"] == [w.message for w in res.scheme1.ml.warnings]
+
+
+def test_a_user_can_silence_them(demo_track_and_round):
+    track, rnd = demo_track_and_round
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", category=BayesdragWarning)
+        res = bayesdrag.fit(track.subset(range(0, track.n, 4)), rnd, mcmc=False, drag="poly2", model_check=False)
+    assert res.warnings      # silenced, not lost
+
+
+@pytest.fixture(scope="module")
+def demo_track_and_round():
+    from bayesdrag.commands.demo import demo_inputs
+
+    tp, rp = demo_inputs()
+    return bayesdrag.read_track(tp), bayesdrag.read_round(rp)
