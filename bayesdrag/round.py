@@ -42,17 +42,58 @@ VELOCITY_MAX = 3000.0           # m/s
 ALTITUDE_RANGE = (-1000.0, 10000.0)  # m above sea level of the gun
 
 
+#: mass per cubic calibre [kg/m^3] of the projectiles a range fires: a .177 pellet ~5 800, a shotgun
+#: slug ~4 400, a 155 mm shell ~11 400, a 5.56 mm bullet ~19 000, a .308 bullet ~24 000. A unit
+#: mistake is named only when its correction lands in this band (a long rod, ~200 000, is allowed
+#: but no correction is ever guessed to reach it)
+TYPICAL_MASS_PER_CALIBRE3 = (3000.0, 60000.0)
+#: the units a mass or a diameter may have been typed in, factor to SI
+MASS_UNITS = {"kg": 1.0, "tonnes": 1e3, "grams": 1e-3, "grains": 6.479891e-5, "pounds": 0.45359237,
+              "ounces": 0.028349523125}
+DIAMETER_UNITS = {"metres": 1.0, "millimetres": 1e-3, "centimetres": 1e-2, "inches": 0.0254}
+
+
+def unit_guesses(mass, d):
+    """The unit mistakes that make ``mass`` [kg] and ``d`` [m] a typical projectile
+    (:data:`TYPICAL_MASS_PER_CALIBRE3`, diameter within :data:`DIAMETER_RANGE`): a list of
+    ``(mass unit, diameter unit, mass in kg, diameter in m)``, fewest changed units first, then the
+    closest to a shell's 12 000 kg/m^3; empty when none does or nothing needs changing."""
+    lo, hi = TYPICAL_MASS_PER_CALIBRE3
+    out = []
+    for mu, fm in MASS_UNITS.items():
+        for du, fd in DIAMETER_UNITS.items():
+            m, dd = mass * fm, d * fd
+            if (fm, fd) == (1.0, 1.0) or not DIAMETER_RANGE[0] <= dd <= DIAMETER_RANGE[1] or not 0 < m <= MASS_MAX:
+                continue
+            k = m / dd**3
+            if lo <= k <= hi:
+                out.append(((fm != 1.0) + (fd != 1.0), abs(math.log(k / 12000.0)), mu, du, m, dd))
+    return [(mu, du, m, dd) for _, _, mu, du, m, dd in sorted(out)]
+
+
+def _guess_words(guess):
+    """A unit guess of :func:`unit_guesses` in words: what looks like what, and the SI values."""
+    mu, du, m, dd = guess
+    parts = ([f"the mass looks like {mu} (in kg: {m:g})"] if mu != "kg" else []) + (
+        [f"the diameter looks like {du} (in m: {dd:g})"] if du != "metres" else [])
+    return " and ".join(parts)
+
+
 def _check_sectional_density(mass, d):
     """Refuse a mass implausible for its diameter (:data:`MASS_PER_CALIBRE3`), with the likely
     unit: a 42.6 kg shell typed as 0.0426 (tonnes) would fly like a feather and its fit would
-    run for minutes before saying nothing useful."""
+    run for minutes before saying nothing useful; a .308 bullet's diameter typed in inches is the
+    diameter's mistake, not the mass's."""
     lo, hi = MASS_PER_CALIBRE3
     k = mass / d**3
     if lo <= k <= hi:
         return
     sd = mass / d**2
-    hint = ("; it looks like tonnes (in kg: {:g})".format(mass * 1e3) if k < lo and lo <= 1e3 * k <= hi else
-            "; it looks like grams (in kg: {:g})".format(mass * 1e-3) if k > hi and lo <= 1e-3 * k <= hi else "")
+    guesses = unit_guesses(mass, d)
+    best = guesses[0] if guesses else None
+    hint = ("; it looks like tonnes (in kg: {:g})".format(mass * 1e3) if best and best[:2] == ("tonnes", "metres")
+            else "; it looks like grams (in kg: {:g})".format(mass * 1e-3) if best and best[:2] == ("grams", "metres")
+            else f"; {_guess_words(best)}" if best else "")
     what = "lighter than a hollow ball" if k < lo else "heavier than a solid tungsten rod"
     raise ValueError(f"mass = {mass:g} kg is implausible for diameter {d:g} m (sectional density {sd:.3g} kg/m^2, "
                      f"{what}; allowed {lo * d**3:.3g}-{hi * d**3:.3g} kg for this diameter){hint}")
@@ -94,9 +135,11 @@ class Projectile:
         d = number("diameter", self.diameter, "m")
         lo, hi = DIAMETER_RANGE
         if not lo <= d <= hi:
-            if lo * 1000 <= d <= hi * 1000:
-                raise ValueError(f"diameter = {d:g} looks like millimetres; diameter is in metres "
-                                 f"({d / 1000:g}); allowed [{lo:g}, {hi:g}] m")
+            # the unit that makes this a typical projectile with its mass (155 -> mm, 6.1 -> inches)
+            seen = [g for g in unit_guesses(mass, d) if g[0] == "kg"]
+            if seen:
+                raise ValueError(f"diameter = {d:g} looks like {seen[0][1]}; diameter is in metres "
+                                 f"({seen[0][3]:g}); allowed [{lo:g}, {hi:g}] m")
             raise ValueError(f"diameter = {d:g} m is outside the plausible range [{lo:g}, {hi:g}] m")
         _check_sectional_density(mass, d)
         object.__setattr__(self, "mass", mass)

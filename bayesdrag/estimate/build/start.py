@@ -623,13 +623,14 @@ def check_heights(track, rnd):
                          f"above the gun") from None
 
 
-def check_gravity_units(kin, source="track", g=G0):
+def check_gravity_units(kin, source="track", g=G0, channels=("x", "y", "z", "v")):
     """Raise :class:`InputError` when the track's path bends as if gravity were far from g in
     metres: the whole track is in another length unit (feet, yards, km, mm).
 
     A mix of units between the positions and the speed is caught when the track is read
     (:func:`bayesdrag.io.tracks.read_track`); a track entirely in feet is self-consistent there and
-    only the physics tells.
+    only the physics tells. The message names the track's own length channels (``channels``: a
+    radar-native track's ``range`` and ``range_rate``, not x, y, z and v).
     """
     r, se = gravity_ratio(kin, g)
     if r is None or not r > 0:
@@ -638,7 +639,67 @@ def check_gravity_units(kin, source="track", g=G0):
     if off < GRAVITY_RATIO_LIMIT or abs(r - 1.0) < GRAVITY_SIGNIFICANCE * se:
         return
     guess = min(_GRAVITY_UNITS, key=lambda u: abs(math.log(r / u[0])))
-    why = guess[1] if abs(math.log(r / guess[0])) < math.log(1.1) else \
-        "check the units of x, y, z (m), v (m/s) and t (s)"
+    lengths = [c for c in channels if c not in ("azimuth", "elevation")]
+    why = _named(guess[1], lengths) if abs(math.log(r / guess[0])) < math.log(1.1) else \
+        f"check the units of {', '.join(lengths)} (m, m/s) and t (s)"
     raise InputError(f"{source}: units look wrong: the path bends as if gravity were {r * g:.3g} "
                      f"length units/s^2 (9.81 m/s^2 expected); {why}")
+
+
+def _named(words, channels):
+    """A unit guess of :data:`_GRAVITY_UNITS` with the track's own channels in place of x, y, z, v."""
+    if set(channels) <= {"x", "y", "z", "v"}:
+        return words
+    return words.replace("x, y, z and v", " and ".join([", ".join(channels[:-1]), channels[-1]]) if len(channels) > 1
+                         else channels[0])
+
+
+#: a track's first speed and the round's launch velocity in m/s differ by a unit when their ratio
+#: is within this factor of a unit's (a first sample 0.1 s after the muzzle has lost ~1 % of it)
+LAUNCH_SPEED_MATCH = 1.08
+#: ... and the ratio is beyond what a gun-launched projectile can show: above this (a tail wind or
+#: a nominal velocity a few % off give a few %) or, for a track that starts within
+#: :data:`LAUNCH_SPEED_EARLY` of the launch, below its inverse
+LAUNCH_SPEED_LIMIT = 1.4
+LAUNCH_SPEED_EARLY = 0.5
+#: (ratio of the track's speed to the round's, what it means) for :func:`check_launch_speed`
+_SPEED_UNITS = (
+    (1.0 / 0.3048, "the track's speed looks like ft/s (expected m/s)"),
+    (3.6, "the track's speed looks like km/h (expected m/s)"),
+    (1.0 / 0.44704, "the track's speed looks like mph (expected m/s)"),
+    (0.3048, "the round's [launch] velocity looks like ft/s (in m/s: {v:.4g})"),
+    (1.0 / 3.6, "the round's [launch] velocity looks like km/h (in m/s: {v:.4g})"),
+)
+
+
+def check_launch_speed(track, rnd, channels):
+    """Raise :class:`InputError` when the track's first speed and the round's launch velocity
+    differ by a unit: a LabRadar's ``Vel`` in ft/s under an ``m/s`` header, a round's velocity
+    typed in ft/s. Only the clear cases (the ratio within :data:`LAUNCH_SPEED_MATCH` of a unit's
+    and beyond :data:`LAUNCH_SPEED_LIMIT`); a velocity a few % off is the launch check's to say.
+
+    Parameters
+    ----------
+    track : RadarTrack
+    rnd : Round
+    channels : sequence of str
+        The fitted channels: the speed is ``v``, else ``range_rate`` (a chronograph's, seen from
+        near the muzzle, where it is the speed).
+    """
+    v0 = rnd.launch.velocity
+    chan = "v" if "v" in channels else "range_rate" if "range_rate" in channels else None
+    if v0 is None or chan is None or not v0 > 0:
+        return
+    t = np.asarray(track.t, float)
+    first = np.flatnonzero(t <= t[0] + 1.0)[:5]
+    speed = float(np.median(np.abs(np.asarray(track.channels[chan], float)[first])))
+    r = speed / float(v0)
+    early = t[0] <= LAUNCH_SPEED_EARLY
+    if not (r > LAUNCH_SPEED_LIMIT or (early and r < 1.0 / LAUNCH_SPEED_LIMIT)):
+        return
+    factor, words = min(_SPEED_UNITS, key=lambda u: abs(math.log(r / u[0])))
+    if abs(math.log(r / factor)) >= math.log(LAUNCH_SPEED_MATCH):
+        return
+    raise InputError(f"{track.source or 'track'}: units look wrong: the track's first speed ({chan}) is {speed:.4g} "
+                     f"m/s, {r:.3g} times the round's launch velocity {v0:g} m/s; "
+                     + words.format(v=float(v0) * factor))

@@ -66,7 +66,7 @@ from ..model.problem import OutputErrorProblem
 from ..build.sources import fit_with_sources
 from ..build.smoothing import SMOOTHING_GRID, drop_coefficient_correlations, fit_penalised, penalty
 from ..build.native_start import start_position, start_view
-from ..build.start import DataStart, check_gravity_units, check_heights, data_start
+from ..build.start import DataStart, check_gravity_units, check_heights, check_launch_speed, data_start
 from ...measure import gun_equivalent, site_of
 from ...effects import RADAR_TIME, WIND_PROFILE
 
@@ -296,11 +296,10 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         own_start = start is None           # a start passed in (a refit's) has its shape chosen already
         if own_start:
             start = data_start(start_view(seen, rnd, site), rnd)
-        check_gravity_units(start.kinematics, track.source)
+        check_gravity_units(start.kinematics, track.source, channels=chans)
+        check_launch_speed(track, rnd, chans)
         drag = (narrow := narrow_span_model(start.mach_span, span_rule and rnd.reference_drag is not None, drag, knots)) or drag
-        L = rnd.launch
-        t0 = float(track.t[0])
-        s0 = start.state0
+        L, t0, s0 = rnd.launch, float(track.t[0]), start.state0
         if not free_ic and abs(t0) < 1e-9 and L.velocity is not None and L.elevation_deg is not None:
             s0 = initial_state(L.velocity, L.elevation_deg)
         sig = dict(rnd.radar.sigma) if sigma is None else dict(sigma)
