@@ -292,6 +292,9 @@ def build_parser():
     _add_columns(f)
     _add_format(f)
     _add_quiet(f)
+    f.add_argument("-v", "--verbose", action="store_true",
+                   help="also print the technical warnings (strong correlations, single coefficients' sds), "
+                        "which otherwise only result.json holds")
 
     b = sub.add_parser("batch", help="run a campaign's rounds (fit and/or diagnose) as Dask tasks, then pool them")
     b.add_argument("campaign", help="campaign file (TOML)")
@@ -463,7 +466,7 @@ def cmd_fit(args):
     from .commands.fit import run_fit
 
     run_fit(args.track, args.round, args.output, opts, resume=args.resume, verbosity=args.quiet,
-            echo=_stdout(args), columns=args.columns, track_format=args.format)
+            echo=_stdout(args), columns=args.columns, track_format=args.format, verbose=args.verbose)
     return 0
 
 

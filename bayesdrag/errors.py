@@ -65,6 +65,14 @@ WARNING_KINDS = {
 }
 
 
+#: kinds that are not raised by default (the console, the report's warning list, the Python API's
+#: ``warnings``): they change nothing a user should do or believe. A penalised spline's
+#: neighbouring coefficients, and a tracking radar's launch-velocity components, correlate by
+#: design; one coefficient's sd beside its value says nothing of Cd's band, which the rows give.
+#: ``result.json`` and ``FitResult.warnings`` keep them; ``bayesdrag fit --verbose`` prints them.
+QUIET_KINDS = frozenset({"correlated", "sd_exceeds_value"})
+
+
 @dataclass(frozen=True)
 class FitWarning:
     """One warning of a fit.
@@ -90,6 +98,11 @@ class FitWarning:
 
     def __str__(self):
         return self.message
+
+    @property
+    def shown(self):
+        """Whether it is raised by default (its kind is not one of :data:`QUIET_KINDS`)."""
+        return self.kind not in QUIET_KINDS
 
     def within(self, prefix):
         """The same warning with ``prefix`` before its sentence (a Scheme 2 window's)."""

@@ -25,7 +25,7 @@ def _echo_err(msg):
 
 
 def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=False, echo=print, run=None,
-            also=None, verbosity=None, columns=None, track_format="auto"):
+            also=None, verbosity=None, columns=None, track_format="auto", verbose=False):
     """The ``bayesdrag fit TRACK ROUND -o DIR`` command: read, fit, write ``DIR``.
 
     Outputs: ``result.json``, ``report.html`` and figures; with sampling also
@@ -45,6 +45,9 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     verbosity : int, optional
         Overrides ``quiet``: 0 notes, progress and warnings on stderr; 1 (``-q``) warnings only;
         2 (``-qq``) nothing. The command line passes ``echo`` a no-op from 1 on.
+    verbose : bool
+        Also print the technical warnings (:data:`~bayesdrag.errors.QUIET_KINDS`: strong
+        correlations, single coefficients' sds), which otherwise only ``result.json`` holds.
     columns : dict, optional
         ``{channel: header name}`` of the track file (``--columns``;
         :func:`bayesdrag.io.tracks.read_track`).
@@ -103,7 +106,13 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
             also(result, run.staging)
     if warn:
         for w in result.warnings:
-            _echo_err(f"bayesdrag: warning: {w}")
+            if w.shown or verbose:
+                _echo_err(f"bayesdrag: warning: {w}")
+    quiet_ones = [w for w in result.warnings if not w.shown]
+    if talk and quiet_ones and not verbose:
+        _echo_err(f"bayesdrag: note: {len(quiet_ones)} technical warning{'s' if len(quiet_ones) != 1 else ''} "
+                  f"({', '.join(sorted({w.kind for w in quiet_ones}))}: nothing to act on) in result.json; "
+                  f"--verbose prints {'them' if len(quiet_ones) != 1 else 'it'}")
     if talk:
         for note in ((result.record.get("ml") or {}).get("quality") or {}).get("notes") or ():
             _echo_err(f"bayesdrag: note: {note}")

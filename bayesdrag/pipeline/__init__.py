@@ -19,6 +19,7 @@ import numpy as np
 from .._runtime.beside import computed_beside, started_beside
 from .._runtime.threads import single_blas
 from ..errors import BayesdragWarning, FitError, FitWarning, InputError
+from ..results.words import determined_words
 from ..estimate.build.model_size import narrow_shape_sd
 from ..estimate.cd.headline import headline
 from ..estimate.cd.model_error import add_in_squares, fold_into_budget
@@ -74,8 +75,9 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
     Warns
     -----
     BayesdragWarning
-        Each of the result's ``warnings`` (misfits, undetermined ranges, sampler problems), after
-        the fit; filter the category to silence them.
+        Each of the result's ``warnings`` worth reading (misfits, undetermined ranges, sampler
+        problems; not the strong correlations and single coefficients' sds, which stay in
+        ``warnings``), after the fit; filter the category to silence them.
 
     Raises
     ------
@@ -105,10 +107,12 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
 
 
 def _emitted(result):
-    """``result``, each of its warnings emitted through :mod:`warnings` as a
+    """``result``, each of its warnings worth reading (``shown``: not one of
+    :data:`~bayesdrag.errors.QUIET_KINDS`) emitted through :mod:`warnings` as a
     :class:`~bayesdrag.errors.BayesdragWarning` (attributed to the caller of :func:`fit`)."""
     for w in result.warnings:
-        py_warnings.warn(w.message, BayesdragWarning, stacklevel=3)
+        if w.shown:
+            py_warnings.warn(w.message, BayesdragWarning, stacklevel=3)
     return result
 
 
@@ -670,11 +674,9 @@ def summary_line(result):
     ml = s["ml"]
     det = ml["mach_range_determined"]
     caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {why_not_clean(ml['quality'])}"
-    head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over Mach {det[0]:.2f}-{det[1]:.2f}"
+    head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over "
+            f"{determined_words(det, ml['quality'].get('undetermined', []))}"
             if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
-    holes = [(a, b) for a, b in ml["quality"].get("undetermined", []) if det and det[0] < a and b < det[1]]
-    if holes:
-        head += " except " + ", ".join(f"{a:.2f}-{b:.2f}" for a, b in holes)
     out = ml["quality"].get("outliers")
     if out:         # the noise model took one-sided outliers (estimate.model.contamination)
         head += "; one-sided outliers down-weighted: " + ", ".join(

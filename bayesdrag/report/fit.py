@@ -11,6 +11,7 @@ import numpy as np
 from .._runtime.garbage import paused_gc
 from ..errors import MissingDataError
 from ..io.outputs import OutputRun, atomic_write, ensure_space, write_bytes, write_json
+from ..results.words import determined_words
 from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
                         plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
@@ -335,7 +336,10 @@ def _common(result, sources, title_kind):
     track_name = Path(sources.get("track", result.track.source or "track")).name
     return {"title": f"bayesdrag fit{title_kind}: {track_name}", "answer": result.record.get("headline"),
             "created": datetime.datetime.now().isoformat(timespec="seconds"),
-            "warnings": list(result.warnings), "versions": versions(),
+            "warnings": [w for w in result.warnings if w.shown],
+            "quiet_warnings": [w for w in result.warnings if not w.shown], "versions": versions(),
+            "determined_words": determined_words(result.record["ml"].get("mach_range_determined"),
+                                                 (result.record["ml"].get("quality") or {}).get("undetermined") or ()),
             "quality": result.record["ml"].get("quality"),
             # how each channel is shown: (factor, unit); the radar's angles in degrees
             "channel_display": {c: channel_scale(c) for c in

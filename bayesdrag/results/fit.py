@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import FitWarning, InputError, MissingDataError, as_warning
+from .words import determined_words
 from ..io.hdf5_guard import Hdf5Limits
 from ..track import MAX_FIT_SAMPLES
 from .cd import CdTable, band_z
@@ -485,7 +486,15 @@ def _fmt(v: float | None, spec: str = ".5f") -> str:
 
 def _determined(res: FitResult) -> str:
     det = res.cd.determined_range
-    return f"Mach {det[0]:.2f}-{det[1]:.2f}" if det else "nowhere"
+    return determined_words(det, ((res.record.get("ml") or {}).get("quality") or {}).get("undetermined") or ())
+
+
+def _warning_count(res: FitResult) -> str:
+    """``"2 warnings"``, with the technical ones (quiet kinds) counted apart."""
+    shown = sum(w.shown for w in res.warnings)
+    quiet = len(res.warnings) - shown
+    return (f"{shown} warning{'s' if shown != 1 else ''}"
+            + (f" (+{quiet} technical, in .warnings)" if quiet else ""))
 
 
 def _clean(rec: dict[str, Any]) -> tuple[bool, int]:
@@ -514,7 +523,7 @@ def fit_paragraph(res: FitResult) -> str:
              f"Cd over Mach {lo:.2f}-{hi:.2f} ({len(res.cd)} rows), determined {_determined(res)}",
              "clean" if ok else f"NOT clean ({n_prob} quality problem{'s' if n_prob != 1 else ''})",
              f"posterior {_posterior_line(rec)}" if res.sampled else "not sampled",
-             f"{len(res.warnings)} warning{'s' if len(res.warnings) != 1 else ''}"]
+             _warning_count(res)]
     if res.loaded:
         parts.append(f"read from {res.folder}")
     else:
@@ -542,7 +551,7 @@ def fit_summary(res: FitResult, rows: int) -> Summary:
     header += [("Mach range of the data", f"{data[0]:.3f} - {data[1]:.3f}"),
                ("Cd determined", _determined(res)),
                ("clean answer", "yes" if ok else f"NO: {n_prob} quality problem(s), see the warnings"),
-               ("posterior", _posterior_line(rec)), ("warnings", str(len(res.warnings)))]
+               ("posterior", _posterior_line(rec)), ("warnings", _warning_count(res))]
     lo, hi = res.band(SUMMARY_BAND)
     cols = ["Mach", "Cd (ML)", "band sd", f"{SUMMARY_BAND:.0%} band", "determined", "reference"]
     post = res.cd.sampled

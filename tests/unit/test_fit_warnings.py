@@ -13,7 +13,7 @@ import pytest
 
 import bayesdrag
 from bayesdrag._runtime.beside import plain_json
-from bayesdrag.errors import WARNING_KINDS, BayesdragWarning, FitWarning, as_warning
+from bayesdrag.errors import QUIET_KINDS, WARNING_KINDS, BayesdragWarning, FitWarning, as_warning
 from bayesdrag.results.document import jsonable
 
 PKG = Path(bayesdrag.__file__).resolve().parent
@@ -97,9 +97,11 @@ def test_fit_emits_its_warnings(demo_track_and_round):
         res = bayesdrag.fit(track.subset(range(0, track.n, 4)), rnd, mcmc=False, drag="poly2", model_check=False)
     assert res.warnings, "this fit should warn"
     emitted = [str(w.message) for w in got if issubclass(w.category, BayesdragWarning)]
-    assert emitted == [w.message for w in res.warnings]
     kinds = {w.kind for w in res.warnings}
     assert {"correlated", "misfit"} <= kinds
+    # the ones worth reading are emitted; the technical ones (correlations) stay in res.warnings
+    assert emitted == [w.message for w in res.warnings if w.shown]
+    assert not any(w.kind in QUIET_KINDS for w in res.warnings if w.message in emitted)
     assert all(set(w.params) <= set(res.scheme1.ml.names) for w in res.warnings if w.kind == "correlated")
     # result.json holds the sentences, as it did when warnings were strings
     assert res.to_dict()["ml"]["warnings"] == [w.message for w in res.scheme1.ml.warnings]
@@ -120,3 +122,25 @@ def demo_track_and_round():
 
     tp, rp = demo_inputs()
     return bayesdrag.read_track(tp), bayesdrag.read_round(rp)
+
+
+def test_the_console_prints_what_matters_and_counts_the_rest(tmp_path, capsys):
+    """``bayesdrag fit``: the misfit is printed, the strong correlations are counted in one note
+    (result.json keeps them); ``--verbose`` prints them; the report lists them apart."""
+    from importlib.resources import files
+
+    from bayesdrag.cli import main
+
+    data = files("bayesdrag") / "data"
+    args = [str(data / "demo_track.csv"), str(data / "demo_round.toml"), "--no-mcmc", "--drag", "poly2",
+            "--no-model-check"]
+    assert main(["fit", *args, "-o", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "bayesdrag: warning: channel" in err and "strongly correlated" not in err
+    assert "technical warnings (correlated: nothing to act on) in result.json; --verbose prints them" in err
+    doc = json.loads((tmp_path / "a" / "result.json").read_text())
+    assert any("strongly correlated" in w for w in doc["ml"]["warnings"])
+    html = (tmp_path / "a" / "report.html").read_text()
+    assert "technical notes (strong correlations" in html and "strongly correlated" in html
+    assert main(["fit", *args, "-o", str(tmp_path / "b"), "--verbose"]) == 0
+    assert "bayesdrag: warning: parameters a0 and a1 are strongly correlated" in capsys.readouterr().err
