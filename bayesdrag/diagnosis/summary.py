@@ -11,7 +11,9 @@ Nothing is said about the firing table's shape unless ``drag_shape`` is in the v
 from __future__ import annotations
 
 import math
+
 from ..effects import DRAG_SHAPE
+from ..results.words import alternatives
 
 __all__ = ["summary_paragraph", "console_summary", "verdict_lines", "impact_text", "reported_values",
            "absorbed_text", "fmt"]
@@ -101,15 +103,21 @@ def verdict_lines(s):
     rows = {e["name"]: e for e in s.get("effects") or []}
     shape_named = DRAG_SHAPE.name in (s.get("verdict") or [])
     out = []
-    for i, n in enumerate(s.get("verdict") or []):
+    verdict = s.get("verdict") or []
+    for i, n in enumerate(verdict):
         e = rows[n]
         pv, sd, share = reported_values(e)
         ps = _layers_text(e) + _params_text(pv, sd)
-        txt = f"{'Found' if i == 0 else 'Also'}: {n}" + (f" ({ps})" if ps else "") + f"; {share}"
+        stand_ins = alternatives(n, s.get("effects") or [], verdict)
+        # a member's stand-ins are named with it, not after it: an air effect and a drag effect of
+        # one signature are one finding the track cannot split, neither the lead alone
+        lead = " or ".join([n] + stand_ins) + (" (one signature: the track cannot tell which)" if stand_ins else "")
+        txt = f"{'Found' if i == 0 else 'Also'}: {lead}" + (f" ({ps})" if ps else "") + f"; {share}"
         if e.get("judged_against"):
             why = " (the table has another shell's shape)" if shape_named else ""
             txt += f"; judged against a {e['judged_against']}{why}"
-        confused = [n for n in e.get("confounded_with") or [] if not rows.get(n, {}).get("superseded_by")]
+        confused = [n for n in e.get("confounded_with") or [] if not rows.get(n, {}).get("superseded_by")
+                    and n not in stand_ins]
         if confused:
             txt += f"; the data cannot tell it from {', '.join(confused)}"
         imp = impact_text(e)

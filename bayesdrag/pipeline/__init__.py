@@ -204,7 +204,7 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
     if gap is not None:
         note_model_error(gap, quality, grid, rows)
     quality["air"] = air(f1, gap)
-    air_contradiction(rnd, quality["air"], quality)
+    air_contradiction(rnd, quality["air"], quality, rows)
     if dm.name != "spline":
         if ml_progress is not None:
             ml_progress("the flexible fit the rigid model is checked against")

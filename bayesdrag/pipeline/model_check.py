@@ -635,13 +635,36 @@ def own_table(rnd):
     return rnd.projectile.reference_drag is not None and bool(rnd.projectile.reference_drag_path)
 
 
-def air_contradiction(rnd, air_record, quality):
+def table_level(rows):
+    """The fitted Cd over the reference table, the median over the determined rows (over every
+    row with a table value when none is determined); None without a table."""
+    pairs = [(r["ml"], r["reference"]) for r in rows if r.get("reference") and r["reference"] > 0]
+    det = [(m, t) for (m, t), r in zip(pairs, [r for r in rows if r.get("reference") and r["reference"] > 0])
+           if r.get("determined")]
+    use = det or pairs
+    return float(np.median([m / t for m, t in use])) if use else None
+
+
+def confound_line(found, level):
+    """The air line of the confound rule: the drag level against the table and the air it cannot
+    be told from, blaming neither (``level``: :func:`table_level`)."""
+    pct = 100.0 * (level - 1.0)
+    air_words = (f"the air {abs(pct):.1f} % {'denser' if pct >= 0 else 'thinner'} than stated" if "density" in found
+                 else "the air unlike the stated air")
+    return (f"Cd is {abs(pct):.1f} % {'above' if pct >= 0 else 'below'} the table, or {air_words} (the diagnosis "
+            f"finds {', '.join(found)}): the track cannot tell which; Cd is conditional on the stated air "
+            f"(density_sd and temperature_sd in [atmosphere] carry its doubt in the band)")
+
+
+def air_contradiction(rnd, air_record, quality, rows=()):
     """The one rule for air the track contradicts (docs/fitting.md, "Air the track contradicts"):
     an implied air unlike the stated one makes the answer not clean only when the air was
     measured (:func:`air_measured`) and the reference is the projectile's own table
     (:func:`own_table`): then the met data or the table is wrong, and the Cd carries it. Otherwise
-    drag level and air are one signature the answer names, without blame (``air_record["line"]``).
-    Adds the problem line to ``quality`` and sets ``air_record["rule"]``."""
+    drag level and air are one signature the answer names, without blame (``air_record["line"]``:
+    with a table, how far Cd is from it and the air that would explain as much,
+    ``air_record["level_vs_table"]``). Adds the problem line to ``quality`` and sets
+    ``air_record["rule"]``; ``rows``: the Cd rows (``ml`` and ``reference``)."""
     found = list(air_record.get("found") or []) + [c["source"] for c in air_record.get("contradicted") or []]
     if not found:
         air_record["rule"] = None
@@ -655,6 +678,11 @@ def air_contradiction(rnd, air_record, quality):
         quality["ok"] = False
     else:
         air_record["rule"] = "confound"          # air not measured, or another projectile's table: named
+        level = table_level(rows) if rnd.projectile.reference_drag is not None else None
+        if level is not None:
+            # the drag against the table and the air it trades with, in one line, neither blamed
+            air_record["level_vs_table"] = float(f"{level:.5g}")
+            air_record["line"] = confound_line(list(dict.fromkeys(found)), level)
 
 
 #: an estimated noise sd below this [m or m/s] is no radar's: the track is (nearly) noise-free,

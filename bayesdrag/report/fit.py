@@ -338,6 +338,7 @@ def _common(result, sources, title_kind):
             "created": datetime.datetime.now().isoformat(timespec="seconds"),
             "warnings": [w for w in result.warnings if w.shown],
             "quiet_warnings": [w for w in result.warnings if not w.shown], "versions": versions(),
+            "air_line": ((result.record["ml"].get("quality") or {}).get("air") or {}).get("line"),
             "determined_words": determined_words(result.record["ml"].get("mach_range_determined"),
                                                  (result.record["ml"].get("quality") or {}).get("undetermined") or ()),
             "quality": result.record["ml"].get("quality"),

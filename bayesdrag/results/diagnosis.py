@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 from ..errors import MissingDataError
 from .document import DIAGNOSIS_SCHEMA, jsonable, read_document
 from .summary import Summary
+from .words import grouped_effects, verdict_words
 
 if TYPE_CHECKING:
     import pandas
@@ -125,7 +126,7 @@ class DiagnosisResult:
         (significant, material, the share of the gap it removes, its parameters)."""
         s = self.record
         b = s["baseline"]
-        header = (("verdict", ", ".join(self.verdict) or "none (the nominal model explains the track)"),
+        header = (("verdict", verdict_words(self.verdict, s["effects"]) or "none (the nominal model explains the track)"),
                   ("detectable, immaterial", ", ".join(self.immaterial) or "none"),
                   ("baseline chi2 per sample", _num(b["chi2_per_sample"], ".4g")),
                   ("gap", _num(b["gap"], ".4g")),
@@ -133,7 +134,7 @@ class DiagnosisResult:
                   ("candidates tested", str((s.get("tests") or {}).get("candidates", len(s["effects"])))))
         rows = tuple((e["name"], "yes" if e.get("significant") else "no",
                       "yes" if e["name"] in self.verdict else "no", _num(e.get("shrink"), ".3f"),
-                      _num(e.get("delta_loglik"), ".4g"), _short(_params_text(e))) for e in s["effects"])
+                      _num(e.get("delta_loglik"), ".4g"), _short(_params_text(e))) for e in grouped_effects(s["effects"]))
         return Summary(title="bayesdrag diagnosis", header=header,
                        columns=("effect", "significant", "in verdict", "shrink", "delta loglik", "parameters"),
                        rows=rows, notes=(self.paragraph,), align=("<", ">", ">", ">", ">", "<"))
