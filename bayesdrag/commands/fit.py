@@ -11,6 +11,7 @@ from ..errors import BayesdragWarning, InputError
 from ..options import FitOptions
 from ..pipeline import fit, summary_line
 from ..results import PARTIAL
+from ..results.words import effect_lines
 from ..track import thin_for_fit
 
 __all__ = ["run_fit"]
@@ -117,6 +118,8 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
         for note in ((result.record.get("ml") or {}).get("quality") or {}).get("notes") or ():
             _echo_err(f"bayesdrag: note: {note}")
     echo(summary_line(result))
+    for line in effect_lines((result.record.get("ml") or {}).get("with_effects")):
+        echo(line)            # what the fit added beside Cd is part of the answer
     if result.posterior is not None:
         b = result.posterior
         echo(f"mcmc: {b.message}; {b.steps} steps x {b.nwalkers} walkers in {b.elapsed:.1f} s")

@@ -51,10 +51,12 @@ TEMPERATURE = Effect("temperature", (ExtraParam("dT", 0.0, -60.0, 60.0, 0.05),),
                      "A warmer day (dT > 0) at the same pressure at the gun thins the air (less drag, "
                      "longer range) and raises the speed of sound, moving Cd(M) along the flight.",
                      acts_on="air", drag_change="partly", source="temperature",
-                     to_inputs=_temperature_inputs)
+                     to_inputs=_temperature_inputs,
+                     label="air warmer or colder than stated")
 
 
 DENSITY = Effect("density", (ExtraParam("ratio", 1.0, 0.5, 1.6, 1e-4),), ("-",),
                  "Air density differs from the model's by a constant factor (pressure or humidity "
                  "error); drag scales with it, the speed of sound does not.",
-                 acts_on="air", drag_change="level", source="density", to_inputs=_density_inputs)
+                 acts_on="air", drag_change="level", source="density", to_inputs=_density_inputs,
+                 label="air denser or thinner than stated")

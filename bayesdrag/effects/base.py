@@ -99,6 +99,9 @@ class Effect:
         ``to_report(values) -> dict`` and ``to_report_sd(values, sd) -> dict``: the reported
         parameters and their sds where they are not the fitted ones (``yaw_drag`` fits an
         amplitude and reports the launch yaw); None: the fitted ones.
+    label : str
+        What it is in a few words, for the lines that tell a user the fit found and fitted it
+        ("a wind changing along the flight"); empty: the explanation's first clause.
     """
 
     name: str
@@ -114,6 +117,12 @@ class Effect:
     wrap_model: object = field(default=None, repr=False, compare=False)
     to_report: object = field(default=None, repr=False, compare=False)
     to_report_sd: object = field(default=None, repr=False, compare=False)
+    label: str = field(default="", compare=False)
+
+    @property
+    def headline(self):
+        """What it is in a few words: :attr:`label`, else the explanation up to its first colon."""
+        return self.label or self.explanation.split(":")[0].split(";")[0].strip()
 
     @property
     def k(self):

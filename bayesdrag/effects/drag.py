@@ -187,7 +187,8 @@ class DragShapeModel:
 DRAG_SCALE = Effect("drag_scale", (ExtraParam("factor", 1.0, 0.2, 5.0, 1e-4),), ("-",),
                     "This shell's drag is a constant factor times the firing table (lot, fuze, driving "
                     "band or form differences); identical in its signature to a density ratio.",
-                    acts_on="drag", drag_change="level", to_inputs=_drag_scale_inputs)
+                    acts_on="drag", drag_change="level", to_inputs=_drag_scale_inputs,
+                    label="a drag level off the table's")
 
 
 DRAG_SHAPE = Effect("drag_shape", tuple(ExtraParam(f"s{i + 1}", 0.0, -DRAG_SHAPE_BOUND, DRAG_SHAPE_BOUND, 1e-4)
@@ -197,4 +198,5 @@ DRAG_SHAPE = Effect("drag_shape", tuple(ExtraParam(f"s{i + 1}", 0.0, -DRAG_SHAPE
                     "drag rise earlier, later, higher or lower): the table times a smooth correction in "
                     "Mach that carries no overall level (the level is drag_scale).",
                     acts_on="drag", drag_change="shape", needs=("reference",),
-                    to_inputs=_drag_shape_inputs, wrap_model=_drag_shape_model)
+                    to_inputs=_drag_shape_inputs, wrap_model=_drag_shape_model,
+                    label="a drag curve of another shape than the table's")

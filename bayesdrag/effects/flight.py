@@ -94,13 +94,15 @@ def _wind_profile_model(model, ctx):
 WIND = Effect("wind", (ExtraParam("wx", 0.0, -60.0, 60.0, 0.02), ExtraParam("wy", 0.0, -60.0, 60.0, 0.02)),
               ("m/s", "m/s"),
               "A constant horizontal wind changes the airspeed: a headwind (wx < 0) adds drag and "
-              "shortens the range, a crosswind (wy) drifts the shell downwind.", acts_on="air", to_inputs=_wind_inputs)
+              "shortens the range, a crosswind (wy) drifts the shell downwind.", acts_on="air", to_inputs=_wind_inputs,
+              label="a constant horizontal wind")
 
 
 CORIOLIS = Effect("coriolis", (), (),
                   "Earth rotation: a Coriolis acceleration -2 Omega x v deflects the shell to the right "
                   "in the northern hemisphere and changes range with the firing azimuth.", needs=("latitude",),
-                  to_inputs=_coriolis_inputs, wrap_model=_coriolis_model)
+                  to_inputs=_coriolis_inputs, wrap_model=_coriolis_model,
+                  label="Earth rotation (Coriolis)")
 
 
 YAW_DRAG = Effect("yaw_drag", (ExtraParam("yaw_amp", 0.0, -0.5, YAW_AMP_MAX, 1e-3),
@@ -108,14 +110,16 @@ YAW_DRAG = Effect("yaw_drag", (ExtraParam("yaw_amp", 0.0, -0.5, YAW_AMP_MAX, 1e-
                   "A launch disturbance leaves the shell yawing; the yaw damps out but adds induced "
                   "drag Cd k delta^2 early in the flight, a range loss concentrated after launch.",
                   acts_on="drag", drag_change="partly", to_inputs=_yaw_drag_inputs,
-                  to_report=_yaw_report, to_report_sd=_yaw_report_sd)
+                  to_report=_yaw_report, to_report_sd=_yaw_report_sd,
+                  label="the drag of a launch yaw that damps out")
 
 
 LIFT = Effect("lift", (ExtraParam("factor", 0.0, -10.0, 10.0, 0.01),), ("-",),
               "Lift on the yaw of repose of a spinning shell (modified point mass): a drift to the "
               "right for a right-hand twist, growing with time of flight, and a small rise from the "
               "Magnus force on the same yaw; factor 1 is a typical shell.", seen_by="cross_range",
-              to_inputs=_lift_inputs)
+              to_inputs=_lift_inputs,
+              label="lift on the yaw of repose: the spin drift")
 
 
 WIND_PROFILE = Effect("wind_profile", tuple(ExtraParam(f"{c}_{k + 1}", 0.0, -60.0, 60.0, 0.02)
@@ -125,4 +129,5 @@ WIND_PROFILE = Effect("wind_profile", tuple(ExtraParam(f"{c}_{k + 1}", 0.0, -60.
                       "or by downrange distance: a wind that turns from tail to head, or strengthens with "
                       "height, changes the airspeed differently in each part of the flight.",
                       acts_on="air", source="wind_profile", needs=("wind_layers",),
-                      to_inputs=_wind_profile_inputs, wrap_model=_wind_profile_model)
+                      to_inputs=_wind_profile_inputs, wrap_model=_wind_profile_model,
+                      label="a wind changing along the flight")

@@ -71,27 +71,31 @@ def _site_inputs(values, ctx, state0):
 RADAR_TIME = Effect("radar_time", (ExtraParam("dt", 0.0, -0.2, 2.0, 1e-4),), ("s",),
                     "The radar clock is late by dt: every sample shows the shell where it was dt later, "
                     "so the track does not start at the muzzle at t = 0.", acts_on="measurement", source="time_offset",
-                    to_inputs=_radar_time_inputs)
+                    to_inputs=_radar_time_inputs,
+                    label="a radar clock offset")
 
 
 RANGE_BIAS = Effect("range_bias", (ExtraParam("bias", 0.0, -RANGE_BIAS_MAX, RANGE_BIAS_MAX, 0.01),), ("m",),
                     "The radar's range is off by a constant (a calibration or cable delay): every range it "
                     "records is the true one plus the bias.", acts_on="measurement", source="range_bias",
-                    needs=("radar_channels",), to_inputs=_bias_inputs(RADAR_EFFECT_CHANNELS["range_bias"][0]))
+                    needs=("radar_channels",), to_inputs=_bias_inputs(RADAR_EFFECT_CHANNELS["range_bias"][0]),
+                    label="a radar range bias")
 
 
 AZIMUTH_BIAS = Effect("azimuth_bias", (ExtraParam("bias", 0.0, -ANGLE_BIAS_MAX, ANGLE_BIAS_MAX, 1e-6),), ("rad",),
                       "The radar's azimuth is off by a constant (its north alignment or encoder): the shell "
                       "appears turned sideways by the bias, more metres the further it flies.", acts_on="measurement",
                       source="azimuth_bias", needs=("radar_channels",),
-                      to_inputs=_bias_inputs(RADAR_EFFECT_CHANNELS["azimuth_bias"][0]))
+                      to_inputs=_bias_inputs(RADAR_EFFECT_CHANNELS["azimuth_bias"][0]),
+                      label="a radar azimuth bias")
 
 
 ELEVATION_BIAS = Effect("elevation_bias", (ExtraParam("bias", 0.0, -ANGLE_BIAS_MAX, ANGLE_BIAS_MAX, 1e-6),), ("rad",),
                         "The radar's elevation is off by a constant (levelling or boresight): the shell appears "
                         "higher or lower by the bias, more metres the further it flies.", acts_on="measurement",
                         source="elevation_bias", needs=("radar_channels",),
-                        to_inputs=_bias_inputs(RADAR_EFFECT_CHANNELS["elevation_bias"][0]))
+                        to_inputs=_bias_inputs(RADAR_EFFECT_CHANNELS["elevation_bias"][0]),
+                        label="a radar elevation bias")
 
 
 RADAR_POSITION = Effect("radar_position", tuple(ExtraParam(c, 0.0, -SITE_OFFSET_MAX, SITE_OFFSET_MAX, 0.01) for c in "xyz"),
@@ -100,4 +104,5 @@ RADAR_POSITION = Effect("radar_position", tuple(ExtraParam(c, 0.0, -SITE_OFFSET_
                         "stated site): its range, angles and range rate are seen from another place, which "
                         "the track shows as a start away from the muzzle and lines of sight that turn wrongly.",
                         acts_on="measurement", source="radar_position", needs=("radar_channels",),
-                        to_inputs=_site_inputs)
+                        to_inputs=_site_inputs,
+                        label="a radar site off the stated one")

@@ -15,8 +15,8 @@ from ..estimate.cd.model_error import add_in_squares, check_sd, combine, describ
 from ..estimate.cd.quality import assess
 from ..estimate.cd.table import cd_table, model_error_floor
 from ..estimate.scheme1.fit import fit_scheme1
-from ..effects import DENSITY, DRAG_SHAPE, RADAR_POSITION, RADAR_TIME, TEMPERATURE, WIND_PROFILE, YAW_DRAG, \
-    air_state_effects, not_alternatives, partly_trading_with_cd
+from ..effects import DENSITY, DRAG_SHAPE, EFFECTS, RADAR_POSITION, RADAR_TIME, TEMPERATURE, WIND_PROFILE, \
+    YAW_DRAG, air_state_effects, not_alternatives, partly_trading_with_cd
 
 __all__ = ["air_contradiction", "air_measured", "own_table", "model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
            "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
@@ -649,7 +649,10 @@ def confound_line(found, level):
     """The air line of the confound rule: the drag level against the table and the air it cannot
     be told from, blaming neither (``level``: :func:`table_level`)."""
     pct = 100.0 * (level - 1.0)
-    air_words = (f"the air {abs(pct):.1f} % {'denser' if pct >= 0 else 'thinner'} than stated" if "density" in found
+    # an air effect that is a constant factor on the drag (the density) trades one for one with the level
+    level_air = any(getattr(EFFECTS.get(n), "drag_change", None) == "level" and EFFECTS[n].acts_on == "air"
+                    for n in found)
+    air_words = (f"the air {abs(pct):.1f} % {'denser' if pct >= 0 else 'thinner'} than stated" if level_air
                  else "the air unlike the stated air")
     return (f"Cd is {abs(pct):.1f} % {'above' if pct >= 0 else 'below'} the table, or {air_words} (the diagnosis "
             f"finds {', '.join(found)}): the track cannot tell which; Cd is conditional on the stated air "

@@ -11,7 +11,7 @@ import numpy as np
 from .._runtime.garbage import paused_gc
 from ..errors import MissingDataError
 from ..io.outputs import OutputRun, atomic_write, ensure_space, write_bytes, write_json
-from ..results.words import determined_words
+from ..results.words import determined_words, effect_lines
 from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
                         plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
@@ -339,6 +339,7 @@ def _common(result, sources, title_kind):
             "warnings": [w for w in result.warnings if w.shown],
             "quiet_warnings": [w for w in result.warnings if not w.shown], "versions": versions(),
             "air_line": ((result.record["ml"].get("quality") or {}).get("air") or {}).get("line"),
+            "effect_lines": effect_lines(result.record["ml"].get("with_effects")),
             "determined_words": determined_words(result.record["ml"].get("mach_range_determined"),
                                                  (result.record["ml"].get("quality") or {}).get("undetermined") or ()),
             "quality": result.record["ml"].get("quality"),

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import FitWarning, InputError, MissingDataError, as_warning
-from .words import determined_words
+from .words import determined_words, effect_lines
 from ..io.hdf5_guard import Hdf5Limits
 from ..track import MAX_FIT_SAMPLES
 from .cd import CdTable, band_z
@@ -566,8 +566,12 @@ def fit_summary(res: FitResult, rows: int) -> Summary:
             assert c.mean is not None and c.q05 is not None and c.q95 is not None
             row += [_fmt(c.mean[i]), _fmt(c.q05[i]), _fmt(c.q95[i])]
         table.append(tuple(row))
-    notes = (f"{SUMMARY_BAND:.0%} band: Cd (ML) ± {band_z(SUMMARY_BAND):.3f} x the row's total band sd; all "
-             f"{len(c)} rows in res.cd (res.cd.to_dataframe()).",)
+    notes: tuple[str, ...] = (f"{SUMMARY_BAND:.0%} band: Cd (ML) ± {band_z(SUMMARY_BAND):.3f} x the row's total band "
+                              f"sd; all {len(c)} rows in res.cd (res.cd.to_dataframe()).",)
+    found = effect_lines(ml.get("with_effects"))
+    if found:      # what the fit added beside Cd is part of the answer: said above the table
+        header.append(("effects fitted", found[0].split(": ", 1)[1] if len(found) == 1 else "below the table"))
+        notes = ("\n".join(found),) + tuple(notes)
     return Summary(title=f"bayesdrag fit: Scheme {res.scheme}, {res.drag_model} drag", header=tuple(header),
                    columns=tuple(cols), rows=tuple(table), notes=notes)
 

@@ -3,9 +3,12 @@ once here, so the three say the same thing in the same words. Every number in th
 result's ``result.json`` holds (rounded for reading)."""
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+import math
+from typing import Any, Iterable, Sequence
 
-__all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects"]
+from ..effects import EFFECTS
+
+__all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects", "effect_lines"]
 
 
 def mach_interval(lo: float, hi: float, digits: int = 2) -> str:
@@ -67,4 +70,38 @@ def grouped_effects(effects: Sequence[dict]) -> list:
             if g["name"] not in seen:
                 seen.add(g["name"])
                 out.append(g)
+    return out
+
+
+def _value(v: float, sd: float, unit: str) -> str:
+    """``"0.972 ± 0.026"`` with its unit; an angle in degrees, as the round gives angles."""
+    if unit == "rad":
+        v, sd, unit = math.degrees(v), math.degrees(sd), "deg"
+    return f"{v:.4g} ± {sd:.2g}" + ("" if unit in ("", "-") else f" {unit}")
+
+
+def effect_lines(with_effects: dict[str, Any] | None) -> list:
+    """What the fit added beside Cd, one line per effect (``ml.with_effects``): the effect's own
+    label, its parameters with the sd the fit stands by; layers of wind as a small table by
+    height or downrange distance. Empty when the fit added nothing."""
+    if not with_effects:
+        return []
+    how = "found and fitted" if with_effects.get("added_by") == "default" else "fitted"
+    sizes = with_effects.get("sizes") or {}
+    layers = with_effects.get("wind_layers") or {}
+    out = []
+    for name in with_effects.get("effects") or []:
+        e = EFFECTS.get(name)
+        label = e.headline if e is not None else name
+        units = dict(zip([p.name for p in e.params], e.units)) if e is not None else {}
+        if e is not None and "wind_layers" in e.needs and layers.get("layers"):
+            where = "height" if layers.get("axis") == "altitude" else "downrange distance"
+            out.append(f"{how}: {name} ({label}), {len(layers['layers'])} layers by {where} "
+                       f"[{layers.get('edges_unit', 'm')}]:")
+            out += [f"  {lay['from']:.0f}-{lay['to']:.0f}: wx {lay['wx']:+.1f} ± {lay['wx_sd']:.1f} m/s, "
+                    f"wy {lay['wy']:+.1f} ± {lay['wy_sd']:.1f} m/s" for lay in layers["layers"]]
+            continue
+        vals = [f"{k.split('.', 1)[1]} = {_value(v['value'], v['sd'], units.get(k.split('.', 1)[1], ''))}"
+                for k, v in sizes.items() if k.split(".", 1)[0] == name]
+        out.append(f"{how}: {name} ({label})" + (f": {', '.join(vals)}" if vals else ""))
     return out
