@@ -215,7 +215,8 @@ def _add_fit_options(p, batch=False):
     p.add_argument("--drag", choices=DRAG_MODEL_NAMES, default=d.drag,
                    help="drag model (default spline: follows any transonic rise; with a firing table it is the "
                         "table times a smooth correction)")
-    p.add_argument("--channels", default=None, help="comma-separated subset of the track's x,y,z,v")
+    p.add_argument("--channels", default=None, help="comma-separated subset of the track's channels: x,y,z,v in the gun's frame, or the "
+                                                          "radar-native range,azimuth,elevation,range_rate")
     p.add_argument("--no-mcmc", action="store_true", help="maximum likelihood only (no posterior sampling)")
     p.add_argument("--fix-ic", action="store_true", help="keep the initial conditions at their starting values")
     p.add_argument("--seed", type=_seed, default=None,

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import FitWarning, InputError, MissingDataError, as_warning
+from ..errors import BayesdragWarning, FitWarning, InputError, MissingDataError, as_warning
 from .words import determined_words, effect_lines
 from ..io.hdf5_guard import Hdf5Limits
 from ..track import MAX_FIT_SAMPLES
@@ -41,9 +42,10 @@ CHAIN = "chain.h5"
 #: the kinds of :meth:`FitResult.band`
 BAND_KINDS = ("total", "statistical", "posterior")
 #: posterior draws (over all chains, evenly thinned) whose pointwise log-likelihood
-#: ``to_inference_data`` holds and ``posterior.nc`` keeps: every draw times every observation
-#: would outweigh the rest of the file many times (sizes in docs/bayes.md)
-LOG_LIKELIHOOD_DRAWS = 128
+#: ``to_inference_data`` holds and ``posterior.nc`` keeps (float32): every draw times every
+#: observation would outweigh the rest of the file many times, and fewer than ~2 000 leave
+#: ``arviz.loo``'s Pareto tails too short without ``reff=1.0`` (docs/bayes.md)
+LOG_LIKELIHOOD_DRAWS = 2048
 #: rows of the Cd table a summary shows
 SUMMARY_ROWS = 7
 #: most bytes of values a posterior.nc may declare, whatever result.json records [bytes] (the
@@ -158,7 +160,9 @@ class FitResult:
                       grid=np.asarray(grid if grid is not None else table.mach, float),
                       warnings=tuple(as_warning(w) for w in warnings),
                       seconds=float(seconds), folder=None if folder is None else Path(folder),
-                      _cache={} if inference_data is None else {("idata", LOG_LIKELIHOOD_DRAWS): inference_data})
+                      _cache={} if inference_data is None else {(
+                          "idata", 0 if (rec.get("mcmc") or {}).get("converged") is False and rec.get("scheme") == 1
+                          else LOG_LIKELIHOOD_DRAWS): inference_data})
         if cd_draws is not None:   # the draws result.json's rows were made of: one set for rows, idata and report
             values["_cache"]["cd_draws"] = np.asarray(cd_draws, dtype=np.float64)
         for k, v in values.items():
@@ -247,7 +251,7 @@ class FitResult:
         if not self.sampled:
             raise MissingDataError("band(kind='posterior') needs the posterior draws and this fit did not sample: "
                                    "fit with mcmc=True (the default), or ask for kind='total'")
-        idata = self.to_inference_data()
+        idata = self._posterior_idata()
         if idata is None:
             raise MissingDataError(f"band(kind='posterior'): no posterior.nc in {self.folder}")
         p = ((1.0 - level) / 2.0, (1.0 + level) / 2.0)
@@ -300,6 +304,11 @@ class FitResult:
             track); 0 leaves the group out. ``posterior.nc`` keeps :data:`LOG_LIKELIHOOD_DRAWS`;
             its draws are a thinned subset, nearly independent: ``arviz.loo(idata, reff=1.0)``.
         """
+        if log_likelihood_draws != 0 and self._unconverged():
+            warnings.warn(f"the posterior's chain did not converge ({self.record['mcmc'].get('message')}): its "
+                          f"log_likelihood group is left out, so that arviz.loo and arviz.compare cannot rank an "
+                          f"unconverged posterior (sample longer: max_steps)", BayesdragWarning, stacklevel=2)
+            log_likelihood_draws = 0
         key = ("idata", log_likelihood_draws)
         if key not in self._cache:
             if self.loaded:
@@ -309,6 +318,18 @@ class FitResult:
                 return None
             self._cache[key] = self._inference_data(log_likelihood_draws)
         return self._cache[key]
+
+    def _posterior_idata(self) -> arviz.InferenceData | None:
+        """The InferenceData to read posterior draws from: the one held (a loaded folder's, or one
+        made already), else one made without the log-likelihood, which reading draws does not need."""
+        for key, value in self._cache.items():
+            if isinstance(key, tuple) and key[0] == "idata" and value is not None:
+                return value
+        return self.to_inference_data(log_likelihood_draws=0)
+
+    def _unconverged(self) -> bool:
+        """A Scheme 1 posterior whose chain did not converge (``mcmc.converged`` false)."""
+        return self.scheme == 1 and (self.record.get("mcmc") or {}).get("converged") is False
 
     def _inference_data(self, log_likelihood_draws: int | None) -> arviz.InferenceData | None:
         arrays = self._posterior_arrays(log_likelihood_draws)
@@ -330,6 +351,8 @@ class FitResult:
         sampled fit in this process)."""
         if self.posterior is None or self.scheme1 is None or self.log_posterior is None:
             return None
+        if self._unconverged():
+            log_likelihood_draws = 0      # posterior.nc of an unconverged chain: no log_likelihood to rank by
         key = ("arrays", log_likelihood_draws)
         if key not in self._cache:
             from ..estimate.bayes.posterior_groups import fit_arrays
@@ -346,7 +369,7 @@ class FitResult:
         draws whose quantiles are the rows' ``q05``/``q95``."""
         if "cd_draws" not in self._cache:
             if self.posterior is None or self.scheme1 is None:
-                idata = self.to_inference_data() if self.sampled and self.scheme == 1 else None
+                idata = self._posterior_idata() if self.sampled and self.scheme == 1 else None
                 if idata is None:
                     raise MissingDataError("cd_draws() needs the Scheme 1 posterior: fit with mcmc=True (the default)")
                 self._cache["cd_draws"] = np.asarray(idata["posterior"]["cd"], dtype=np.float64)
