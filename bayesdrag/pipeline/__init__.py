@@ -10,6 +10,7 @@ diagnosis from here.
 from __future__ import annotations
 
 import functools
+import sys
 import time
 import warnings as py_warnings
 from typing import Any, Callable
@@ -42,7 +43,7 @@ __all__ = ["fit", "diagnose", "summary_line"]
 
 
 def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, chain_path: Any = None,
-        resume: bool = False, log: Callable[[str], None] | None = None, progress: bool = False,
+        resume: bool = False, log: Callable[[str], None] | None = None, progress: bool | None = None,
         ml_progress: Callable[[str], None] | None = None, **kwargs: Any) -> FitResult:
     """Estimate Cd(M) from a track.
 
@@ -60,8 +61,10 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
         Continue the unfinished chain in ``chain_path``.
     log : callable, optional
         ``log(str)`` receives status lines of long work (the sampler's progress).
-    progress : bool
-        Show a progress bar on stderr while sampling.
+    progress : bool or None
+        Show a progress bar (tqdm: a widget in a notebook, a line on stderr in a terminal) while
+        sampling. None (default): when someone is watching, i.e. stderr is a terminal or the code
+        runs in a Jupyter kernel; ``False`` never.
     ml_progress : callable, optional
         ``ml_progress(step)`` receives the step the maximum-likelihood fit is at
         (:class:`~bayesdrag.commands.runs.StageProgress` prints it when the fit is slow); its
@@ -88,6 +91,7 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
     """
     with single_blas():   # the kernel's threads use the cores, not BLAS's
         t_start = time.perf_counter()
+        progress = watched() if progress is None else bool(progress)
         track = thin_for_fit(track)           # a very dense track: every k-th sample, with a note
         opts = options if options is not None else FitOptions()
         if kwargs:
@@ -104,6 +108,17 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
             return _emitted(_fit_scheme2(track, rnd, opts, chans, log, t_start))
         return _emitted(_fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
                                      notes=(site_note,) if site_note else ()))
+
+
+def watched():
+    """Whether someone watches this process: its stderr is a terminal, or it runs in a Jupyter
+    kernel (where tqdm draws a widget)."""
+    try:
+        if sys.stderr is not None and sys.stderr.isatty():
+            return True
+    except (AttributeError, ValueError):      # a closed or replaced stderr
+        pass
+    return "ipykernel" in sys.modules
 
 
 def _emitted(result):

@@ -60,3 +60,26 @@ def test_an_unconverged_posterior_is_not_ranked_silently(demo, tmp_path):
     assert "log_likelihood" not in written.groups() and "posterior" in written.groups()
     lo, hi = back.band(0.9, kind="posterior")                 # the draws themselves are still there
     assert np.all(lo <= hi)
+
+
+def test_progress_is_shown_when_someone_watches(monkeypatch):
+    """``bayesdrag.fit(progress=None)``: a bar when stderr is a terminal or in a Jupyter kernel."""
+    import sys
+
+    from bayesdrag.pipeline import watched
+
+    class Tty:
+        def isatty(self):
+            return True
+
+    class Pipe:
+        def isatty(self):
+            return False
+
+    monkeypatch.setattr(sys, "stderr", Tty())
+    assert watched()
+    monkeypatch.setattr(sys, "stderr", Pipe())
+    monkeypatch.delitem(sys.modules, "ipykernel", raising=False)
+    assert not watched()
+    monkeypatch.setitem(sys.modules, "ipykernel", object())
+    assert watched()
