@@ -1,5 +1,7 @@
-"""The wind a diagnosis found (``diagnosis_wind.png``): the verdict's wind against height or
-downrange distance, each layer's wx and wy with +-1 sd, from ``diagnosis.json`` alone."""
+"""The wind a diagnosis found (``diagnosis_wind.png``, from ``diagnosis.json`` alone) and the wind
+a fit found and fitted (``wind.png``, from ``result.json``'s ``ml.with_effects.wind_layers``, beside
+the met file's wind when the round has one): each layer's wx and wy with +-1 sd against height or
+downrange distance."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +9,7 @@ import numpy as np
 from .common import new_axes
 from ..effects import WIND, WIND_PROFILE
 
-__all__ = ["plot_found_wind", "wind_layer_table"]
+__all__ = ["plot_found_wind", "plot_fitted_wind", "wind_layer_table"]
 
 
 def wind_layer_table(s):
@@ -76,6 +78,56 @@ def plot_found_wind(s, ax=None):
         ax.set(xlabel="wind [m/s] (constant)", yticks=[], title="wind found (constant)")
         ax.legend(fontsize="small")
         return ax
+    _draw_layers(ax, table, axis, "wind found")
+    return ax
+
+
+def plot_fitted_wind(wind_layers, met=None, ax=None):
+    """The layers of wind a fit found and fitted (``ml.with_effects.wind_layers`` of
+    ``result.json``): wx and wy of each layer with +-1 sd (the sd the fit stands by), and the met
+    file's wind dashed beside them when the round has one. The layers are fitted beyond the
+    round's own wind, so with a met file each is drawn as the met's mean over the layer plus what
+    the fit found there: the wind the shell flew through.
+
+    Parameters
+    ----------
+    wind_layers : dict
+        ``axis``, ``layers`` (``from``, ``to``, ``wx``, ``wx_sd``, ``wy``, ``wy_sd``) [m, m/s].
+    met : (altitudes (n,), wx (n,), wy (n,)) arrays, optional
+        The round's met profile's wind [m above sea level, m/s] (drawn for a wind by height).
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    ax = new_axes(ax, (6, 4.5))
+    table = [{"layer": k + 1, "from": r["from"], "to": r["to"], "wx": r["wx"], "sd_wx": r.get("wx_sd"),
+              "wy": r["wy"], "sd_wy": r.get("wy_sd")} for k, r in enumerate(wind_layers.get("layers") or [])]
+    if not table:
+        ax.set(title="no layers of wind fitted")
+        ax.set_axis_off()
+        return ax
+    axis = wind_layers.get("axis")
+    title = "wind found and fitted"
+    if met is not None and axis == "altitude":
+        z, wx, wy = (np.asarray(a, float) for a in met)
+        top = float(table[-1]["to"])
+        keep = z <= top + 0.25 * (top - float(table[0]["from"]))
+        ax.plot(wx[keep], z[keep], color="C0", ls="--", lw=1.2, label="wx, met file")
+        ax.plot(wy[keep], z[keep], color="C1", ls="--", lw=1.2, label="wy, met file")
+        for r in table:        # the met's mean over the layer plus the fitted departure
+            hs = np.linspace(float(r["from"]), float(r["to"]), 21)
+            r["wx"] = r["wx"] + float(np.mean(np.interp(hs, z, wx)))
+            r["wy"] = r["wy"] + float(np.mean(np.interp(hs, z, wy)))
+        title = "met file + the wind fitted beyond it"
+    _draw_layers(ax, table, axis, title)
+    return ax
+
+
+def _draw_layers(ax, table, axis, title):
+    """Steps of each layer's wx and wy with +-1 sd shaded, against height (vertical axis, as met
+    profiles are drawn) or downrange distance, on ``ax``."""
     edges = np.array([table[0]["from"]] + [r["to"] for r in table], float)
     for key, c in (("wx", "C0"), ("wy", "C1")):
         v = np.array([r[key] if r[key] is not None else np.nan for r in table], float)
@@ -91,10 +143,9 @@ def plot_found_wind(s, ax=None):
             ax.plot(pos, vs, color=c, label=label)
     if axis == "altitude":
         ax.axvline(0.0, color="0.5", lw=0.8)
-        ax.set(xlabel="wind [m/s]", ylabel="height above sea level [m]", title="wind found, by height (+-1 sd)")
+        ax.set(xlabel="wind [m/s]", ylabel="height above sea level [m]", title=f"{title}, by height (+-1 sd)")
     else:
         ax.axhline(0.0, color="0.5", lw=0.8)
-        ax.set(xlabel="downrange distance [m]", ylabel="wind [m/s]", title="wind found, by downrange distance (+-1 sd)")
+        ax.set(xlabel="downrange distance [m]", ylabel="wind [m/s]", title=f"{title}, by downrange distance (+-1 sd)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    return ax

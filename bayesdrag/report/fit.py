@@ -15,6 +15,7 @@ from ..results.words import determined_words, effect_lines
 from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
                         plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
+from ..plots.wind import plot_fitted_wind
 from ..plots.common import channel_scale
 from ..plots.residuals import plot_residuals, plot_residuals_acf
 from .render import figure_png, png_base64, render_report, rendered_elsewhere, versions
@@ -84,6 +85,20 @@ def budget_figure(result, ax=None):
         raise MissingDataError("plot_budget draws result.json's uncertainty_budget, and this result has none")
     cd = [r["ml"] for r in _rows(result)] if result.record["scheme"] == 1 else None
     return plot_uncertainty_budget(budget, ax=ax, cd=cd)
+
+
+def wind_figure(result, ax=None):
+    """``wind.png``: the layers of wind the fit found and fitted (``ml.with_effects.wind_layers``)
+    beside the round's met file's wind (a fit of this process). Returns the Axes."""
+    layers = ((result.record.get("ml") or {}).get("with_effects") or {}).get("wind_layers")
+    if not layers:
+        raise MissingDataError("plot_wind draws the layers of wind the fit added (ml.with_effects.wind_layers), "
+                               "and this fit added none")
+    wind = getattr(result.round.atmosphere, "wind", None) if result.round is not None else None
+    met = None
+    if wind is not None and getattr(wind, "axis", None) == "altitude":
+        met = (np.asarray(wind.levels, float), np.asarray(wind.wind_x, float), np.asarray(wind.wind_y, float))
+    return plot_fitted_wind(layers, met=met, ax=ax)
 
 
 def residuals_figure(result, fig=None):
@@ -172,6 +187,11 @@ def fit_figure_specs(result):
                        "model_error = the Cd shift the remaining misfit implies; the total is the band the cd rows "
                        "report; dash-dot the model-error floor where the residuals show model error.",
                        lambda: budget_figure(result).figure, None)]
+    if ((result.record.get("ml") or {}).get("with_effects") or {}).get("wind_layers"):
+        budget_fig = [("wind.png", "Wind found and fitted", "The layers of wind the fit carries beside Cd, each "
+                       "with its wx (along the line of fire, tail wind +) and wy (to the right) and +-1 sd (the sd "
+                       "the fit stands by); dashed, the met file's wind when the round has one.",
+                       lambda: wind_figure(result).figure, None)] + budget_fig
     if result.posterior is None:
         return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the "
                  "Cramér-Rao sd, or the colored-residual sd where the residuals show model error) and the reference.",

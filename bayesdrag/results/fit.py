@@ -410,6 +410,13 @@ class FitResult:
 
         return budget_figure(self, ax=ax)
 
+    def plot_wind(self, ax: Axes | None = None) -> Axes:
+        """The layers of wind the fit found and fitted, with +-1 sd, beside the met file's wind
+        (``wind.png``; a fit that added a wind profile)."""
+        from ..report.fit import wind_figure
+
+        return wind_figure(self, ax=ax)
+
     def plot_residuals(self, fig: Figure | None = None) -> Figure:
         """Residuals with their noise band (``residuals.png``; after sampling also their
         autocorrelation). Needs the fit's objects (not a loaded result)."""

@@ -97,7 +97,7 @@ def effect_lines(with_effects: dict[str, Any] | None) -> list:
         if e is not None and "wind_layers" in e.needs and layers.get("layers"):
             where = "height" if layers.get("axis") == "altitude" else "downrange distance"
             out.append(f"{how}: {name} ({label}), {len(layers['layers'])} layers by {where} "
-                       f"[{layers.get('edges_unit', 'm')}]:")
+                       f"[{layers.get('edges_unit', 'm')}], the wind beyond the round's own:")
             out += [f"  {lay['from']:.0f}-{lay['to']:.0f}: wx {lay['wx']:+.1f} ± {lay['wx_sd']:.1f} m/s, "
                     f"wy {lay['wy']:+.1f} ± {lay['wy_sd']:.1f} m/s" for lay in layers["layers"]]
             continue

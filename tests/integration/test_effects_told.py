@@ -63,3 +63,24 @@ def test_the_wind_found_is_said_on_the_console_the_report_and_summary(fitted, ca
     assert "Beside Cd the fit carries what the track shows" in html and "wind_profile" in html
     text = str(load_result(out).summary())
     assert re.search(r"effects fitted:\s+below the table", text) and head.group(0) in text
+
+
+def test_the_wind_figure_shows_the_layers_beside_the_met(tmp_path):
+    """``res.plot_wind()`` and the report's wind.png: the fitted layers with their bands, and the
+    met message's wind dashed beside them (the wind given as a METCM, the layers fitted as its
+    declared doubt)."""
+    import bayesdrag
+
+    t, pos, v, _, _ = M.fly(_growing, 0.0, qe=QE, dt=DT)
+    M.write_track(tmp_path, t, pos, v, np.random.default_rng(12))
+    profile = M.write_metcm(tmp_path, _growing, 0.0)
+    rnd = bayesdrag.read_round(M.write_round(tmp_path, profile, qe=QE))
+    res = bayesdrag.fit(bayesdrag.read_track(tmp_path / "track.csv"), rnd, mcmc=False)
+    layers = res.record["ml"]["with_effects"]["wind_layers"]["layers"]
+    ax = res.plot_wind()
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert {"wx, met file", "wy, met file", "wx (tail +)", "wy (toward +y, right)"} <= set(labels)
+    lo, hi = ax.get_ylim()
+    assert lo <= layers[0]["from"] and hi >= layers[-1]["to"]           # every layer drawn
+    res.write(tmp_path / "out")
+    assert (tmp_path / "out" / "report.html").read_text().count("Wind found and fitted") >= 1
