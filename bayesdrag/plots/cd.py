@@ -11,7 +11,8 @@ from .common import MARGINS, new_axes
 #: figure does not import scipy.stats)
 _NORMAL = statistics.NormalDist()
 
-__all__ = ['plot_drag_curve', 'plot_cd_ml', 'plot_cd_posterior', 'plot_cd_posterior_relative', 'plot_cd_relative', 'plot_windows']
+__all__ = ['plot_drag_curve', 'plot_cd_ml', 'plot_cd_ml_relative', 'plot_cd_posterior', 'plot_cd_posterior_relative',
+           'plot_cd_relative', 'plot_windows']
 
 
 def plot_drag_curve(mach, cd, ax=None, label=None, **kw):
@@ -65,6 +66,47 @@ def plot_cd_ml(rows, ax=None, label="ML", band=0.90):
     if all(v is not None for v in ref):
         ax.plot(m, ref, "k--", label="reference (firing table)")
     ax.set(xlabel="Mach", ylabel="Cd", title="drag coefficient")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_cd_ml_relative(rows, ax=None, label="ML", band=0.90):
+    """Cd(M) of an ML fit in percent of the reference curve (of the ML curve itself without a
+    reference), with its band: at a radar track's precision (Cd to ~0.1 %) the band is invisible
+    on :func:`plot_cd_ml`; here it is not. Rows not determined are shaded grey.
+
+    Parameters
+    ----------
+    rows : list of dict
+        ``result.json`` ``cd`` rows (mach, ml, band_sd or crb_sd, determined, reference).
+    ax : matplotlib Axes, optional
+    band : float
+        Central probability of the band (``ml`` +- z ``band_sd``).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = new_axes(ax, (7, 3.6), MARGINS)
+    m = np.array([r["mach"] for r in rows])
+    cd = np.array([r["ml"] for r in rows], float)
+    sd = np.array([r["band_sd"] if r.get("band_sd") is not None else r["crb_sd"] for r in rows], float)
+    ref = np.array([np.nan if r.get("reference") is None else r["reference"] for r in rows], float)
+    has_ref = bool(np.all(np.isfinite(ref)) and np.all(ref > 0))
+    base = ref if has_ref else cd
+    k = _NORMAL.inv_cdf(0.5 + band / 2)
+    pct = lambda v: 100 * (np.asarray(v, float) / base - 1)  # noqa: E731
+    ax.fill_between(m, pct(cd - k * sd), pct(cd + k * sd), alpha=0.3, lw=0, label=f"{band:.0%} band")
+    ax.plot(m, pct(cd), label=label)
+    ax.axhline(0, color="k", ls="--", lw=1, label="reference (firing table)" if has_ref else None)
+    off = ~np.array([bool(r.get("determined")) for r in rows])
+    if off.any():
+        lo, hi = ax.get_ylim()
+        ax.fill_between(m, lo, hi, where=off, color="0.85", zorder=0, lw=0, label="not determined")
+        ax.set_ylim(lo, hi)
+    ax.set(xlabel="Mach", ylabel="Cd vs the table [%]" if has_ref else "band around Cd [% of Cd]",
+           title="drag coefficient relative to the table" if has_ref else "the band of Cd, relative")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
     return ax
@@ -255,7 +297,9 @@ def plot_uncertainty_budget(budget, ax=None, cd=None):
     m = np.asarray(budget["mach"], float)
     scale = 100.0 / np.asarray(cd, float) if cd is not None else 1.0
     unit = " [% of Cd]" if cd is not None else ""
-    ax.plot(m, np.asarray(budget["total_sd"]) * scale, color="k", lw=1.8, label="total (the band the rows report)")
+    # on top of the sources: where one source is the whole band, the total must not hide under it
+    ax.plot(m, np.asarray(budget["total_sd"]) * scale, color="k", lw=1.8, ls=(0, (5, 2)), zorder=4,
+            label="total (the band the rows report)")
     for i, (k, v) in enumerate(budget["by_source"].items()):
         if k == "cross":
             continue

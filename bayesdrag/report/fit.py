@@ -12,7 +12,7 @@ from .._runtime.garbage import paused_gc
 from ..errors import MissingDataError
 from ..io.outputs import OutputRun, atomic_write, ensure_space, write_bytes, write_json
 from ..results.words import determined_words, effect_lines
-from ..plots.cd import (plot_cd_ml, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
+from ..plots.cd import (plot_cd_ml, plot_cd_ml_relative, plot_cd_posterior, plot_cd_posterior_relative, plot_cd_relative,
                         plot_uncertainty_budget, plot_windows)
 from ..plots.mcmc import plot_corner, plot_traces
 from ..plots.wind import plot_fitted_wind
@@ -64,7 +64,10 @@ def _need_sampled(result, what):
 
 def cd_relative_figure(result, ax=None):
     """``cd_relative.png``: the posterior bands in percent of the reference curve (Scheme 1,
-    sampled, with a reference drag). Returns the Axes."""
+    sampled, with a reference drag); after an ML fit, its curve and band in percent of the
+    reference (of the curve itself without one). Returns the Axes."""
+    if result.record["scheme"] == 1 and not result.sampled:
+        return plot_cd_ml_relative(_rows(result), ax=ax, label=f"ML ({result.record['drag_model']})")
     _need_sampled(result, "plot_cd_relative")
     if not all(r.get("reference") for r in _rows(result)):
         raise MissingDataError("plot_cd_relative draws the Cd relative to the reference drag, and the round has none")
@@ -196,6 +199,9 @@ def fit_figure_specs(result):
         return [("cd.png", "Cd(M), maximum likelihood", "ML curve with its 90 % band (each row's band sd: the "
                  "Cramér-Rao sd, or the colored-residual sd where the residuals show model error) and the reference.",
                  lambda: cd_figure(result).figure, None),
+                ("cd_relative.png", "Cd(M) relative", "The same curve and band in percent of the reference (of the "
+                 "curve itself without one), where a band of 0.1 % is visible; rows not determined shaded.",
+                 lambda: cd_relative_figure(result).figure, None),
                 ("residuals.png", "Residuals", "Measured minus fitted with ±σ bands.",
                  lambda: residuals_figure(result), None)] + budget_fig
     figs = [("cd.png", "Cd(M) posterior", "Posterior median with the 50 % and 90 % bands the cd rows report "

@@ -392,8 +392,9 @@ class FitResult:
         return cd_figure(self, ax=ax)
 
     def plot_cd_relative(self, ax: Axes | None = None) -> Axes:
-        """The posterior bands in percent of the reference curve (``cd_relative.png``; after
-        sampling, with a reference drag)."""
+        """Cd in percent of the reference curve (``cd_relative.png``): after sampling the
+        posterior bands (with a reference drag); after an ML fit its curve and band (relative to
+        the curve itself without a reference), where a 0.1 % band is visible."""
         from ..report.fit import cd_relative_figure
 
         return cd_relative_figure(self, ax=ax)
