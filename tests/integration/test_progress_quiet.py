@@ -95,11 +95,12 @@ def test_sampler_progress_counts_toward_convergence(folder, tmp_path, capsys):
     lines = [e for e in err if e.startswith("mcmc: ")]
     assert lines, err
     for ln in lines:
-        m = re.match(r"mcmc: (\d+) of ~(\d+) steps", ln)
+        m = re.match(r"mcmc: (\d+) of (at least )?~(\d+) steps", ln)
         assert m, ln
-        done, target = int(m.group(1)), int(m.group(2))
+        done, target = int(m.group(1)), int(m.group(3))
         assert done <= target < MAX_STEPS / 10, ln
         assert target <= 4 * steps, (ln, steps)
+    assert lines[0].startswith("mcmc: 100 of at least ~"), lines[0]     # the first tau is a lower bound
 
 
 def test_steps_to_converge_is_the_tau_target():

@@ -307,8 +307,10 @@ def _run(sampler, state, post, backend, done, max_steps, min_steps, check_every,
             target = steps_to_converge(done, tmax, sampler.nwalkers, check_every, max_steps)
             if bar is not None:
                 bar.total = target
-                bar.refresh()
-            msg = (f"mcmc: {done} of ~{target} steps (the convergence target: {TAU_FACTOR:g} tau and ESS "
+                bar.set_description("mcmc (to convergence)" if stable else "mcmc (to convergence, at least)")
+            # a short chain's tau is a lower bound until two checks agree: so is the target then
+            msg = (f"mcmc: {done} of {'~' if stable else 'at least ~'}{target} steps (the convergence target: "
+                   f"{TAU_FACTOR:g} tau and ESS "
                    f">= {ESS_MIN:g}), tau max {tmax:.1f}, acceptance {np.mean(sampler.acceptance_fraction):.2f}")
             if done >= TAU_FACTOR * tmax and stable and np.isfinite(tmax):
                 draws, burn, _ = _retained(sampler, tau)
