@@ -10,6 +10,11 @@
   (``benchmarks/reference_posterior_demo.json``, taken before issue 17's changes);
   ``--save-reference FILE`` stores this run's.
 
+``--check`` runs only :mod:`check_cost` (``benchmarks/check_cost.py``): the default fit's
+``(total - ml) / ml`` from ``result.json`` ``timing`` on the demo and six tracks of a tracking
+radar (another shell's table, no table, an undeclared wind growing with height, the same wind as a
+METCM with and without ``wind_sd``), the ratios issue 45 asks for.
+
 The older synthetic-track timings (keys ``ml_*``, ``bayes_reference-scale`` and, without
 ``--quick``, ``synthetic_bayes_spline``):
 
@@ -389,7 +394,14 @@ def main(argv=None):
     ap.add_argument("--reference", type=Path, default=None,
                     help="compare the demo posterior with this stored run (reference_posterior_demo.json)")
     ap.add_argument("--save-reference", type=Path, default=None, help="store the demo posterior here")
+    ap.add_argument("--check", action="store_true",
+                    help="only the model check's cost beside the ML fit on the demo and six tracks "
+                         "(benchmarks/check_cost.py; issue 45's ratios)")
     a = ap.parse_args(argv)
+    if a.check:
+        import check_cost
+
+        return check_cost.main([])
     warnings.simplefilter("ignore")
     load = os.getloadavg()[0]
     out = {"load_average_1min": load, "cpus": os.cpu_count()}

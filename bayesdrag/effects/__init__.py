@@ -117,7 +117,7 @@ from .flight import CORIOLIS, K_YAW, LIFT, WIND, WIND_PROFILE, YAW_AMP_MAX, YAW_
 from .inputs import ExtraParam, SimInputs
 from .library import EFFECTS, air_effects, air_state_effects, drag_level_effects, spanning_effects, confounded_with_cd, cross_range_effects, drag_along_the_flight, \
     effect_sources, effects_where, get_effect, not_alternatives, partly_trading_with_cd, registered, \
-    simulate_with_effects, wind_effects
+    param_unit, simulate_with_effects, wind_effects
 from .radar import ANGLE_BIAS_MAX, AZIMUTH_BIAS, ELEVATION_BIAS, RADAR_EFFECT_CHANNELS, RADAR_POSITION, RADAR_TIME, \
     RANGE_BIAS, RANGE_BIAS_MAX, SITE_ERRORS, SITE_OFFSET_MAX, SITE_SEEN_FRACTION, check_radar_effects, \
     radar_effect_missing
@@ -133,7 +133,7 @@ __all__ = [
     # the library and its queries
     "EFFECTS", "registered", "get_effect", "effects_where", "confounded_with_cd", "partly_trading_with_cd",
     "air_effects", "wind_effects", "drag_along_the_flight", "not_alternatives", "cross_range_effects",
-    "effect_sources", "simulate_with_effects", "drag_level_effects", "air_state_effects", "spanning_effects",
+    "effect_sources", "simulate_with_effects", "param_unit", "drag_level_effects", "air_state_effects", "spanning_effects",
     # the effects by concept
     "WIND", "TEMPERATURE", "DENSITY", "CORIOLIS", "YAW_DRAG", "LIFT", "RADAR_TIME", "DRAG_SCALE", "WIND_PROFILE",
     "DRAG_SHAPE", "RANGE_BIAS", "AZIMUTH_BIAS", "ELEVATION_BIAS", "RADAR_POSITION",

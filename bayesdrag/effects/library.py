@@ -130,6 +130,16 @@ def get_effect(name):
         raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECTS)}") from None
 
 
+def param_unit(name):
+    """The unit of a fitted parameter called ``<effect>.<param>`` (``"rad"`` for
+    ``azimuth_bias.bias``), or ``""`` for any other name (a drag coefficient, the initial state)."""
+    stem, _, param = str(name).partition(".")
+    e = EFFECTS.get(stem)
+    if e is None:
+        return ""
+    return next((u for p, u in zip(e.params, e.units) if p.name == param), "")
+
+
 def simulate_with_effects(model, drag_params, state0, t_out, effects=(), values=(), ctx=None,
                           t_start=0.0):
     """One trajectory with effects switched on (the forward model the diagnosis fits).

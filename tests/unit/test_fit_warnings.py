@@ -144,3 +144,16 @@ def test_the_console_prints_what_matters_and_counts_the_rest(tmp_path, capsys):
     assert "technical notes (strong correlations" in html and "strongly correlated" in html
     assert main(["fit", *args, "-o", str(tmp_path / "b"), "--verbose"]) == 0
     assert "bayesdrag: warning: parameters a0 and a1 are strongly correlated" in capsys.readouterr().err
+
+
+def test_angles_in_warnings_are_in_degrees():
+    """A fitted angle (a radar's azimuth bias, a launch yaw) is said in degrees, as the round gives
+    angles; other parameters as fitted (issue 47, item 3)."""
+    from bayesdrag.effects import param_unit
+    from bayesdrag.estimate.model.ml import _angle_scale
+
+    assert param_unit("azimuth_bias.bias") == "rad" and param_unit("range_bias.bias") == "m"
+    assert param_unit("c3") == "" and param_unit("Ux0") == ""
+    k, unit = _angle_scale("elevation_bias.bias")
+    assert unit == " deg" and abs(k * 0.001 - 0.0572958) < 1e-6          # 1 mrad = 0.0573 deg
+    assert _angle_scale("lift.factor") == (1.0, "")

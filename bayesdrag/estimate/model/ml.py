@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layout import ParameterLayout
+from ...effects import param_unit
 from ...errors import FitError, FitWarning
 from .filters import autocovariance_window, convolve_same
 from .noise_spread import noise_covariance
@@ -379,6 +380,12 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
                    spread=held is not None)
 
 
+def _angle_scale(name):
+    """(factor, unit) a parameter is shown in: an angle in degrees, as the round gives angles
+    (``azimuth_bias.bias`` is fitted in radians); other parameters as fitted, no unit."""
+    return (180.0 / math.pi, " deg") if param_unit(name) == "rad" else (1.0, "")
+
+
 def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, message, it, history, spread=False):
     idx = np.flatnonzero(problem.free)
     n = theta.size
@@ -452,11 +459,14 @@ def _finish(problem, theta, y, mach, S, resid, sigma, ar, cost, converged, messa
         name = problem.names[j]
         span = problem.upper[j] - problem.lower[j]
         if np.isfinite(span) and (theta[j] - problem.lower[j] < 1e-6 * span or problem.upper[j] - theta[j] < 1e-6 * span):
-            warnings.append(FitWarning("at_bound", f"parameter {name} = {theta[j]:.6g} is at its bound "
-                                                   f"[{problem.lower[j]:.4g}, {problem.upper[j]:.4g}]", (name,)))
+            k, u = _angle_scale(name)
+            warnings.append(FitWarning("at_bound", f"parameter {name} = {theta[j] * k:.6g}{u} is at its bound "
+                                                   f"[{problem.lower[j] * k:.4g}, {problem.upper[j] * k:.4g}]{u}",
+                                       (name,)))
         if j < problem.P and crb[j] > abs(theta[j]) and theta[j] != 0:
-            warnings.append(FitWarning("sd_exceeds_value", f"parameter {name}: Cramér-Rao sd {crb[j]:.3g} exceeds its "
-                                                           f"value {theta[j]:.3g}", (name,)))
+            k, u = _angle_scale(name)
+            warnings.append(FitWarning("sd_exceeds_value", f"parameter {name}: Cramér-Rao sd {crb[j] * k:.3g}{u} "
+                                                           f"exceeds its value {theta[j] * k:.3g}{u}", (name,)))
     corr = cov / np.where(np.outer(crb, crb) > 0, np.outer(crb, crb), 1.0)
     iu = np.triu_indices(n, 1)
     hit = np.flatnonzero(np.abs(corr[iu]) > 0.98)[:5]      # in the order of the pairs, as listed below
