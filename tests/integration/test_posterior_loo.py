@@ -18,10 +18,12 @@ BAD_K_SHARE = 0.01
 
 
 @pytest.fixture(scope="module")
-def demo():
-    from bayesdrag.commands.demo import demo_inputs
+def demo(tmp_path_factory):
+    """A 155 mm flight of the independent integrator (tests/fixtures/met_flight.py), calm ICAO
+    air, the M101 table."""
+    from fixtures import met_flight as M
 
-    tp, rp = demo_inputs()
+    tp, rp = M.write_icao_case(tmp_path_factory.mktemp("loo"), seed=6)
     return bayesdrag.read_track(tp), bayesdrag.read_round(rp)
 
 

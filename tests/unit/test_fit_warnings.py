@@ -94,7 +94,7 @@ def test_fit_emits_its_warnings(demo_track_and_round):
     track, rnd = demo_track_and_round
     # a quadratic Cd over the whole flight: it misses the track, and its coefficients correlate
     with pytest.warns(BayesdragWarning) as got:
-        res = bayesdrag.fit(track.subset(range(0, track.n, 4)), rnd, mcmc=False, drag="poly2", model_check=False)
+        res = bayesdrag.fit(track, rnd, mcmc=False, drag="poly2", model_check=False)
     assert res.warnings, "this fit should warn"
     emitted = [str(w.message) for w in got if issubclass(w.category, BayesdragWarning)]
     kinds = {w.kind for w in res.warnings}
@@ -112,28 +112,30 @@ def test_a_user_can_silence_them(demo_track_and_round):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warnings.filterwarnings("ignore", category=BayesdragWarning)
-        res = bayesdrag.fit(track.subset(range(0, track.n, 4)), rnd, mcmc=False, drag="poly2", model_check=False)
+        res = bayesdrag.fit(track, rnd, mcmc=False, drag="poly2", model_check=False)
     assert res.warnings      # silenced, not lost
 
 
 @pytest.fixture(scope="module")
-def demo_track_and_round():
-    from bayesdrag.commands.demo import demo_inputs
+def flight(tmp_path_factory):
+    """A 155 mm flight of the independent integrator (tests/fixtures/met_flight.py), calm ICAO
+    air, the M101 table: (track path, round path)."""
+    from fixtures import met_flight as M
 
-    tp, rp = demo_inputs()
-    return bayesdrag.read_track(tp), bayesdrag.read_round(rp)
+    return M.write_icao_case(tmp_path_factory.mktemp("flight"), seed=4)
 
 
-def test_the_console_prints_what_matters_and_counts_the_rest(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def demo_track_and_round(flight):
+    return bayesdrag.read_track(flight[0]), bayesdrag.read_round(flight[1])
+
+
+def test_the_console_prints_what_matters_and_counts_the_rest(flight, tmp_path, capsys):
     """``bayesdrag fit``: the misfit is printed, the strong correlations are counted in one note
     (result.json keeps them); ``--verbose`` prints them; the report lists them apart."""
-    from importlib.resources import files
-
     from bayesdrag.cli import main
 
-    data = files("bayesdrag") / "data"
-    args = [str(data / "demo_track.csv"), str(data / "demo_round.toml"), "--no-mcmc", "--drag", "poly2",
-            "--no-model-check"]
+    args = [str(flight[0]), str(flight[1]), "--no-mcmc", "--drag", "poly2", "--no-model-check"]
     assert main(["fit", *args, "-o", str(tmp_path / "a")]) == 0
     err = capsys.readouterr().err
     assert "bayesdrag: warning: channel" in err and "strongly correlated" not in err

@@ -14,10 +14,11 @@ VISIBLE_SHARE = 0.02
 
 
 @pytest.fixture(scope="module")
-def ml_fit():
-    from bayesdrag.commands.demo import demo_inputs
+def ml_fit(tmp_path_factory):
+    """An ML fit of a 155 mm flight of the independent integrator (tests/fixtures/met_flight.py)."""
+    from fixtures import met_flight as M
 
-    tp, rp = demo_inputs()
+    tp, rp = M.write_icao_case(tmp_path_factory.mktemp("figures"), seed=8)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return bayesdrag.fit(bayesdrag.read_track(tp), bayesdrag.read_round(rp), mcmc=False, model_check=False)

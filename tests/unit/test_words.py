@@ -21,10 +21,10 @@ def test_the_range_names_its_holes():
 def test_console_summary_and_report_say_the_same(tmp_path):
     """One fit's determined range in the console line, summary() and the report, in the same words."""
     import bayesdrag
-    from bayesdrag.commands.demo import demo_inputs
     from bayesdrag.pipeline import summary_line
+    from fixtures import met_flight as M
 
-    tp, rp = demo_inputs()
+    tp, rp = M.write_icao_case(tmp_path, seed=9)          # the independent integrator's flight
     res = bayesdrag.fit(bayesdrag.read_track(tp), bayesdrag.read_round(rp), mcmc=False, model_check=False)
     ml = res.record["ml"]
     words = determined_words(ml["mach_range_determined"], ml["quality"].get("undetermined", []))
