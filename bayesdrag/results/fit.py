@@ -669,7 +669,9 @@ def _posterior_limits(record: dict[str, Any], folder: Path) -> Hdf5Limits:
         w, s = mc["walkers"], mc["steps"]
         q = len(ml.get("params") or {}) + len(ml.get("fixed") or []) + EXTRA_PARAMETERS
         o = _observations([ml.get("quality")])
-        values = (w * s * (m_rows + q + 1) + (w * PREDICTIVE_DRAWS + max(LOG_LIKELIHOOD_DRAWS, w)) * (m_rows + o)
+        # an unconverged posterior is written without its log-likelihood draws
+        ll_draws = LOG_LIKELIHOOD_DRAWS if mc.get("converged") is not False else 0
+        values = (w * s * (m_rows + q + 1) + (w * PREDICTIVE_DRAWS + max(ll_draws, w)) * (m_rows + o)
                   + CONSTANT_COPIES * (m_rows + q + o) + w + s)
     else:
         windows = record.get("windows") or []

@@ -61,8 +61,17 @@ def _check_pointwise_log_likelihood_uses_each_draws_ar(res):
     from bayesdrag.estimate.model import colored
     from bayesdrag.estimate.bayes.inference import LOG_LIKELIHOOD_VAR
 
+    import xarray as xr
+
+    from bayesdrag.estimate.bayes.posterior_groups import log_likelihood_group
+    from bayesdrag.results import LOG_LIKELIHOOD_DRAWS
+
     b, post = res.posterior, res.log_posterior
-    ll = res.to_inference_data().log_likelihood[LOG_LIKELIHOOD_VAR]
+    # the group as the file writes it (built directly: this short chain need not have converged,
+    # and an unconverged posterior is written without it)
+    g = log_likelihood_group(b, post, LOG_LIKELIHOOD_DRAWS)
+    dims, values = g.data_vars[LOG_LIKELIHOOD_VAR]
+    ll = xr.DataArray(values, dims=dims, coords={k: v[1] for k, v in g.coords.items() if v[0] == (k,)})
     for chain, k in ((0, 0), (5, ll.sizes["draw"] - 1)):
         draw = int(ll["draw"][k])
         d = b.draws[chain, draw]
