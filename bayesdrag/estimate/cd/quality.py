@@ -379,7 +379,7 @@ def assess(fit1, rows, track, sigma_given=None):
         "mach_range_data": [lo, hi],
         "undetermined": undetermined,
         "clamped": intervals(mach, clamped),
-        "at_bounds": bound_names + [w.split()[1] for w in ic_bound],
+        "at_bounds": bound_names + [p for w in ic_bound for p in w.params],
         "smoothing_at_grid_end": sm.get("at_grid_end") if sm else None,
         "launch": lc or None,
         "start": ({"mach_span": list(start.mach_span), "notes": list(start.notes)} if start is not None else None),
