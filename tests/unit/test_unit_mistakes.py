@@ -135,3 +135,18 @@ def test_native_track_in_feet_names_range_and_range_rate():
     kin = smooth_kinematics(RadarTrack(t, {"x": x / FT, "z": z / FT, "v": np.hypot(vx, vz) / FT}))
     with pytest.raises(InputError, match=r"range and range_rate look like feet and ft/s"):
         check_gravity_units(kin, "native.csv", channels=tuple(track.channels))
+
+
+@pytest.mark.parametrize("dist", ["zeros", "nan"])
+def test_labradar_without_a_recorded_distance_is_read(tmp_path, dist):
+    """A distance column the device left flat (or 'nan') says nothing about units: read, not refused."""
+    t, v, x = _flight(SUBSONIC_V0)
+    p = _labradar(tmp_path, v / FT, np.zeros_like(x), t, "fps", "m")
+    if dist == "nan":
+        p.write_text(p.read_text().replace(";0.000;", ";nan;"))
+    try:
+        tr = bayesdrag.read_track(p)
+    except InputError as exc:          # a 'nan' distance may be refused as not a number, never as a unit
+        assert "units look wrong" not in str(exc), exc
+        return
+    assert tr.channels["range_rate"][0] == pytest.approx(v[0], rel=1e-4)

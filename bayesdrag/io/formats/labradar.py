@@ -244,8 +244,8 @@ def _check_distance_rate(path, t, v, dist, units):
     likely mistake: a column in another unit than its header says (``Dist (m)`` holding km,
     ``Vel (m/s)`` holding ft/s). The device's distance is the integral of its velocity, so the two
     agree to 0.2 % on real tracks; the unit mistake is found by trying each unit for each column."""
-    if dist is None or t.size < 4:
-        return
+    if dist is None or t.size < 4 or not np.all(np.isfinite(dist)) or not np.ptp(dist) > 0:
+        return            # no distance recorded (a flat or missing column): nothing to check, and it is unused
     k = max(1, t.size // 10)
     dt = t[k:] - t[:-k]
     vm = 0.5 * (v[k:] + v[:-k])
@@ -253,8 +253,8 @@ def _check_distance_rate(path, t, v, dist, units):
     if ok.sum() < 2:
         return
     q = float(np.median((dist[k:] - dist[:-k])[ok] / dt[ok] / vm[ok]))
-    if 1.0 / DIST_RATE_LIMIT < q < DIST_RATE_LIMIT:
-        return
+    if not q > 0 or 1.0 / DIST_RATE_LIMIT < q < DIST_RATE_LIMIT:
+        return            # agreeing, or a distance that does not grow (no unit explains that)
     f_v, u_v = units["vel"]
     f_d, u_d = units["dist"]
     guesses = []
