@@ -638,11 +638,9 @@ def own_table(rnd):
 def table_level(rows):
     """The fitted Cd over the reference table, the median over the determined rows (over every
     row with a table value when none is determined); None without a table."""
-    pairs = [(r["ml"], r["reference"]) for r in rows if r.get("reference") and r["reference"] > 0]
-    det = [(m, t) for (m, t), r in zip(pairs, [r for r in rows if r.get("reference") and r["reference"] > 0])
-           if r.get("determined")]
-    use = det or pairs
-    return float(np.median([m / t for m, t in use])) if use else None
+    with_table = [r for r in rows if r.get("reference") and r["reference"] > 0]
+    use = [r for r in with_table if r.get("determined")] or with_table
+    return float(np.median([r["ml"] / r["reference"] for r in use])) if use else None
 
 
 def confound_line(found, level):
