@@ -23,6 +23,7 @@ from ..effects import DRAG_SHAPE, EFFECTS, WIND_PROFILE, YAW_DRAG, confounded_wi
 from ..errors import FitError
 from ..estimate.model.layout import ParameterLayout
 from .setup import fit_effects, fit_starts, k_free, noise_floor
+from .screen import could_be_admitted, smallest_admitted_drop
 from .signatures import CONFOUND_CORR
 from .winds import finer_layers, refined_start
 from .statistics import (autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation,
@@ -162,6 +163,10 @@ def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
         Kr = len(remaining)
         for r in remaining:
             e = EFFECTS[r["name"]]
+            needed = smallest_admitted_drop(setup, selected_fit, gap, sig_vec,
+                                            threshold(e, alpha / Kr, k_free(setup, e)))
+            if not could_be_admitted(setup, sel_effs, selected_fit, e, needed, r.get("delta_chi2")):
+                continue   # the score test shows its joint fit could not be admitted: not made
             start = np.concatenate([sel_res.theta, fit_starts(e)])
             try:
                 res, prob, y = fit_effects(setup, sel_effs + [e], start)

@@ -9,6 +9,7 @@ diagnosis from here.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
 import time
@@ -17,7 +18,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .._runtime.beside import computed_beside, started_beside
+from .._runtime.beside import started_beside
 from .._runtime.threads import single_blas
 from ..errors import BayesdragWarning, FitError, FitWarning, InputError
 from ..results.words import determined_words
@@ -135,13 +136,24 @@ def _fit_scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_s
     check = opts.model_check and opts.with_effects != "auto"
     # the model check's diagnosis reads the track and the round only: it runs in a forked process
     # beside the ML fit, and beside the sampling too where the check cannot change what is sampled
-    with started_beside(functools.partial(diagnosis_record, track, rnd, chans), fork=check) as diag:
+    with started_beside(functools.partial(diagnosis_record, track, rnd, chans), fork=check) as diag, \
+            contextlib.ExitStack() as later:
         return _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress,
-                        diag if check else None, notes)
+                        diag if check else None, notes, later)
 
 
-def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress, diag, notes=()):
+def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start, ml_progress, diag, notes=(),
+             later=None):
     timing = {"beside": []}
+    sizes_job = None
+
+    def sizes_beside(fit):
+        # the added effects' sizes (their split fits) change nothing the fit does after: they
+        # run in a forked process from the moment the fit with the effects is the answer
+        if later is None or not fit.effects:
+            return None
+        return later.enter_context(started_beside(
+            functools.partial(_effect_sizes_record, track, rnd, opts, chans, fit), fork=True))
     with_effects, with_note, layers = _with_effects(track, rnd, opts, log)
     f1 = fit_scheme1(track, rnd, drag=opts.drag, channels=chans, free_ic=not opts.fix_ic,
                      likelihood=opts.likelihood, nu=opts.ml_nu, noise_model=opts.noise_model,
@@ -173,6 +185,7 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         # (already made, from the plain fit's start) is the answer; the plain Cd stays beside it
         t0 = time.perf_counter()
         plain, f1 = f1, effects_fit
+        sizes_job = sizes_beside(f1)
         res, dm = f1.ml, f1.drag_model
         lo, hi = float(np.min(res.mach)), float(np.max(res.mach))
         grid = cd_grid(lo, hi)
@@ -199,15 +212,10 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
                                 f"with the shift as model error)")}
         timing["refit"] = round(time.perf_counter() - t0, 3)
     bayes = post = cd = sizes = None
+    if sizes_job is None:
+        sizes_job = sizes_beside(f1)
     if opts.mcmc:
-        # the added effects' sizes (their split fits) cannot change what is sampled either
-        with computed_beside(functools.partial(_effect_sizes_record, track, rnd, opts, chans, f1),
-                             fork=bool(f1.effects)) as box:
-            bayes, post = run_sampler(f1, opts, chain_path, resume, log, progress)
-        if f1.effects:
-            sizes = box.value["sizes"]
-            timing["effect_sizes"] = round(box.value["seconds"], 3)
-            timing["beside"] += ["effect_sizes"] if box.forked else []
+        bayes, post = run_sampler(f1, opts, chain_path, resume, log, progress)
         if deferred:
             gap, _ = _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)
     placement = _placement_error(f1, grid, rows)
@@ -234,6 +242,10 @@ def _scheme1(track, rnd, opts, chans, chain_path, resume, log, progress, t_start
         budget["met_file"] = {"sources": list(rnd.systematics.from_met_file), "why": stated.why,
                               "wind_sd": stated.wind_sd, "temperature_sd": float(f"{stated.temperature_sd:.4g}"),
                               "density_sd": float(f"{stated.density_sd:.4g}")}
+    if sizes_job is not None:
+        made = sizes_job.result()
+        sizes, timing["effect_sizes"] = made["sizes"], round(made["seconds"], 3)
+        timing["beside"] += ["effect_sizes"] if sizes_job.forked else []
     if with_note is not None or WIND_PROFILE.name in f1.effects:
         if sizes is None:
             made = _effect_sizes_record(track, rnd, opts, chans, f1)
@@ -287,7 +299,7 @@ def _checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)
 
 def _effect_sizes_record(track, rnd, opts, chans, f1):
     """The added effects' sizes (:func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes`)
-    and their ``seconds``, JSON-ready (for :func:`~bayesdrag._runtime.beside.computed_beside`)."""
+    and their ``seconds``, JSON-ready (for :func:`~bayesdrag._runtime.beside.started_beside`)."""
     t0 = time.perf_counter()
     return {"sizes": effect_sizes(track, rnd, chans, f1, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
                                    nu=opts.ml_nu, noise_model=opts.noise_model), "seconds": time.perf_counter() - t0}
