@@ -628,7 +628,6 @@ class TableSpline(DragModel):
         return (self.knots[0], self.knots[-1])
 
 
-@lru_cache(maxsize=64)
 @dataclass(frozen=True, eq=False)
 class ShapedTable(DragModel):
     """Cd(M) = table(M) (c_0 + sum_k c_k phi_k(M)), ``phi_k = B_k - a_k`` (k = 1..K): the drag
@@ -708,6 +707,7 @@ class ShapedTable(DragModel):
         return (self.knots[0], self.knots[-1])
 
 
+@lru_cache(maxsize=64)
 def _cached_reference_cells(table, grid):
     fl, sl, fr, sr = _one_sided(table.value, table.slope, grid)
     tab = _hermite_cells(fl, sl, fr, sr, grid.dm)

@@ -132,3 +132,16 @@ def test_read_m101(m101):
     assert isinstance(m101, ReferenceTable)
     assert m101.mach_range == (0.5, 2.6)
     assert m101.value(0.7) == pytest.approx(0.147462, rel=1e-6)
+
+
+def test_shaped_table_is_a_class_and_the_table_cells_are_memoised(m101):
+    """A decorator left above a moved class made ``ShapedTable`` a cached function (isinstance
+    failed) and the table's kernel cells were rebuilt on every simulation."""
+    from bayesdrag.drag import ShapedTable, _cached_reference_cells
+    from bayesdrag.effects.drag import drag_shape_model
+
+    shape = drag_shape_model(m101, (0.8, 2.2))
+    assert isinstance(shape, ShapedTable)
+    grid = MachGrid.covering(0.8, 2.2)
+    assert _cached_reference_cells(m101, grid) is _cached_reference_cells(m101, grid)
+    assert not _cached_reference_cells(m101, grid).flags.writeable
