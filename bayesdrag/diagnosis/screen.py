@@ -104,18 +104,18 @@ def predicted_drop(setup, small_effects, small_fit, e):
     return best
 
 
-def smallest_admitted_drop(setup, small_fit, gap, sig_vec, threshold_value):
+def smallest_admitted_drop(setup, small_fit, gap, threshold_value, second_share, left_share):
     """The smallest conditional chi2 drop :func:`~bayesdrag.diagnosis.selection.admits` can
     accept from ``small_fit`` [chi2]: above the threshold times the lowest colored inflation,
-    and at least ``MIN_SECOND_SHARE`` of the gap or ``MIN_LEFT_SHARE`` of what is left (the
-    rule's noise condition on what is left is taken as met: it reads the joint fit)."""
-    from .selection import MIN_LEFT_SHARE, MIN_SECOND_SHARE
+    and at least ``second_share`` of the gap or ``left_share`` of what is left (selection's
+    ``MIN_SECOND_SHARE`` and ``MIN_LEFT_SHARE``; the rule's noise condition on what is left is
+    taken as met: it reads the joint fit)."""
     from .setup import noise_floor
 
     res = small_fit[0]
     left = float(res.cost) - noise_floor(setup, res)
     # the what-is-left rule is taken as open whatever the joint fit's noise sd turns out
-    share = min(MIN_SECOND_SHARE * gap, MIN_LEFT_SHARE * max(left, 0.0))
+    share = min(second_share * gap, left_share * max(left, 0.0))
     return max(_INFLATION_FLOOR * threshold_value, share)
 
 

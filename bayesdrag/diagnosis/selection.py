@@ -163,8 +163,8 @@ def forward_selection(setup, rows, first, first_fit, gap, sig_vec, alpha):
         Kr = len(remaining)
         for r in remaining:
             e = EFFECTS[r["name"]]
-            needed = smallest_admitted_drop(setup, selected_fit, gap, sig_vec,
-                                            threshold(e, alpha / Kr, k_free(setup, e)))
+            needed = smallest_admitted_drop(setup, selected_fit, gap, threshold(e, alpha / Kr, k_free(setup, e)),
+                                            MIN_SECOND_SHARE, MIN_LEFT_SHARE)
             if not could_be_admitted(setup, sel_effs, selected_fit, e, needed, r.get("delta_chi2")):
                 continue   # the score test shows its joint fit could not be admitted: not made
             start = np.concatenate([sel_res.theta, fit_starts(e)])

@@ -43,7 +43,7 @@ from ..measure import gun_equivalent, gun_frame_track, site_of
 from .model.problem import OutputErrorProblem
 from .model.filters import savgol_coeffs
 from .model.noise import noise_and_outliers
-from .cd.quality import assess_window
+from .cd.quality import assess_window, intervals
 from .scheme1.fit import coriolis_of
 from .build.start import data_start
 
@@ -296,3 +296,71 @@ def windows_table(result):
     keys = ("t_start", "t_end", "mach", "ml", "crb_sd", "crb_sd_colored", "band_sd", "determined", "reference",
             "n", "mach_min", "mach_max", "converged", "quality")
     return [{k: w[k] for k in keys} for w in result.windows]
+
+
+def window_budget(rows, ok, draws, rnd, seed):
+    """Scheme 2's budget: the declared level sources (density, mass, diameter: one factor on
+    every window's Cd) added to each window's bound and, by Monte Carlo (an independent factor
+    per draw), to its posterior draws; the windows stay conditional on the other sources.
+    Window rows gain ``crb_sd_statistical``; ``crb_sd`` becomes the total."""
+    from .cd.budget import level_shares
+
+    rel, cond = level_shares(rnd)
+    s_rel = float(np.sqrt(sum(v * v for v in rel.values())))
+    by = {"statistical": [], **{k: [] for k in rel}, "cross": []}
+    total = []
+    rng = np.random.default_rng(None if seed is None else seed + 10_000)
+    for k, r in enumerate(rows):
+        stat = float(r["crb_sd"]) if r.get("crb_sd") is not None else float("nan")
+        cd = float(r["ml"]) if r.get("ml") is not None else float("nan")
+        r["crb_sd_statistical"] = stat
+        tot = float(np.sqrt(stat ** 2 + (s_rel * cd) ** 2))
+        r["crb_sd"] = tot
+        by["statistical"].append(stat)
+        for n, v in rel.items():
+            by[n].append(abs(cd) * v)
+        by["cross"].append(0.0)
+        total.append(tot)
+        if k in draws and s_rel > 0:
+            d = draws[k]
+            d = d * (1.0 + s_rel * rng.standard_normal(d.shape))
+            draws[k] = d
+            flat = d.reshape(-1)
+            q = np.quantile(flat, [0.05, 0.5, 0.95])
+            r.update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
+                     q95=float(q[2]), sd_over_crb=float(flat.std(ddof=1) / tot) if tot else None)
+    r6 = lambda a: [float(f"{v:.6g}") for v in a]  # noqa: E731
+    return {"mach": [round(float(r["mach"]), 4) for r in rows], "total_sd": r6(total),
+            "by_source": {k: r6(v) for k, v in by.items()}, "conditional_on": cond,
+            "note": "windows: the level sources (density, mass, diameter) are included; conditional on "
+                    + (", ".join(cond) if cond else "nothing")}
+
+
+def stitched_rows(rows, ok, mach, grid, rnd, sampled):
+    """Scheme 2's ``cd`` rows on a Mach grid through the windows, and its ``ml.quality``: a grid
+    point is determined when the windows on both sides of it are."""
+    order = np.argsort(mach[ok])
+    mk = mach[ok][order]
+
+    def interp(key):
+        v = np.array([rows[k][key] for k in ok], float)[order]
+        return np.interp(grid, mk, v)
+
+    cols = {key: interp(key) for key in ("ml", "crb_sd", "band_sd") + (("mean", "q05", "q95") if sampled else ())}
+    det_w = np.array([rows[k]["determined"] for k in ok], bool)[order]
+    j_hi = np.clip(np.searchsorted(mk, grid), 0, len(mk) - 1)
+    j_lo = np.clip(j_hi - 1, 0, len(mk) - 1)
+    inside = (grid >= mk[0]) & (grid <= mk[-1])
+    cd_rows = []
+    for i, m in enumerate(grid):
+        r = {key: float(v[i]) for key, v in cols.items()}
+        r["mach"] = float(m)
+        r["determined"] = bool(inside[i] and det_w[j_lo[i]] and det_w[j_hi[i]])
+        r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
+        cd_rows.append(r)
+    problems = [p.within(f"window {k} (Mach {rows[k]['mach']:.2f}): ") for k in ok for p in rows[k]["quality"]["problems"]]
+    quality = {"ok": not problems and len(ok) == len(rows),
+               "undetermined": intervals(grid, ~np.array([r["determined"] for r in cd_rows])),
+               "windows_determined": int(det_w.sum()), "problems": problems}
+    return cd_rows, quality
+

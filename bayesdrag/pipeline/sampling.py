@@ -1,12 +1,33 @@
-"""The sampling step of a Scheme 1 fit: its posterior sampled by emcee from the ML fit, the Cd
-rows' posterior columns and draws, and the ``posterior`` and ``mcmc`` records of ``result.json``."""
+"""Stage 4 of a Scheme 1 fit, *sample*: its posterior sampled by emcee from the ML fit's answer
+(:func:`sample_stage`), the Cd rows' posterior columns and draws, and the ``posterior`` and
+``mcmc`` records of ``result.json``."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_sampler", "sampled_rows", "posterior_json", "mcmc_json"]
+__all__ = ["sample_stage", "run_sampler", "sampled_rows", "posterior_json", "mcmc_json"]
+
+
+def sample_stage(prep, chk, chain_path, resume, log, progress, diag, timing, ml_progress):
+    """The posterior of the checked answer ``chk`` (None, None without ``mcmc``) and the model
+    check made after it when it was deferred (it cannot change what is sampled: its diagnosis ran
+    beside the sampling). Returns ``(BayesResult, LogPosterior, chk)``, ``chk`` with the gap of a
+    deferred check."""
+    from dataclasses import replace
+
+    from .check import checked
+
+    if not prep.opts.mcmc:
+        return None, None, chk
+    ans = chk.answer
+    bayes, post = run_sampler(ans.f1, prep.opts, chain_path, resume, log, progress)
+    if chk.deferred:
+        gap, _ = checked(prep.track, prep.rnd, prep.opts, prep.chans, ans.f1, ans.grid, ans.rows, diag, timing,
+                         ml_progress)
+        chk = replace(chk, gap=gap)
+    return bayes, post, chk
 
 
 def run_sampler(f1, opts, chain_path, resume, log, progress):

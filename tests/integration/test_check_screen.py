@@ -2,10 +2,10 @@
 fit's chi2 drop, what it dismisses, and that a diagnosis with it is the diagnosis without it."""
 import json
 
-import numpy as np
 import pytest
 
 import bayesdrag.diagnosis.selection as selection
+from bayesdrag.diagnosis.selection import MIN_LEFT_SHARE, MIN_SECOND_SHARE
 from bayesdrag.diagnosis import diagnose
 from bayesdrag.diagnosis.screen import could_be_admitted, predicted_drop, smallest_admitted_drop
 from bayesdrag.diagnosis.setup import fit_effects, make_setup
@@ -42,10 +42,10 @@ def test_an_absent_effect_beside_the_wind_is_dismissed(headwind):
     setup, base = headwind
     wind_fit = fit_effects(setup, [WIND], base[0].theta)
     gap = float(base[0].cost - wind_fit[0].cost)
-    sig_vec = np.array([setup.sigma[c] for c in setup.channels])
     d = predicted_drop(setup, [WIND], wind_fit, RADAR_TIME)
     assert 0.0 <= d < ABSENT_DROP_MAX
-    needed = smallest_admitted_drop(setup, wind_fit, gap, sig_vec, threshold(RADAR_TIME, 0.05, 1))
+    needed = smallest_admitted_drop(setup, wind_fit, gap, threshold(RADAR_TIME, 0.05, 1), MIN_SECOND_SHARE,
+                                    MIN_LEFT_SHARE)
     assert not could_be_admitted(setup, [WIND], wind_fit, RADAR_TIME, needed, single_drop=d)
     # a candidate that alone dropped what the test needs is fitted whatever the score says
     assert could_be_admitted(setup, [WIND], wind_fit, RADAR_TIME, needed, single_drop=2 * needed)
