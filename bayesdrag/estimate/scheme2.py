@@ -43,6 +43,7 @@ from ..measure import gun_equivalent, gun_frame_track, site_of
 from .model.problem import OutputErrorProblem
 from .model.filters import savgol_coeffs
 from .model.noise import noise_and_outliers
+from .cd.claims import DataBand, claim
 from .cd.quality import assess_window, intervals
 from .scheme1.fit import coriolis_of
 from .build.start import data_start
@@ -353,11 +354,12 @@ def stitched_rows(rows, ok, mach, grid, rnd, sampled):
     inside = (grid >= mk[0]) & (grid <= mk[-1])
     cd_rows = []
     for i, m in enumerate(grid):
-        r = {key: float(v[i]) for key, v in cols.items()}
+        r = {key: float(v[i]) for key, v in cols.items() if key != "band_sd"}
         r["mach"] = float(m)
-        r["determined"] = bool(inside[i] and det_w[j_lo[i]] and det_w[j_hi[i]])
         r["reference"] = float(rnd.reference_drag.value(m)) if rnd.reference_drag is not None else None
         cd_rows.append(r)
+    # a grid point is claimed where the windows on both sides of it are
+    claim(cd_rows, DataBand.plain(cols["band_sd"], usable=inside & det_w[j_lo] & det_w[j_hi]))
     problems = [p.within(f"window {k} (Mach {rows[k]['mach']:.2f}): ") for k in ok for p in rows[k]["quality"]["problems"]]
     quality = {"ok": not problems and len(ok) == len(rows),
                "undetermined": intervals(grid, ~np.array([r["determined"] for r in cd_rows])),

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._runtime.beside import started_beside
-from ..estimate.cd.model_error import add_in_squares
+from ..estimate.cd.claims import add_model_error
 from ..estimate.scheme1.effect_sizes import effect_sizes
 from ..effects import RADAR_POSITION
 from .ml import Answer, answer_of, wholly_fitted
@@ -182,7 +182,7 @@ def effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
     """Add ``share`` (at most :data:`EFFECT_RESIDUAL_SHARE`) of each row's correction (``ml``
     against ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
     res = [share * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
-    add_in_squares(rows, res)
+    add_model_error(rows, "effect_residual", res)
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
     gap["effect_residual_share"] = float(f"{share:.4g}")
 

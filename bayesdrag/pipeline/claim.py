@@ -9,12 +9,12 @@ import numpy as np
 
 from ..errors import FitError, InputError
 from ..estimate.build.model_size import narrow_shape_sd
-from ..estimate.cd.model_error import add_in_squares
-from ..estimate.cd.quality import assess, check_against_flexible
+from ..estimate.cd.claims import add_model_error, claim
+from ..estimate.cd.quality import assess, assess_claims, check_against_flexible, intervals
 from ..estimate.cd.table import cd_table
 from ..estimate.scheme1.fit import fit_scheme1
 from .check import Checked
-from .model_check import air, air_contradiction, note_model_error
+from .model_check import air, air_contradiction, note_model_error, withdrawn_by_check
 from .prepare import Prepared
 
 __all__ = ["claim_stage", "placement_error", "rigid_check"]
@@ -29,18 +29,26 @@ def claim_stage(prep: Prepared, chk: Checked, ml_progress):
     f1, grid, rows = ans.f1, ans.grid, ans.rows
     placement = placement_error(f1, grid, rows)
     if (f1.model_size or {}).get("narrow_span"):   # one factor on the table: the shape may lean
-        add_in_squares(rows, narrow_shape_sd(f1.model_size["narrow_span"], grid, [r["ml"] for r in rows]))
-    quality = assess(f1, rows, track, rnd.radar.sigma)
+        add_model_error(rows, "narrow_shape", narrow_shape_sd(f1.model_size["narrow_span"], grid,
+                                                            [r["ml"] for r in rows]))
+    quality, data = assess_claims(f1, rows, track, rnd.radar.sigma)
     if prep.notes:
         quality["notes"] = list(prep.notes) + list(quality.get("notes") or [])
+    withdrawn = np.zeros(len(rows), bool)
     if gap is not None:
+        if withdrawn_by_check(gap):
+            withdrawn[:] = True
+            claim(rows, data, withdrawn)
         note_model_error(gap, quality, grid, rows)
     quality["air"] = air(f1, gap)
     air_contradiction(rnd, quality["air"], quality, rows)
     if f1.drag_model.name != "spline":
         if ml_progress is not None:
             ml_progress("the flexible fit the rigid model is checked against")
-        rigid_check(track, rnd, prep.opts, prep.chans, f1, grid, rows, quality)
+        off = rigid_check(track, rnd, prep.opts, prep.chans, f1, grid, rows, quality)
+        if off is not None and off.any():
+            claim(rows, data, withdrawn | off)
+            quality["undetermined"] = intervals(grid, ~np.array([r["determined"] for r in rows]))
     if ml_progress is not None and hasattr(ml_progress, "done"):
         ml_progress.done()
     return quality, placement
@@ -57,7 +65,7 @@ def placement_error(f1, grid, rows):
     if not f1.layer_placements:
         return None
     sd = placement_sd(f1.drag_model, f1.layer_placements, grid)
-    add_in_squares(rows, sd)
+    add_model_error(rows, "placement", sd)
     return float(f"{float(np.max(sd)):.4g}")
 
 
@@ -65,7 +73,8 @@ def rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
     """A rigid model's band holds no shape error: check its curve against the flexible fit of
     the same track (:func:`check_against_flexible`). The check never refuses a track the rigid
     model fits: when the flexible fit cannot be made (a track too short for it) or does not
-    converge, ``quality.rigid_check`` and a note say so and the rows stand as fitted."""
+    converge, ``quality.rigid_check`` and a note say so and the rows stand as fitted (None).
+    Returns the rows the check withdraws."""
     try:
         ff = fit_scheme1(track, rnd, drag="spline", channels=chans, free_ic=not opts.fix_ic,
                          likelihood=opts.likelihood, nu=opts.ml_nu, start=f1.start, span_rule=False)
@@ -80,8 +89,8 @@ def rigid_check(track, rnd, opts, chans, f1, grid, rows, quality):
         quality.setdefault("notes", []).append(
             f"the {f1.drag_model.name} curve could not be checked against the flexible fit of the same track "
             f"({why}): its band holds the noise only, not its shape error")
-        return
+        return None
     rows_f = cd_table(ff.ml, ff.drag_model, grid, rnd.reference_drag)
     assess(ff, rows_f, track, rnd.radar.sigma)
-    check_against_flexible(rows, rows_f, quality, f1.drag_model.name)
+    return check_against_flexible(rows, rows_f, quality, f1.drag_model.name)
 

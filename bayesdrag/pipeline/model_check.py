@@ -11,7 +11,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import FitError, FitWarning, InputError
-from ..estimate.cd.model_error import add_in_squares, check_sd, combine, describe, shift_sd
+from ..estimate.cd.claims import add_model_error, set_model_error
+from ..estimate.cd.model_error import check_sd, describe, shift_sd
 from ..estimate.cd.quality import assess
 from ..estimate.cd.table import cd_table, model_error_floor
 from ..estimate.scheme1.fit import fit_scheme1
@@ -19,7 +20,7 @@ from ..effects import DENSITY, DRAG_SHAPE, EFFECTS, RADAR_POSITION, RADAR_TIME, 
     YAW_DRAG, air_state_effects, not_alternatives, partly_trading_with_cd
 
 __all__ = ["air_contradiction", "air_measured", "own_table", "model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
-           "gross_outliers", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
+           "gross_outliers", "withdrawn_by_check", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
 
 
 def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None, diagnosis=None):
@@ -153,11 +154,8 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             # rho 0.95 noise claimed rows 3.1 sd off without it)
             parts["noise"] = shift_sd(ml, band, alt[0], alt[1])
             rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
-    me = combine(*parts.values())
     rec["parts"] = {k: [float(f"{v:.4g}") for v in p] for k, p in parts.items()}
-    if me is not None:
-        for r, v in zip(rows, me):
-            r["model_error_sd"] = float(v)
+    set_model_error(rows, parts)
     return rec, effects_fit
 
 
@@ -296,7 +294,7 @@ def alternative_error(rows, gap):
     mach = np.array([r["mach"] for r in rows], float)
     # the answer's grid is its own flight's (beyond the alternative's span, its end values)
     sd = shift_sd(ml, band, np.interp(mach, alt["mach"], alt["cd"]), np.interp(mach, alt["mach"], alt["band_sd"]))
-    add_in_squares(rows, sd)
+    add_model_error(rows, "alternative", sd)
     gap.setdefault("parts", {})["alternative"] = [float(f"{v:.4g}") for v in sd]
 
 
@@ -511,14 +509,21 @@ SITE_NOT_GIVEN = ("the round gives no [radar] position (the site defaults to the
                   "fitted site's own Cd shift does not size")
 
 
+def withdrawn_by_check(gap):
+    """Whether the check withdraws every row's claim: the track is seen from a site the round
+    does not give (:data:`SITE_NOT_GIVEN`), or an effect it found could be neither fitted with Cd
+    nor sized (``unsized``)."""
+    return bool(gap.get("site_not_given") or gap.get("unsized"))
+
+
 def note_model_error(gap, quality, grid, rows):
-    """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do."""
+    """``ml.quality.model_error`` and its problem line: what moved Cd, how far, what to do (the
+    rows it withdraws, :func:`withdrawn_by_check`, are claimed again by the caller first)."""
     quality["model_error"] = gap
     me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
     ml = np.array([r["ml"] for r in rows], float)
     if gap.get("site_not_given"):
-        for r in rows:            # unsized, as an effect whose shift could not be sized: no row is claimed
-            r["determined"] = False
+        # unsized, as an effect whose shift could not be sized: no row is claimed (withdrawn_by_check)
         quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
         quality["problems"].append(FitWarning("model_error", SITE_NOT_GIVEN))
         quality["ok"] = False
@@ -556,8 +561,6 @@ def note_model_error(gap, quality, grid, rows):
         f"Cd differs by {describe(grid, ml, shift)}: the bands include it as model error (a measured launch yaw, "
         f"or `bayesdrag fit ... --with yaw_drag`, decides between them)"))
     if gap.get("unsized"):
-        for r in rows:
-            r["determined"] = False
         quality["undetermined"] = [[float(grid[0]), float(grid[-1])]]
         quality["problems"].append(FitWarning(
             "model_error", f"the diagnosis finds {', '.join(gap['unsized'])}, which could not be fitted with Cd nor its "

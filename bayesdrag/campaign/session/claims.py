@@ -6,8 +6,8 @@ Every band is Student's t with the session's ``S - 1`` degrees of freedom (the s
 scatter is estimated from the shots themselves). A row's ``sd`` is the band's normal-equivalent
 1-sd width (its 90 % half width over 1.645: with five shots 1.3 times the t scale ``sd_t``), so
 that "within 3 sd" means what it means for every other row bayesdrag writes; a row is
-``determined`` when ``sd`` is at most :data:`DETERMINED_REL_SD` of its Cd, the meaning the word
-has everywhere in bayesdrag.
+``determined`` when ``sd`` is below :data:`DETERMINED_REL_SD` of its Cd, by the one rule of every
+row bayesdrag writes (:func:`~bayesdrag.estimate.cd.claims.claimed`).
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import t as t_dist
 
-from ...estimate.cd.table import DETERMINED_REL_SD
+from ...estimate.cd.claims import DETERMINED_REL_SD, DataBand, claimed
 from .fit import paule_mandel
 
 __all__ = ["rows", "central_row", "form_factor", "ballistic_coefficient", "muzzle_velocity", "scatter",
@@ -55,9 +55,10 @@ def _row(mach, cd, sd, tq, ref):
     # so that "within 3 sd" keeps its meaning with few shots (sd_t is the t distribution's scale)
     sd_eq = sd * tq / Z90
     rel = sd_eq / cd if cd > 0 else np.inf
+    _, det = claimed([cd], DataBand.plain([sd_eq], usable=cd > 0))
     return {"mach": float(mach), "mean": float(cd), "sd": float(sd_eq), "sd_t": float(sd), "q05": float(cd - tq * sd),
             "q95": float(cd + tq * sd), "reference": None if ref is None else float(ref),
-            "rel_sd": float(rel), "determined": bool(cd > 0 and rel <= DETERMINED_REL_SD),
+            "rel_sd": float(rel), "determined": bool(det[0]),
             "claimed": bool(cd > 0 and rel <= CLAIM_REL_SD), "physical": bool(cd > 0)}
 
 

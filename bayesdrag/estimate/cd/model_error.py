@@ -81,13 +81,6 @@ def check_sd(ml, sd, ml_alt, sd_alt):
     return np.where(np.isfinite(out), out, np.inf)
 
 
-def add_in_squares(rows, sd):
-    """Add ``sd`` [Cd], one per row, to each row's ``model_error_sd`` in squares (independent
-    model errors)."""
-    for r, v in zip(rows, sd):
-        r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, v))
-
-
 def combine(*parts):
     """Independent model-error terms added in squares (None parts skipped); zeros when none."""
     parts = [np.asarray(p, float) for p in parts if p is not None]

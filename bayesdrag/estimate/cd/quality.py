@@ -25,7 +25,7 @@ Model error
 Where Cd is determined
     A ``cd`` row is determined when its band less the declared systematic sources' share (those
     widen the total band, but a well-measured Cd conditional on a known 1 % density uncertainty
-    is still determined by the data) is below :data:`DETERMINED_REL_SD` of Cd, it
+    is still determined by the data) is below 1 % of Cd (:func:`~bayesdrag.estimate.cd.claims.claimed`), it
     lies inside the Mach span the data cover, the drag model is not clamped there (beyond its
     end knots the spline is held flat), and no coefficient acting there sits at its bound.
     ``undetermined`` lists the Mach intervals of the grid where it is not.
@@ -58,7 +58,7 @@ import numpy as np
 
 from ...errors import FitWarning
 from ..model.noise import noise_and_outliers
-from .table import DETERMINED_REL_SD
+from .claims import DataBand, claim, claimed
 
 #: a channel whose residuals have a mean square above this many noise variances misses the track
 CHI2_LIMIT = 4.0
@@ -265,7 +265,12 @@ def _at_bound_support(res, drag_model, mach, lower, upper):
 
 
 def assess(fit1, rows, track, sigma_given=None):
-    """Quality of a Scheme 1 ML fit.
+    """Quality of a Scheme 1 ML fit (:func:`assess_claims` without its :class:`DataBand`)."""
+    return assess_claims(fit1, rows, track, sigma_given)[0]
+
+
+def assess_claims(fit1, rows, track, sigma_given=None):
+    """Quality of a Scheme 1 ML fit and the data's band of its rows.
 
     Parameters
     ----------
@@ -333,22 +338,15 @@ def assess(fit1, rows, track, sigma_given=None):
     # the data's band (noise, correlated residuals, unresolved bends) less the declared sources'
     # share: what "determined" is judged on, with the model error (:mod:`.model_error`) added
     sys_var = np.clip(crb**2 - np.array([r.get("crb_sd_statistical", r["crb_sd"]) for r in rows], float)**2, 0, None)
-    me = np.array([r.get("model_error_sd", 0.0) for r in rows], float)
-    judged = np.sqrt(np.clip(band**2 - sys_var, 0, None) + me**2)
-    band = np.sqrt(band**2 + me**2)
     dm = prob.model.drag
     clamped = _clamped(dm, mach)
     bound_rows, bound_names = _at_bound_support(res, dm, mach, prob.lower, prob.upper)
     start = fit1.start
     lo, hi = (float(np.nanmin(res.mach)), float(np.nanmax(res.mach)))
     inside = (mach >= lo - 1e-4) & (mach <= hi + 1e-4)  # the grid is rounded to 1e-4
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.where(ml > 0, judged / ml, np.inf)
-    # a zero band is no bound at all (an information matrix the data leave singular there)
-    det = (rel < DETERMINED_REL_SD) & inside & ~clamped & ~bound_rows & np.isfinite(band) & (judged > 0)
-    for r, b, d in zip(rows, band, det):
-        r["band_sd"] = float(b)
-        r["determined"] = bool(d)
+    data = DataBand(band, sys_var, inside & ~clamped & ~bound_rows)
+    claim(rows, data)
+    det = np.array([r["determined"] for r in rows], bool)
     if clamped.any():
         for a, b in intervals(mach, clamped):
             problems.append(FitWarning("cd_held_flat", f"Cd is held flat over Mach {a:.3f}-{b:.3f} (beyond the drag "
@@ -388,7 +386,7 @@ def assess(fit1, rows, track, sigma_given=None):
     }
     if outliers is not None:
         quality["outliers"] = outliers
-    return quality
+    return quality, data
 
 
 def one_sided_outliers(fit1):
@@ -419,8 +417,10 @@ def _largest_gap(sample_mach):
 def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
     """Compare a rigid model's ``cd`` rows with the flexible fit's on the same grid.
 
-    Rows where ``|rigid - flexible| > k * sqrt(band_rigid^2 + band_flexible^2)`` are marked not
-    determined, and ``quality`` gains ``rigid_check`` and a problem line.
+    Rows where ``|rigid - flexible| > k * sqrt(band_rigid^2 + band_flexible^2)`` are the ones
+    the check withdraws (returned; the caller claims the rows again without them,
+    :func:`~bayesdrag.estimate.cd.claims.claim`), and ``quality`` gains ``rigid_check`` and a
+    problem line.
 
     Parameters
     ----------
@@ -430,6 +430,11 @@ def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
         The rigid fit's ``ml.quality`` (updated in place).
     model_name : str
     k : float
+
+    Returns
+    -------
+    (M,) bool ndarray
+        The rows withdrawn.
     """
     fm = np.array([r["mach"] for r in flexible_rows], float)
     fc = np.array([r["ml"] for r in flexible_rows], float)
@@ -443,9 +448,6 @@ def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
         sd = math.hypot(r["band_sd"], f_sd[i])
         z[i] = abs(r["ml"] - f_cd[i]) / sd if sd > 0 else 0.0
     off = inside & (z > k)
-    for r, o in zip(rows, off):
-        if o:
-            r["determined"] = False
     worst = int(np.argmax(np.where(inside, z, 0.0))) if mach.size else 0
     quality["rigid_check"] = {"against": "spline", "k": k, "max_z": float(z[worst]) if mach.size else 0.0,
                               "mach_of_max": float(mach[worst]) if mach.size else None,
@@ -458,8 +460,7 @@ def check_against_flexible(rows, flexible_rows, quality, model_name, k=RIGID_K):
             f"({rel:+.1f} % at Mach {mach[worst]:.2f}) over Mach {a:.2f}-{b:.2f}: its band does not hold "
             f"its shape error; not determined there"))
         quality["ok"] = False
-        quality["undetermined"] = intervals(mach, ~np.array([r["determined"] for r in rows]))
-    return quality
+    return off
 
 
 def assess_window(res, channels, noise):
@@ -496,9 +497,8 @@ def assess_window(res, channels, noise):
         problems.append(FitWarning("at_bound", "Cd or the window's state sits at a bound"))
     if not res.converged:
         problems.append(FitWarning("not_converged", f"not converged: {res.message}"))
-    det = bool(res.converged and not at_bound and cd > 0 and np.isfinite(band)
-               and band / cd < DETERMINED_REL_SD)
-    return {"band_sd": band, "determined": det,
+    b, d = claimed([cd], DataBand.plain([band], usable=res.converged and not at_bound))
+    return {"band_sd": float(b[0]), "determined": bool(d[0]),
             "quality": {"ok": not (misfit or structured or at_bound or not res.converged),
                         "band": "colored" if colored else "cramer-rao", "channels": fit,
                         "problems": problems}}

@@ -10,12 +10,12 @@ import math
 
 import numpy as np
 
+from .claims import DETERMINED_REL_SD, set_floor
+
 __all__ = ["cd_grid", "cd_table", "determined_range", "model_error_floor", "DETERMINED_REL_SD",
            "CD_GRID_STEP", "CD_GRID_MIN_ROWS"]
 
 
-#: relative CRB sd of Cd below which Cd counts as determined by the data
-DETERMINED_REL_SD = 0.01
 
 
 #: largest Mach step of the result's ``cd`` grid (the kernel's Mach grid: a steep drag rise is
@@ -63,11 +63,9 @@ def model_error_floor(fit1, rows):
     mach = np.array([r["mach"] for r in rows], float)
     # the white fit's drag model is the same object (the refit keeps the problem's model)
     mk = cd_table(fit1.white_ml, fit1.drag_model, mach)
-    for r, w in zip(rows, mk):
-        src = max(r["crb_sd"] ** 2 - r.get("crb_sd_statistical", r["crb_sd"]) ** 2, 0.0)
-        floor = math.sqrt(w["crb_sd_colored"] ** 2 + src)
-        r["model_error_floor"] = float(floor)
-        r["crb_sd_colored"] = float(max(r["crb_sd_colored"], floor))
+    set_floor(rows, [math.sqrt(w["crb_sd_colored"] ** 2
+                               + max(r["crb_sd"] ** 2 - r.get("crb_sd_statistical", r["crb_sd"]) ** 2, 0.0))
+                     for r, w in zip(rows, mk)])
     return True
 
 
