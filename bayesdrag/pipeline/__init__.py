@@ -33,7 +33,7 @@ from ..track import RadarTrack, thin_for_fit
 from .check import EFFECT_RESIDUAL_SHARE, check_stage, diagnosis_beside, residual_share
 from .claim import claim_stage
 from .ml import ml_stage
-from .model_check import why_not_clean
+from ..results.words import why_not_clean
 from .prepare import Prepared, prepare, watched
 from .result import result_stage, summary_line
 from .sampling import sample_stage

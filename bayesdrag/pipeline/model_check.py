@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import FitError, FitWarning, InputError
 from ..estimate.cd.claims import add_model_error, set_model_error
+from ..results.words import CHECK_NAMES, NOISE_FREE_SD, SITE_NOT_GIVEN, why_not_clean
 from ..estimate.cd.model_error import check_sd, describe, shift_sd
 from ..estimate.cd.quality import assess
 from ..estimate.cd.table import cd_table, model_error_floor
@@ -483,8 +484,6 @@ def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_lay
                    ml_without_effects=res if fitted else None, layer_placements=placements)
 
 
-#: how the noise checks are named in the problem line
-_CHECK_NAMES = {"student-t": "robust fit (Student-t, white noise)", "white": "white-noise fit"}
 
 
 def _beyond_half_band(rows, part):
@@ -503,10 +502,6 @@ def _part_problem(quality, rows, gap, part, words):
         quality["ok"] = False
 
 
-#: the reason a native track fitted from the default site (the muzzle) is not clean
-SITE_NOT_GIVEN = ("the round gives no [radar] position (the site defaults to the muzzle) but the track is not seen from "
-                  "there: every radar channel, and the Cd with them, may be off by more than the bands hold, which the "
-                  "fitted site's own Cd shift does not size")
 
 
 def withdrawn_by_check(gap):
@@ -545,7 +540,7 @@ def note_model_error(gap, quality, grid, rows):
         shift = _beyond_half_band(rows, gap["parts"]["noise"])
         if shift is not None:
             quality["problems"].append(FitWarning(
-                "model_error", f"a {_CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
+                "model_error", f"a {CHECK_NAMES[gap['noise_check']['against']]} of the track moves Cd by up to "
                 f"{100 * float(np.max(shift / np.abs(ml))):.2g} % ({gap['noise_check']['why']}): the bands include "
                 f"it as model error"))
     alt = gap.get("alternative") or {}
@@ -689,9 +684,6 @@ def air_contradiction(rnd, air_record, quality, rows=()):
             air_record["line"] = confound_line(list(dict.fromkeys(found)), level)
 
 
-#: an estimated noise sd below this [m or m/s] is no radar's: the track is (nearly) noise-free,
-#: and residuals above it are the simulator's or the integrator's, not a missed effect
-NOISE_FREE_SD = 1e-3
 
 
 #: a fitted radar clock offset this many of its sd from zero is said in words (:func:`clock_note`)
@@ -716,49 +708,3 @@ def clock_note(ml):
                        f"that t = 0 is the launch, or declare time_offset_sd in the round)", ("radar_time.dt",))]
 
 
-def why_not_clean(quality):
-    """The summary's reason a Scheme 1 fit is not a clean answer and the next step
-    (its ``ml.quality``)."""
-    from ..estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
-
-    me = quality.get("model_error") or {}
-    if me.get("unsized"):
-        return (f"the diagnosis finds {', '.join(me['unsized'])}, whose Cd shift could not be sized: no row is "
-                f"claimed; next: `bayesdrag diagnose TRACK ROUND -o DIR`")
-    if me.get("site_not_given"):
-        return SITE_NOT_GIVEN + "; next: give [radar] position (and position_sd)"
-    if me.get("effects"):
-        eff = ",".join(me["effects"])
-        rel = 100 * me.get("effects_max_rel", 0.0)
-        nxt = (f"`bayesdrag fit ... --with {eff}` fits it" if "effects_from" not in me else
-               "`bayesdrag diagnose TRACK ROUND -o DIR` (the fit with it failed)")
-        return f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); next: {nxt}"
-    air_rec = quality.get("air") or {}
-    if air_rec.get("rule") == "contradicted":
-        names = air_rec.get("found") or [c["source"] for c in air_rec.get("contradicted") or []]
-        return (f"the track contradicts the measured air ({', '.join(names)} unlike the met "
-                f"profile's); next: check the met data's datum, time and place (`bayesdrag diagnose TRACK ROUND -o "
-                f"DIR` writes the air the track implies as a met file)")
-    why = me.get("diagnosis_failed") or me.get("diagnosis_skipped")
-    if why:
-        return f"the model check could not run ({why}); next: `bayesdrag diagnose TRACK ROUND -o DIR`"
-    chans = quality.get("channels") or {}
-    bad = {c: f for c, f in chans.items()
-           if f["chi2_per_sample"] > CHI2_LIMIT or (f["lag1"] > ACF_LIMIT and f["n"] > 20)}
-    if bad:
-        if all(f["noise_source"] != "round" and f["noise_sd"] < NOISE_FREE_SD for f in bad.values()):
-            return (f"a (nearly) noise-free track: residuals of rms {max(f['rms'] for f in bad.values()):.2g} "
-                    f"against a noise of {max(f['noise_sd'] for f in bad.values()):.2g} estimated from it; give "
-                    f"[radar] sigma in the round for bands that hold the radar's noise")
-        return (f"the model misses the track in {', '.join(bad)}; next: `bayesdrag diagnose TRACK ROUND -o DIR` "
-                f"names the cause")
-    origin = (quality.get("launch") or {}).get("origin")
-    if origin:
-        return {"clock": "the track's clock is not the launch's", "position": "the track's origin is not at the gun"
-                }.get(origin["kind"], "the track does not start at the muzzle at t = 0") + \
-            "; next: declare time_offset_sd / [launch] position_sd, or trim the track"
-    if me.get("noise_check"):
-        nc = me["noise_check"]
-        nxt = "--likelihood student-t" if nc["against"] == "student-t" else "`bayesdrag diagnose TRACK ROUND -o DIR`"
-        return f"a {_CHECK_NAMES[nc['against']]} moves Cd ({nc['why']}, in the bands); next: {nxt}"
-    return "a parameter sits at a bound (see ml.quality.at_bounds); next: `bayesdrag diagnose TRACK ROUND -o DIR`"

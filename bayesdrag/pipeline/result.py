@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from ..results.words import determined_words
+from ..results.words import summary_line, why_not_clean
 from ..estimate.cd.headline import headline
 from ..estimate.cd.model_error import fold_into_budget
 from ..estimate.cd.table import determined_range
@@ -16,7 +16,7 @@ from ..estimate.scheme1.fit import noise_record
 from ..effects import WIND_PROFILE
 from ..results import FitResult
 from .check import Checked, effect_sizes_record
-from .model_check import clock_note, why_not_clean
+from .model_check import clock_note
 from .prepare import Prepared
 from .sampling import mcmc_json, posterior_json, sampled_rows
 
@@ -146,27 +146,3 @@ def ml_summary(f1, rows, quality, lo, hi, opts):
                "quality": quality},
         "cd": rows,
     }
-
-
-def summary_line(result):
-    """The outcome the command prints: converged, determined range, caveat and next step, and a
-    second line on the air when the Cd is conditional on it or the track contradicts it."""
-    s = result.record
-    if s["scheme"] == 2:
-        m = s["ml"]
-        lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]
-        return (f"fit (Scheme 2): {m['windows_converged']}/{m['windows']} windows of {s['window']} samples "
-                f"converged, Mach {lo:.2f}-{hi:.2f}")
-    ml = s["ml"]
-    det = ml["mach_range_determined"]
-    caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {why_not_clean(ml['quality'])}"
-    head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over "
-            f"{determined_words(det, ml['quality'].get('undetermined', []))}"
-            if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
-    out = ml["quality"].get("outliers")
-    if out:         # the noise model took one-sided outliers (estimate.model.contamination)
-        head += "; one-sided outliers down-weighted: " + ", ".join(
-            f"{len(e.get('down_weighted', []))} {e['side']} {c} samples" for c, e in out["channels"].items())
-    air = (ml["quality"].get("air") or {})
-    return head + caveat + (f"\nair: {air['line']}" if air.get("line") else "")
-

@@ -8,7 +8,8 @@ from typing import Any, Iterable, Sequence
 
 from ..effects import EFFECTS
 
-__all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects", "effect_lines"]
+__all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects", "effect_lines",
+           "why_not_clean", "summary_line", "SITE_NOT_GIVEN", "NOISE_FREE_SD", "CHECK_NAMES"]
 
 
 def mach_interval(lo: float, hi: float, digits: int = 2) -> str:
@@ -105,3 +106,87 @@ def effect_lines(with_effects: dict[str, Any] | None) -> list:
                 for k, v in sizes.items() if k.split(".", 1)[0] == name]
         out.append(f"{how}: {name} ({label})" + (f": {', '.join(vals)}" if vals else ""))
     return out
+
+
+#: how the noise checks are named in the problem line
+CHECK_NAMES = {"student-t": "robust fit (Student-t, white noise)", "white": "white-noise fit"}
+
+#: the reason a native track fitted from the default site (the muzzle) is not clean
+SITE_NOT_GIVEN = ("the round gives no [radar] position (the site defaults to the muzzle) but the track is not seen from "
+                  "there: every radar channel, and the Cd with them, may be off by more than the bands hold, which the "
+                  "fitted site's own Cd shift does not size")
+
+#: an estimated noise sd below this [m or m/s] is no radar's: the track is (nearly) noise-free,
+#: and residuals above it are the simulator's or the integrator's, not a missed effect
+NOISE_FREE_SD = 1e-3
+
+
+def why_not_clean(quality):
+    """The summary's reason a Scheme 1 fit is not a clean answer and the next step
+    (its ``ml.quality``)."""
+    from ..estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
+
+    me = quality.get("model_error") or {}
+    if me.get("unsized"):
+        return (f"the diagnosis finds {', '.join(me['unsized'])}, whose Cd shift could not be sized: no row is "
+                f"claimed; next: `bayesdrag diagnose TRACK ROUND -o DIR`")
+    if me.get("site_not_given"):
+        return SITE_NOT_GIVEN + "; next: give [radar] position (and position_sd)"
+    if me.get("effects"):
+        eff = ",".join(me["effects"])
+        rel = 100 * me.get("effects_max_rel", 0.0)
+        nxt = (f"`bayesdrag fit ... --with {eff}` fits it" if "effects_from" not in me else
+               "`bayesdrag diagnose TRACK ROUND -o DIR` (the fit with it failed)")
+        return f"an undeclared {', '.join(me['effects'])} moves Cd by up to {rel:.2g} % (in the bands); next: {nxt}"
+    air_rec = quality.get("air") or {}
+    if air_rec.get("rule") == "contradicted":
+        names = air_rec.get("found") or [c["source"] for c in air_rec.get("contradicted") or []]
+        return (f"the track contradicts the measured air ({', '.join(names)} unlike the met "
+                f"profile's); next: check the met data's datum, time and place (`bayesdrag diagnose TRACK ROUND -o "
+                f"DIR` writes the air the track implies as a met file)")
+    why = me.get("diagnosis_failed") or me.get("diagnosis_skipped")
+    if why:
+        return f"the model check could not run ({why}); next: `bayesdrag diagnose TRACK ROUND -o DIR`"
+    chans = quality.get("channels") or {}
+    bad = {c: f for c, f in chans.items()
+           if f["chi2_per_sample"] > CHI2_LIMIT or (f["lag1"] > ACF_LIMIT and f["n"] > 20)}
+    if bad:
+        if all(f["noise_source"] != "round" and f["noise_sd"] < NOISE_FREE_SD for f in bad.values()):
+            return (f"a (nearly) noise-free track: residuals of rms {max(f['rms'] for f in bad.values()):.2g} "
+                    f"against a noise of {max(f['noise_sd'] for f in bad.values()):.2g} estimated from it; give "
+                    f"[radar] sigma in the round for bands that hold the radar's noise")
+        return (f"the model misses the track in {', '.join(bad)}; next: `bayesdrag diagnose TRACK ROUND -o DIR` "
+                f"names the cause")
+    origin = (quality.get("launch") or {}).get("origin")
+    if origin:
+        return {"clock": "the track's clock is not the launch's", "position": "the track's origin is not at the gun"
+                }.get(origin["kind"], "the track does not start at the muzzle at t = 0") + \
+            "; next: declare time_offset_sd / [launch] position_sd, or trim the track"
+    if me.get("noise_check"):
+        nc = me["noise_check"]
+        nxt = "--likelihood student-t" if nc["against"] == "student-t" else "`bayesdrag diagnose TRACK ROUND -o DIR`"
+        return f"a {CHECK_NAMES[nc['against']]} moves Cd ({nc['why']}, in the bands); next: {nxt}"
+    return "a parameter sits at a bound (see ml.quality.at_bounds); next: `bayesdrag diagnose TRACK ROUND -o DIR`"
+
+
+def summary_line(result):
+    """The outcome the command prints: converged, determined range, caveat and next step, and a
+    second line on the air when the Cd is conditional on it or the track contradicts it."""
+    s = result.record
+    if s["scheme"] == 2:
+        m = s["ml"]
+        lo, hi = s["cd"][0]["mach"], s["cd"][-1]["mach"]
+        return (f"fit (Scheme 2): {m['windows_converged']}/{m['windows']} windows of {s['window']} samples "
+                f"converged, Mach {lo:.2f}-{hi:.2f}")
+    ml = s["ml"]
+    det = ml["mach_range_determined"]
+    caveat = "" if ml["quality"]["ok"] else f" -- NOT a clean answer: {why_not_clean(ml['quality'])}"
+    head = (f"fit: {ml['message']} in {ml['iterations']} iterations; Cd determined over "
+            f"{determined_words(det, ml['quality'].get('undetermined', []))}"
+            if det else f"fit: {ml['message']}; Cd nowhere determined to 1 %")
+    out = ml["quality"].get("outliers")
+    if out:         # the noise model took one-sided outliers (estimate.model.contamination)
+        head += "; one-sided outliers down-weighted: " + ", ".join(
+            f"{len(e.get('down_weighted', []))} {e['side']} {c} samples" for c, e in out["channels"].items())
+    air = (ml["quality"].get("air") or {})
+    return head + caveat + (f"\nair: {air['line']}" if air.get("line") else "")
