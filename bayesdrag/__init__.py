@@ -50,9 +50,9 @@ _API = {
     "ReferenceTable": "bayesdrag.drag",
     # the work
     "fit": "bayesdrag.pipeline",
-    "simulate": "bayesdrag.commands.simulate",
+    "simulate": "bayesdrag.pipeline",
     "diagnose": "bayesdrag.pipeline",
-    "plan": "bayesdrag.commands.plan",
+    "plan": "bayesdrag.pipeline",
     "FitOptions": "bayesdrag.options",
     "PlanOptions": "bayesdrag.options",
     "SimulateOptions": "bayesdrag.options",
@@ -85,8 +85,7 @@ if TYPE_CHECKING:
     from .pipeline import diagnose
     from .pipeline import fit
     from .options import FitOptions, PlanOptions, SimulateOptions
-    from .commands.plan import plan
-    from .commands.simulate import simulate
+    from .pipeline import plan, simulate
     from .drag import ReferenceTable
     from .errors import BayesdragWarning, FitError, FitWarning, InputError, MissingDataError
     from .io.drag_tables import load_m101, read_drag_table

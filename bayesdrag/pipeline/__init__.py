@@ -1,5 +1,7 @@
-"""What ``bayesdrag.fit`` and ``bayesdrag.diagnose`` compute: a track and a round in, a frozen
-result out (:class:`~bayesdrag.results.FitResult`, :class:`~bayesdrag.results.DiagnosisResult`).
+"""The four API verbs: what ``bayesdrag.fit``, ``bayesdrag.diagnose``, ``bayesdrag.plan`` and
+``bayesdrag.simulate`` compute, values in, a frozen result out (:class:`~bayesdrag.results.FitResult`,
+:class:`~bayesdrag.results.DiagnosisResult`, :class:`~bayesdrag.results.PlanResult`, a
+:class:`~bayesdrag.track.RadarTrack`; ``plan`` and ``simulate`` are :mod:`.plan` and :mod:`.simulate`).
 
 No file is read or written here (except the sampler's chain file when the caller names one) and
 nothing is printed: the commands (:mod:`bayesdrag.commands`) read the files, call these functions
@@ -34,12 +36,14 @@ from .check import EFFECT_RESIDUAL_SHARE, check_stage, diagnosis_beside, residua
 from .claim import claim_stage
 from .ml import ml_stage
 from ..results.words import why_not_clean
+from .plan import plan
 from .prepare import Prepared, prepare, watched
 from .result import result_stage, summary_line
 from .sampling import sample_stage
 from .scheme2 import scheme2
+from .simulate import simulate
 
-__all__ = ["fit", "diagnose", "summary_line", "scheme1", "watched", "why_not_clean", "EFFECT_RESIDUAL_SHARE",
+__all__ = ["fit", "diagnose", "plan", "simulate", "summary_line", "scheme1", "watched", "why_not_clean", "EFFECT_RESIDUAL_SHARE",
            "residual_share"]
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import t as t_dist
 
-from ...estimate.cd.claims import DETERMINED_REL_SD, DataBand, claimed
+from ...estimate.cd.claims import DETERMINED_REL_SD, DataBand, claimed  # noqa: F401  (session.run reads it here)
 from .fit import paule_mandel
 
 __all__ = ["rows", "central_row", "form_factor", "ballistic_coefficient", "muzzle_velocity", "scatter",
