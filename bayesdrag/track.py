@@ -28,11 +28,9 @@ UNITS = {"t": "s", "x": "m", "y": "m", "z": "m", "v": "m/s", "range": "m", "azim
 #: unit of each column of a track file and of ``[radar] sigma`` in a round file
 FILE_UNITS = {**UNITS, "azimuth": "deg", "elevation": "deg"}
 #: the most samples a fit or a diagnosis uses: a denser track is thinned to every k-th sample.
-#: The work grows with the samples (~0.5 ms per sample per Scheme 1 fit on 2 cores, measured:
-#: 3 249 samples 4.0 s, 10 827 samples 6.6 s, 32 478 samples 17 s, 325 000 samples did not finish
-#: in 5 min and 2 million exhausted 12 GB); 10 000 samples over a flight are 3 ms apart or more,
-#: far denser than the drag changes, and samples that close are rarely independent (tracking
-#: filters correlate them), so thinning loses little the bands would honestly hold.
+#: 10 000 samples over a flight are 3 ms apart or more, far denser than the drag changes, and
+#: samples that close are rarely independent (tracking filters correlate them), so thinning loses
+#: little the bands would honestly hold; the work grows with the samples (docs/measurements.md, "Where the constants come from").
 MAX_FIT_SAMPLES = 10_000
 #: smallest noise sd one sample's ``sigma_<channel>`` column may give, by the channel's unit inside
 #: the code (the file's: 1e-4 m, 1e-4 m/s, 5e-5 deg): as ``[radar] sigma``'s floor, below which no

@@ -26,8 +26,7 @@ __all__ = ["free_core", "started_beside", "BesideJob", "computed_beside", "Besid
 
 
 #: the child's scheduling niceness: it yields the cores to the caller, whose work is the one
-#: waited for, and takes what is left (measured on the demo: the ML fit beside the diagnosis
-#: 0.50 -> 0.45 s, docs/fitting.md "What the model check costs")
+#: waited for, and takes what is left
 CHILD_NICE = 10
 
 

@@ -161,9 +161,8 @@ RESULT_RTOL = 1e-9
 
 
 #: the most a curve through ``result.json``'s rows may leave the range of the two rows around a
-#: node, in units of the rows' own local bulge (largest second difference near it / 8):
-#: measured at most 0.52 on fitted rounds (the demo with the spline, poly2, poly2-split and
-#: reference-scale drag models, two simulated rounds), so 2 leaves a margin of 4
+#: node, in units of the rows' own local bulge (largest second difference near it / 8): a
+#: margin of four over what fitted rounds show (docs/measurements.md, "Where the constants come from")
 BULGE_FACTOR = 2.0
 
 
@@ -173,7 +172,6 @@ ROW_MACH_TOL = 1e-4
 
 #: most negative eigenvalue of a pooling input's covariance, relative to its trace: a
 #: covariance propagated through the spline basis is positive semi-definite to round-off
-#: (measured -3e-16 of the trace at most, on fitted rounds)
 PSD_RTOL = 1e-9
 
 
@@ -504,8 +502,8 @@ def pool_rounds(inputs, rng=None, n_draws=4000, nwalkers=16, n_steps=600, prior_
     grid = np.linspace(math.log(1e-4), math.log(0.5), 60)
     x0 = grid[int(np.argmax(st.log_post_log_s(grid, prior_sd)))]
     p0 = x0 + 0.1 * rng.standard_normal((nwalkers, 1))
-    # 1-D target: the stretch move mixes slowly in one dimension (tau ~ 20 steps measured); the
-    # differential-evolution move with a snooker share mixes in ~5 steps
+    # 1-D target: the stretch move mixes slowly in one dimension, the differential-evolution
+    # move with a snooker share four times faster
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(nwalkers, 1, lambda x: st.log_post_log_s(x[:, 0], prior_sd),
                                     moves=moves, vectorize=True)

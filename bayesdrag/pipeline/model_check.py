@@ -151,8 +151,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             alt, rec["noise_check_from"] = near, "the white-noise fit started at this fit's estimate"
         if alt is not None:
             # its band's excess over the AR(1) fit's is kept too, not taken as the difference's
-            # noise: near rho = 1 the AR(1) bound is too narrow (measured: a wind flight on
-            # rho 0.95 noise claimed rows 3.1 sd off without it)
+            # noise: near rho = 1 the AR(1) bound is too narrow
             parts["noise"] = shift_sd(ml, band, alt[0], alt[1])
             rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     rec["parts"] = {k: [float(f"{v:.4g}") for v in p] for k, p in parts.items()}
@@ -162,9 +161,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
 
 #: a single effect the verdict leaves out is an alternative explanation when the misfit it leaves
 #: alone is at most this many times what the verdict member it would replace leaves alone: the
-#: data barely prefer the verdict (measured: a 6-DOF flight in a 10 m/s head wind, where a wind
-#: profile left 0.17 % of the gap and a constant wind 0.19 %, and the profile's fit put Cd 6 %
-#: high with a 0.5 % band while the constant wind's was right)
+#: data barely prefer the verdict (docs/measurements.md, "Where the constants come from")
 ALTERNATIVE_GAP_RATIO = 1.5
 #: effects never taken as an alternative: the air (its Cd is conditional on the stated air, said
 #: apart) and those that trade with the Cd level (LEVEL_EFFECTS: sized by the diagnosis, level_shift)
@@ -348,8 +345,7 @@ def gross_outliers(track, f1, sigma=None):
 
 #: effects whose fit with Cd free trades against Cd itself: the temperature's density part is a
 #: factor on the drag, and the induced drag of a decaying yaw is a change of the drag's shape over
-#: the Mach numbers flown first (measured on the honesty suite's yaw flight: the fit with it
-#: moved Cd by 3 % where the yaw had moved it by 12 %)
+#: the Mach numbers flown first
 LEVEL_EFFECTS = partly_trading_with_cd()
 
 

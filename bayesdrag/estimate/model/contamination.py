@@ -58,7 +58,7 @@ ASYMMETRY_LR = 5.99
 REFIT_ITERATIONS, REFIT_WEIGHT_TOL = 12, 0.01
 #: residuals whose lag-1 autocorrelation exceeds this are structured (a misfit: model error, which
 #: the AR(1) noise model and the diagnosis answer), not outliers: no test (white noise: 0 +- 2/sqrt(N);
-#: measured on chronograph tracks with 5-10 % one-sided outliers: at most 0.12)
+#: docs/measurements.md, "Where the constants come from")
 STRUCTURED_LAG1 = 0.3
 #: a refit whose weights take off more than this share of a channel's samples is no contamination
 #: of a few samples but a misfit the mixture has swallowed: the Gaussian fit is kept
