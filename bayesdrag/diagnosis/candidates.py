@@ -157,10 +157,8 @@ def fit_candidates(setup, effs, base_fit, gap, alpha, K, skipped):
 
 
 #: further starts ``(delta0 [rad], decay [1/s])`` of a significant ``yaw_drag`` fit: a large yaw
-#: that damps slowly and one that damps fast. From the one small start (0.045 rad, 0.5 /s) the
-#: fit stopped at a local optimum on point-mass flights with a large launch yaw: 0.04 rad at the
-#: slowest decay for a true 0.16 rad at 0.3 /s, 0.06 rad for 0.12 rad at 0.8 /s; the table's
-#: shape then took the misfit, and the Cd of the first seconds was claimed 6-16 % off
+#: that damps slowly and one that damps fast; from the one small start the fit stops at a local
+#: optimum when the launch yaw is large (docs/measurements.md, "Where the constants come from")
 YAW_RESTARTS = ((0.12, 0.3), (0.12, 1.5))
 
 

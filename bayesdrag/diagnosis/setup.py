@@ -146,10 +146,9 @@ def nuisance_drag(track, rnd, channels, sigma, t_ic):
     from ..estimate.build.smoothing import SMOOTHING_GRID, smoothness_priors
 
     # the whole track: samples the diagnosis weights out as gross outliers are kept here (the
-    # local-cubic rule also flags the first samples of a shell that decelerates fast -- 9-12
-    # speed samples of a sphere or a bullet -- and leaving them out cut the drag model's Mach
-    # span short of the launch, so the held-flat spline put a 10 % "wind" into a G1 bullet's
-    # track); the diagnosis' own fits weight them out
+    # local-cubic rule also flags the first samples of a shell that decelerates fast, and leaving
+    # them out would cut the drag model's Mach span short of the launch); the diagnosis' own fits
+    # weight them out
     tr = track
     f1 = fit_scheme1(tr, rnd, drag="spline", channels=channels, sigma=sigma)
     res = f1.ml

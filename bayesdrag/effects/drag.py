@@ -33,9 +33,8 @@ DRAG_SHAPE_RISE_WEIGHT = 1.0
 #: bound on each drag_shape coefficient (a relative Cd change): the standard tables and M101
 #: differ in shape, their best common factor taken out, by at most 0.44 (G7 against the sphere
 #: GS over Mach 0.5-2.5; median pair 0.27), and a B-spline coefficient at a sharp rise exceeds
-#: the curve it makes (0.74 for an M101 shell against a G1 table). With +-2 an 8-coefficient
-#: correction alternating in sign stood in for an 8 % density change on a flight that samples
-#: the Mach range unevenly
+#: the curve it makes (0.74 for an M101 shell against a G1 table); a wider bound lets a
+#: correction alternating in sign stand in for a density change (docs/measurements.md, "Where the constants come from")
 DRAG_SHAPE_BOUND = 1.0
 
 #: override key of drag_shape's coefficients (not a kernel column: read by DragShapeModel)

@@ -118,7 +118,7 @@ def read_text(path: Path, what: str, max_bytes=None) -> str:
 
 
 #: bytes read at a time by the table reader: the text of one block is held at once, the file never
-#: (a 5 M-row track read whole took 7.6 times its size; benchmarks/resources.py)
+#: (a whole file's text takes several times its size; benchmarks/resources.py)
 BLOCK_BYTES = 8 << 20
 
 

@@ -78,8 +78,8 @@ def _variable(grp, name, dims, arr, h5py):
     dims = tuple(dims)
     if a.dtype.kind in "US" or a.dtype == object:
         return grp.create_variable(name, dims, dtype=h5py.string_dtype(), data=a.astype(object))
-    # byte shuffle and the lightest gzip: on the demo's posterior 8.9 MB in 0.19 s, where
-    # xarray's default (gzip 4, no shuffle) gave 10.3 MB in 0.30 s and none 12.5 MB in 0.08 s
+    # byte shuffle and the lightest gzip: smaller and faster than xarray's default (gzip 4, no
+    # shuffle) on a posterior's floats (docs/measurements.md, "Where the constants come from")
     kw = {"compression": "gzip", "compression_opts": 1, "shuffle": True} if a.size else {}
     if a.dtype.kind == "f":
         kw["fillvalue"] = a.dtype.type(np.nan)

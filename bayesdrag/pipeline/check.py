@@ -78,10 +78,9 @@ def check_stage(prep: Prepared, ans: Answer, diag, timing, ml_progress, with_not
     gap = effects_fit = None
     sizes_job = None
     default = opts.with_effects == "default"
-    # effects the user names are fitted, and the misfit they leave is checked like any other: a
-    # warm day under `--with wind_profile` otherwise gave rows 50 sd off marked determined. Only
-    # the default takes the check's fit as its answer: otherwise the check cannot change what is
-    # sampled, and it is made once the sampling (beside which its diagnosis runs on) is done
+    # effects the user names are fitted, and the misfit they leave is checked like any other (an
+    # effect named is not the only one the day had). Only the default takes the check's fit as its
+    # answer: otherwise the check cannot change what is sampled, and it is made after the sampling
     deferred = diag is not None and opts.mcmc and not default
     if diag is not None and not deferred:
         gap, effects_fit = checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress)

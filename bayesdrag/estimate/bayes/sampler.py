@@ -53,9 +53,7 @@ ESS_MIN = 400
 #: default number of walkers
 DEFAULT_WALKERS = 16
 #: default walkers when a declared temperature offset is sampled (drift coordinates with a
-#: temperature): on a py-ballisticcalc track with density_sd 0.002 and temperature_sd 0.5 16 walkers
-#: gave tau ~220 steps (not converged in 10 000 steps, 528 s), 128 walkers tau 28 and 5x the ESS
-#: per simulated trajectory (docs/bayes.md, Known limits)
+#: temperature): a few walkers mix that posterior eight times slower (docs/bayes.md, Known limits)
 SOURCE_WALKERS = 128
 #: default steps between convergence checks (and chain-file flushes)
 CHECK_EVERY = 25

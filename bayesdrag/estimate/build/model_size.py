@@ -95,9 +95,8 @@ NARROW_SPAN_MACH = 0.3
 
 #: how far Cd / table may depart from the table's shape per Mach [1/Mach] when one factor on it
 #: is fitted over a narrow span: the session's shape prior (15 % of the level per 0.1 Mach). The
-#: standard functions' log-ratio slopes reach 0.5 per Mach above Mach 1.3 and 1.9 below 0.8; at
-#: 0.15 per Mach a G5 shell fitted on G6 over Mach 0.46-0.73 had its 90 % band hold the truth
-#: at 53 % of the rows
+#: standard functions' log-ratio slopes reach 0.5 per Mach above Mach 1.3 and 1.9 below 0.8
+#: (docs/measurements.md, "Where the constants come from")
 SHAPE_SLOPE_SD = 1.5
 
 

@@ -91,8 +91,8 @@ BOUND_SDS = 20.0
 #: sd of the launch yaw [deg] assumed for a spinning shell whose lift the track shows: a stable
 #: shell leaves the muzzle with a first maximum yaw of one to a few degrees. Its decaying induced
 #: drag ``Cd k delta^2`` is a change of the Cd curve over the Mach numbers flown first, which the
-#: track cannot tell from Cd: held at zero it gave rows 3-4 % high with bands of 0.3 % on a 105 mm
-#: 6-DOF flight launched at 3 deg (docs/fitting.md, "Launch yaw")
+#: track cannot tell from Cd: held at zero, rows are claimed with the yaw's drag in them
+#: (docs/fitting.md, "Launch yaw")
 LAUNCH_YAW_SD_DEG = 3.0
 #: decay rate [1/s] of the assumed launch yaw's amplitude (its drag decays at twice this): the
 #: slow mode of the 6-DOF shells damps with an amplitude e-folding time of 1.7-2 s
