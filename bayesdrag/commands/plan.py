@@ -1,5 +1,5 @@
 """Planning a firing as a command, ``bayesdrag plan ROUND -o DIR`` (:func:`run_plan`); the Python
-API ``bayesdrag.plan`` is :func:`bayesdrag.pipeline.plan.plan`. The statistics are in
+API ``bayesdrag.plan`` is :func:`bayesdrag.pipeline.plans.plan`. The statistics are in
 :mod:`bayesdrag.planning.case` and :mod:`bayesdrag.planning.summary`."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
-from ..pipeline.plan import plan
+from ..pipeline.plans import plan
 
 __all__ = ["plan", "run_plan"]
 

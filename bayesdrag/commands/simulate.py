@@ -1,5 +1,5 @@
 """Synthetic radar tracks as a command, ``bayesdrag simulate`` (:func:`run_simulate`); the Python
-API ``bayesdrag.simulate`` is :func:`bayesdrag.pipeline.simulate.simulate`."""
+API ``bayesdrag.simulate`` is :func:`bayesdrag.pipeline.simulation.simulate`."""
 from __future__ import annotations
 
 import math
@@ -10,7 +10,7 @@ from ..errors import InputError
 from ..io.outputs import atomic_write
 from ..track import ANGLE_CHANNELS
 from ..options import SimulateOptions
-from ..pipeline.simulate import simulate
+from ..pipeline.simulation import simulate
 
 __all__ = ["simulate", "run_simulate"]
 

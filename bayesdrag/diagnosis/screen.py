@@ -11,8 +11,8 @@ can accept; the other candidates are dismissed unfitted. Whatever the screen dis
 selection would have rejected: the verdict is the one without the screen (the suites measure it;
 docs/measurements.md has the figures).
 
-A decaying yaw's amplitude is invisible at its decay rate when the amplitude is zero (its score is
-taken at every decay rate its fit starts from, the largest counts).
+A decaying yaw (``yaw_drag``) is never screened: at zero amplitude its decay rate is invisible
+(Davies' problem), so a score at one decay rate says nothing of the drop at the rate its fit finds.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from ..effects import YAW_DRAG
 from ..errors import FitError
-from .setup import effect_problem, fit_starts
+from .setup import effect_problem
 
 __all__ = ["predicted_drop", "smallest_admitted_drop", "could_be_admitted", "SCREEN_SAFETY"]
 
@@ -33,22 +33,6 @@ _INFLATION_FLOOR = 0.05
 #: outputs of the joint problem at the effect's "no effect" value that differ from the smaller
 #: fit's by more than this many noise sd: that null is not the smaller model, no screen [-]
 _NULL_MISMATCH_SD = 1e-3
-
-
-def _null_starts(e):
-    """The effect's parameter vectors at which its score is taken: its "no effect" value (the
-    yaw amplitude at its small fit start, with each decay rate its fits start from)."""
-    from .candidates import YAW_RESTARTS
-
-    first = np.array(fit_starts(e), float)
-    if e.name != YAW_DRAG.name:
-        return [np.array([p.start for p in e.params], float)]
-    out = [first]
-    for _, decay in YAW_RESTARTS:
-        v = first.copy()
-        v[-1] = decay
-        out.append(v)
-    return out
 
 
 def predicted_drop(setup, small_effects, small_fit, e):
@@ -66,42 +50,38 @@ def predicted_drop(setup, small_effects, small_fit, e):
     Returns
     -------
     float or None
-        ``g' M^-1 g`` [chi2] at the smaller fit's optimum with ``e`` at its "no effect" value (the
-        largest over the starts of a decaying yaw); None when it cannot be formed (the joint
-        model at the null is not the smaller fit's, a trajectory is not finite): the caller
-        fits.
+        ``g' M^-1 g`` [chi2] at the smaller fit's optimum with ``e`` at its "no effect" value;
+        None when it cannot be formed (the joint model at the null is not the smaller fit's, a
+        trajectory is not finite) and for a decaying yaw (module docstring): the caller fits.
     """
+    if e.name == YAW_DRAG.name:
+        return None
     res, _, y_small = small_fit
     sig_vec = np.array([res.sigma[c] for c in setup.channels])
-    best = None
-    for null in _null_starts(e):
-        try:
-            prob = effect_problem(setup, list(small_effects) + [e], np.concatenate([res.theta, null]))
-            theta = prob.theta0
-            y, _, S = prob.sensitivities(theta)
-        except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
-            return None
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(S))):
-            return None
-        if e.name != YAW_DRAG.name:
-            mismatch = np.nanmax(np.abs(y - y_small) * (setup.weights > 0) / sig_vec[None, :])
-            if not mismatch <= _NULL_MISMATCH_SD:
-                return None
-        resid = prob.z - y
-        A = prob.weighted(S, res.sigma, res.ar).reshape(-1, S.shape[-1])
-        rw = prob.weighted(resid, res.sigma, res.ar).reshape(-1)
-        pr, pJ = prob.prior_terms(theta)
-        if pr.size:
-            A, rw = np.vstack([A, pJ]), np.concatenate([rw, pr])
-        g = A.T @ rw
-        try:
-            d = float(g @ np.linalg.lstsq(A.T @ A, g, rcond=None)[0])
-        except np.linalg.LinAlgError:
-            return None
-        if not np.isfinite(d):
-            return None
-        best = d if best is None else max(best, d)
-    return best
+    null = np.array([p.start for p in e.params], float)
+    try:
+        prob = effect_problem(setup, list(small_effects) + [e], np.concatenate([res.theta, null]))
+        theta = prob.theta0
+        y, _, S = prob.sensitivities(theta)
+    except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return None
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(S))):
+        return None
+    mismatch = np.nanmax(np.abs(y - y_small) * (setup.weights > 0) / sig_vec[None, :])
+    if not mismatch <= _NULL_MISMATCH_SD:
+        return None
+    resid = prob.z - y
+    A = prob.weighted(S, res.sigma, res.ar).reshape(-1, S.shape[-1])
+    rw = prob.weighted(resid, res.sigma, res.ar).reshape(-1)
+    pr, pJ = prob.prior_terms(theta)
+    if pr.size:
+        A, rw = np.vstack([A, pJ]), np.concatenate([rw, pr])
+    g = A.T @ rw
+    try:
+        d = float(g @ np.linalg.lstsq(A.T @ A, g, rcond=None)[0])
+    except np.linalg.LinAlgError:
+        return None
+    return d if np.isfinite(d) else None
 
 
 def smallest_admitted_drop(setup, small_fit, gap, threshold_value, second_share, left_share):

@@ -1,15 +1,15 @@
 """The four API verbs: what ``bayesdrag.fit``, ``bayesdrag.diagnose``, ``bayesdrag.plan`` and
 ``bayesdrag.simulate`` compute, values in, a frozen result out (:class:`~bayesdrag.results.FitResult`,
 :class:`~bayesdrag.results.DiagnosisResult`, :class:`~bayesdrag.results.PlanResult`, a
-:class:`~bayesdrag.track.RadarTrack`; ``plan`` and ``simulate`` are :mod:`.plan` and :mod:`.simulate`).
+:class:`~bayesdrag.track.RadarTrack`; ``plan`` and ``simulate`` are :mod:`.plans` and :mod:`.simulation`).
 
 No file is read or written here (except the sampler's chain file when the caller names one) and
 nothing is printed: the commands (:mod:`bayesdrag.commands`) read the files, call these functions
 and write the output folder.
 
-A Scheme 1 fit is six named stages, one module each, run in this order by :func:`scheme1`:
+A Scheme 1 fit is six named stages, one module each, run in this order by :func:`scheme1_fit`:
 
-1. :mod:`.prepare` -- the values checked once (channels, dense tracks, a chronograph's site);
+1. :mod:`.preparation` -- the values checked once (channels, dense tracks, a chronograph's site);
 2. :mod:`.ml` -- the maximum-likelihood fit and its :class:`~.ml.Answer` (rows, budget);
 3. :mod:`.check` -- the model check (:mod:`.model_check`), which may replace the answer with
    its fit carrying the effects it finds; its diagnosis runs in a forked process beside stage 2;
@@ -36,14 +36,14 @@ from .check import EFFECT_RESIDUAL_SHARE, check_stage, diagnosis_beside, residua
 from .claim import claim_stage
 from .ml import ml_stage
 from ..results.words import why_not_clean
-from .plan import plan
-from .prepare import Prepared, prepare, watched
+from .plans import plan
+from .preparation import Prepared, prepare, watched
 from .result import result_stage, summary_line
 from .sampling import sample_stage
-from .scheme2 import scheme2
-from .simulate import simulate
+from .scheme2 import scheme2_fit
+from .simulation import simulate
 
-__all__ = ["fit", "diagnose", "plan", "simulate", "summary_line", "scheme1", "watched", "why_not_clean", "EFFECT_RESIDUAL_SHARE",
+__all__ = ["fit", "diagnose", "plan", "simulate", "summary_line", "scheme1_fit", "scheme2_fit", "watched", "why_not_clean", "EFFECT_RESIDUAL_SHARE",
            "residual_share"]
 
 
@@ -99,8 +99,8 @@ def fit(track: RadarTrack, rnd: Round, options: FitOptions | None = None, *, cha
         progress = watched() if progress is None else bool(progress)
         prep = prepare(track, rnd, options, **kwargs)
         if prep.opts.scheme == 2:
-            return _emitted(scheme2(prep, log, t_start))
-        return _emitted(scheme1(prep, chain_path, resume, log, progress, t_start, ml_progress))
+            return _emitted(scheme2_fit(prep, log, t_start))
+        return _emitted(scheme1_fit(prep, chain_path, resume, log, progress, t_start, ml_progress))
 
 
 def _emitted(result):
@@ -113,7 +113,7 @@ def _emitted(result):
     return result
 
 
-def scheme1(prep: Prepared, chain_path, resume, log, progress, t_start, ml_progress=None):
+def scheme1_fit(prep: Prepared, chain_path, resume, log, progress, t_start, ml_progress=None):
     """A Scheme 1 fit of prepared values, stage by stage (the module's docstring names them)."""
     opts = prep.opts
     check = opts.model_check and opts.with_effects != "auto"

@@ -21,7 +21,7 @@ from ..estimate.scheme1.effect_sizes import effect_sizes
 from ..effects import RADAR_POSITION
 from .ml import Answer, answer_of, wholly_fitted
 from .model_check import LEVEL_EFFECTS, alternative_error, diagnosis_record, model_error
-from .prepare import Prepared
+from .preparation import Prepared
 
 __all__ = ["Checked", "check_stage", "checked", "diagnosis_beside", "sizes_beside", "effect_sizes_record",
            "EFFECT_RESIDUAL_SHARE", "structured_power", "residual_share", "effect_residual", "trades_with_cd"]

@@ -15,7 +15,7 @@ from ..estimate.cd.table import cd_table
 from ..estimate.scheme1.fit import fit_scheme1
 from .check import Checked
 from .model_check import air, air_contradiction, note_model_error, withdrawn_by_check
-from .prepare import Prepared
+from .preparation import Prepared
 
 __all__ = ["claim_stage", "placement_error", "rigid_check"]
 

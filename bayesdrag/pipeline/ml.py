@@ -12,7 +12,7 @@ from ..errors import FitError
 from ..estimate.cd.table import cd_grid, cd_table, model_error_floor
 from ..estimate.scheme1.fit import fit_scheme1
 from ..effects import WIND_PROFILE
-from .prepare import Prepared
+from .preparation import Prepared
 
 __all__ = ["Answer", "answer_of", "ml_stage", "requested_effects", "wholly_fitted", "budget_of"]
 
@@ -62,7 +62,7 @@ def answer_of(f1, rnd, without=None):
 
 
 def ml_stage(prep: Prepared, log, ml_progress):
-    """The ML fit of :class:`~.prepare.Prepared` ``prep`` with the effects ``--with`` asks for:
+    """The ML fit of :class:`~.preparation.Prepared` ``prep`` with the effects ``--with`` asks for:
     ``(Answer, with_note)``, ``with_note`` the record of the effects asked for (None without
     ``--with``).
 

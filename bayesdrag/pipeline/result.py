@@ -17,7 +17,7 @@ from ..effects import WIND_PROFILE
 from ..results import FitResult
 from .check import Checked, effect_sizes_record
 from .model_check import clock_note
-from .prepare import Prepared
+from .preparation import Prepared
 from .sampling import mcmc_json, posterior_json, sampled_rows
 
 __all__ = ["result_stage", "with_effects_record", "fitted_layers", "layers_wind_sd", "ml_summary", "summary_line"]

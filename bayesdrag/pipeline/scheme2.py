@@ -13,12 +13,12 @@ from ..estimate.cd.headline import headline
 from ..estimate.cd.table import determined_range
 from ..estimate.scheme2 import fit_scheme2, stitched_rows, window_budget, windows_table
 from ..results import FitResult
-from .prepare import Prepared
+from .preparation import Prepared
 
-__all__ = ["scheme2", "scheme2_effects_note"]
+__all__ = ["scheme2_fit", "scheme2_effects_note"]
 
 
-def scheme2(prep: Prepared, log, t_start):
+def scheme2_fit(prep: Prepared, log, t_start):
     """Scheme 2: ML per window, then (with sampling) the same posterior in each window (Cd,
     initial state, noise). Windows are sampled one after the other: each window's batch already
     runs on both cores (numba threads); a process pool would only add start-up and contention on

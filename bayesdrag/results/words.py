@@ -4,9 +4,12 @@ result's ``result.json`` holds (rounded for reading)."""
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 from ..effects import EFFECTS
+
+if TYPE_CHECKING:
+    from .fit import FitResult
 
 __all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects", "effect_lines",
            "why_not_clean", "summary_line", "SITE_NOT_GIVEN", "NOISE_FREE_SD", "CHECK_NAMES"]
@@ -121,7 +124,7 @@ SITE_NOT_GIVEN = ("the round gives no [radar] position (the site defaults to the
 NOISE_FREE_SD = 1e-3
 
 
-def why_not_clean(quality):
+def why_not_clean(quality: dict[str, Any]) -> str:
     """The summary's reason a Scheme 1 fit is not a clean answer and the next step
     (its ``ml.quality``)."""
     from ..estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
@@ -169,7 +172,7 @@ def why_not_clean(quality):
     return "a parameter sits at a bound (see ml.quality.at_bounds); next: `bayesdrag diagnose TRACK ROUND -o DIR`"
 
 
-def summary_line(result):
+def summary_line(result: FitResult) -> str:
     """The outcome the command prints: converged, determined range, caveat and next step, and a
     second line on the air when the Cd is conditional on it or the track contradicts it."""
     s = result.record

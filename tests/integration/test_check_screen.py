@@ -76,3 +76,12 @@ def test_the_screen_changes_nothing_and_saves_fits(monkeypatch):
     monkeypatch.setattr(selection, "could_be_admitted", lambda *a, **k: True)
     assert _summary(tr, rnd) == screened
     assert set(json.loads(screened)["verdict"]) == {"wind", CORIOLIS.name}
+
+
+def test_a_decaying_yaw_is_never_screened(headwind):
+    """At zero amplitude a yaw's decay rate is invisible: no score stands for its fit."""
+    from bayesdrag.effects import YAW_DRAG
+
+    setup, base = headwind
+    assert predicted_drop(setup, [], base, YAW_DRAG) is None
+    assert could_be_admitted(setup, [], base, YAW_DRAG, needed=1e12, single_drop=0.0)

@@ -601,8 +601,8 @@ def test_caps_are_checked_before_anything_is_allocated(case, capsys, monkeypatch
     def no_work(*a, **k):
         raise AssertionError("the fit started before the cap was checked")
 
-    monkeypatch.setattr(fit_module, "scheme1", no_work)
-    monkeypatch.setattr(fit_module, "scheme2", no_work)
+    monkeypatch.setattr(fit_module, "scheme1_fit", no_work)
+    monkeypatch.setattr(fit_module, "scheme2_fit", no_work)
     code, lines, _ = _cli(["fit", "track.csv", "round.toml", "-o", "out", "--quiet", *argv], capsys)
     _one_line(code, lines, pattern)
 
