@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._runtime.beside import started_beside
-from ..estimate.cd.claims import add_model_error
+from ..estimate.cd.claims import BandTerm, add_model_error
 from ..estimate.scheme1.effect_sizes import effect_sizes
 from ..effects import RADAR_POSITION
 from .ml import Answer, answer_of, wholly_fitted
@@ -24,7 +24,7 @@ from .model_check import LEVEL_EFFECTS, alternative_error, diagnosis_record, mod
 from .preparation import Prepared
 
 __all__ = ["Checked", "check_stage", "checked", "diagnosis_beside", "sizes_beside", "effect_sizes_record",
-           "EFFECT_RESIDUAL_SHARE", "structured_power", "residual_share", "effect_residual", "trades_with_cd"]
+           "EFFECT_RESIDUAL_SHARE", "EFFECT_RESIDUAL_TERM", "structured_power", "residual_share", "effect_residual", "trades_with_cd"]
 
 
 @dataclass(frozen=True)
@@ -177,11 +177,15 @@ def residual_share(plain, fitted, channels, sigma):
     return float(min(EFFECT_RESIDUAL_SHARE, np.sqrt(max(after, 2.0 * noise) / before)))
 
 
+#: what an added effect's simple form (a constant wind, a few layers, one clock offset) leaves
+EFFECT_RESIDUAL_TERM = BandTerm("effect_residual", why="what an added effect's simple form leaves of the real one")
+
+
 def effect_residual(rows, gap, share=EFFECT_RESIDUAL_SHARE):
     """Add ``share`` (at most :data:`EFFECT_RESIDUAL_SHARE`) of each row's correction (``ml``
     against ``ml_without_effects``) to its ``model_error_sd`` in squares, and record it in ``gap``."""
     res = [share * abs(r["ml"] - r["ml_without_effects"]) for r in rows]
-    add_model_error(rows, "effect_residual", res)
+    add_model_error(rows, EFFECT_RESIDUAL_TERM, res)
     gap.setdefault("parts", {})["effect_residual"] = [float(f"{v:.4g}") for v in res]
     gap["effect_residual_share"] = float(f"{share:.4g}")
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import FitError, InputError
 from ..estimate.build.model_size import narrow_shape_sd
-from ..estimate.cd.claims import add_model_error, claim
+from ..estimate.cd.claims import BandTerm, add_model_error, claim
 from ..estimate.cd.quality import assess, assess_claims, check_against_flexible, intervals
 from ..estimate.cd.table import cd_table
 from ..estimate.scheme1.fit import fit_scheme1
@@ -17,7 +17,12 @@ from .check import Checked
 from .model_check import air, air_contradiction, note_model_error, withdrawn_by_check
 from .preparation import Prepared
 
-__all__ = ["claim_stage", "placement_error", "rigid_check"]
+__all__ = ["claim_stage", "placement_error", "rigid_check", "PLACEMENT_TERM", "NARROW_SHAPE_TERM"]
+
+#: the wind layers' equivalent placements: where the track cannot tell where a wind step lies
+PLACEMENT_TERM = BandTerm("placement", why="the Cd spread of the wind layers' equivalent placements")
+#: one factor on the table over a narrow span: how far the table's shape may lean
+NARROW_SHAPE_TERM = BandTerm("narrow_shape", why="a narrow span's lean of the table's shape")
 
 
 def claim_stage(prep: Prepared, chk: Checked, ml_progress):
@@ -29,7 +34,7 @@ def claim_stage(prep: Prepared, chk: Checked, ml_progress):
     f1, grid, rows = ans.f1, ans.grid, ans.rows
     placement = placement_error(f1, grid, rows)
     if (f1.model_size or {}).get("narrow_span"):   # one factor on the table: the shape may lean
-        add_model_error(rows, "narrow_shape", narrow_shape_sd(f1.model_size["narrow_span"], grid,
+        add_model_error(rows, NARROW_SHAPE_TERM, narrow_shape_sd(f1.model_size["narrow_span"], grid,
                                                             [r["ml"] for r in rows]))
     quality, data = assess_claims(f1, rows, track, rnd.radar.sigma)
     if prep.notes:
@@ -65,7 +70,7 @@ def placement_error(f1, grid, rows):
     if not f1.layer_placements:
         return None
     sd = placement_sd(f1.drag_model, f1.layer_placements, grid)
-    add_model_error(rows, "placement", sd)
+    add_model_error(rows, PLACEMENT_TERM, sd)
     return float(f"{float(np.max(sd)):.4g}")
 
 

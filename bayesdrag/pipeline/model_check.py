@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import FitError, FitWarning, InputError
-from ..estimate.cd.claims import add_model_error, set_model_error
+from ..estimate.cd.claims import BandTerm, add_model_error, set_model_error
 from ..results.words import CHECK_NAMES, NOISE_FREE_SD, SITE_NOT_GIVEN, why_not_clean
 from ..estimate.cd.model_error import check_sd, describe, shift_sd
 from ..estimate.cd.quality import assess
@@ -21,7 +21,15 @@ from ..effects import DENSITY, DRAG_SHAPE, EFFECTS, RADAR_POSITION, RADAR_TIME, 
     YAW_DRAG, air_state_effects, not_alternatives, partly_trading_with_cd
 
 __all__ = ["air_contradiction", "air_measured", "own_table", "model_error", "diagnosis_record", "close_alternative", "shape_confounded", "alternative_error", "note_model_error", "air", "why_not_clean", "clock_note", "level_shift",
-           "gross_outliers", "withdrawn_by_check", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
+           "gross_outliers", "withdrawn_by_check", "CHECK_TERMS", "AIR_CONTRADICTION_SD", "NOISE_FREE_SD", "LEVEL_EFFECTS"]
+
+
+#: the model-error terms the check sizes (``ml.quality.model_error.parts``)
+EFFECTS_TERM = BandTerm("effects", why="the Cd shift of the undeclared material effects the check fits")
+SHAPE_TERM = BandTerm("shape_confounded", why="a table's shape the data cannot tell from a decaying yaw")
+ALTERNATIVE_TERM = BandTerm("alternative", why="the Cd of a close alternative explanation")
+NOISE_TERM = BandTerm("noise", why="a robust or white-noise fit of the same track")
+CHECK_TERMS = (EFFECTS_TERM, SHAPE_TERM, ALTERNATIVE_TERM, NOISE_TERM)
 
 
 def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=True, plain=None, diagnosis=None):
@@ -155,7 +163,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             parts["noise"] = shift_sd(ml, band, alt[0], alt[1])
             rec["noise_check"] = {"why": "correlated (AR(1)) residuals", "against": "white", "outlier_samples": 0}
     rec["parts"] = {k: [float(f"{v:.4g}") for v in p] for k, p in parts.items()}
-    set_model_error(rows, parts)
+    set_model_error(rows, parts, CHECK_TERMS)
     return rec, effects_fit
 
 
@@ -292,7 +300,7 @@ def alternative_error(rows, gap):
     mach = np.array([r["mach"] for r in rows], float)
     # the answer's grid is its own flight's (beyond the alternative's span, its end values)
     sd = shift_sd(ml, band, np.interp(mach, alt["mach"], alt["cd"]), np.interp(mach, alt["mach"], alt["band_sd"]))
-    add_model_error(rows, "alternative", sd)
+    add_model_error(rows, ALTERNATIVE_TERM, sd)
     gap.setdefault("parts", {})["alternative"] = [float(f"{v:.4g}") for v in sd]
 
 

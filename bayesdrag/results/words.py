@@ -4,12 +4,9 @@ result's ``result.json`` holds (rounded for reading)."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 from ..effects import EFFECTS
-
-if TYPE_CHECKING:
-    from .fit import FitResult
 
 __all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects", "effect_lines",
            "why_not_clean", "summary_line", "SITE_NOT_GIVEN", "NOISE_FREE_SD", "CHECK_NAMES"]
@@ -172,9 +169,11 @@ def why_not_clean(quality: dict[str, Any]) -> str:
     return "a parameter sits at a bound (see ml.quality.at_bounds); next: `bayesdrag diagnose TRACK ROUND -o DIR`"
 
 
-def summary_line(result: FitResult) -> str:
-    """The outcome the command prints: converged, determined range, caveat and next step, and a
-    second line on the air when the Cd is conditional on it or the track contradicts it."""
+def summary_line(result: Any) -> str:
+    """The outcome the command prints of a :class:`~bayesdrag.results.FitResult` ``result``
+    (typed ``Any``: results.fit imports this module): converged, determined range, caveat and
+    next step, and a second line on the air when the Cd is conditional on it or the track
+    contradicts it."""
     s = result.record
     if s["scheme"] == 2:
         m = s["ml"]

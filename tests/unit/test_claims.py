@@ -9,39 +9,64 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesdrag.estimate.cd.claims import (BAND_TERMS, DETERMINED_REL_SD, MODEL_ERROR_TERMS, DataBand,
+from bayesdrag.estimate.cd.claims import (BUDGET_KEYS, DATA_TERMS, DETERMINED_REL_SD, BandTerm, DataBand,
                                           add_model_error, claim, claimed, set_model_error)
 
 PKG = Path(__file__).resolve().parents[2] / "bayesdrag"
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "expected"
-#: the budget keys a term may be reported under ("<source>": a declared source's own stem)
-BUDGET_KEYS = {"statistical", "noise_model", "model_error", "<source>"}
 #: relative agreement of numbers result.json rounds to 4 significant digits
 ROUNDED_RTOL = 1e-3
 #: the row fields only bayesdrag.estimate.cd.claims writes
 CLAIM_FIELDS = {"band_sd", "determined", "model_error_sd", "model_error_floor"}
 
 
+def declared_terms():
+    """``{name: (reported_under, module)}`` of every ``BandTerm(...)`` the package declares (an
+    AST scan: a term is declared where it is sized, in its stage's module)."""
+    out = {}
+    for f in PKG.rglob("*.py"):
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "BandTerm" and node.args:
+                if not isinstance(node.args[0], ast.Constant):
+                    continue      # the class's own code
+                args = [a.value for a in node.args if isinstance(a, ast.Constant)]
+                kw = {k.arg: k.value.value for k in node.keywords if isinstance(k.value, ast.Constant)}
+                under = args[1] if len(args) > 1 else kw.get("reported_under", "model_error")
+                name = args[0]
+                assert name not in out, f"band term {name!r} declared twice: {out[name][1]} and {f.name}"
+                out[name] = (under, str(f.relative_to(PKG)))
+    return out
+
+
 def test_every_band_term_is_reported_under_a_budget_key():
-    assert set(BAND_TERMS.values()) <= BUDGET_KEYS
-    assert set(MODEL_ERROR_TERMS.values()) == {"model_error"}
+    terms = declared_terms()
+    assert {t.name for t in DATA_TERMS} <= set(terms)
+    assert {"effects", "noise", "alternative", "effect_residual", "placement"} <= set(terms), sorted(terms)
+    bad = {n: u for n, (u, _) in terms.items() if u not in BUDGET_KEYS}
+    assert not bad, bad
+    with pytest.raises(ValueError, match="not one of"):
+        BandTerm("a_term", "nowhere")
 
 
-def test_every_term_the_package_adds_is_named():
-    """Each term a stage adds (``add_model_error(rows, "name", ...)``) and each part of the
-    model check (``parts["name"]``) is a named term: a new one without its budget key fails."""
+def test_every_term_the_package_adds_is_declared():
+    """Each term a stage adds goes in as a declared BandTerm (``add_model_error(rows, NAME_TERM,
+    ...)``), and each part the model check records is one of its declared terms: a new term
+    without its declaration fails here."""
+    from bayesdrag.pipeline.model_check import CHECK_TERMS
+
     added = set()
     for f in PKG.rglob("*.py"):
-        if f.name == "claims.py" and "cd" in f.parts:
-            continue    # the definitions and their docstring's example
-        text = f.read_text(encoding="utf-8")
-        added |= set(re.findall(r'add_model_error\(\s*\w+\s*,\s*"(\w+)"', text))
-        if f.name == "model_check.py":
-            added |= set(re.findall(r'parts\["(\w+)"\]\s*=', text))
+        added |= set(re.findall(r'add_model_error\(\s*[\w.]+\s*,\s*([^,\s]+)\s*,', f.read_text(encoding="utf-8")))
+    added.discard("term")        # the docstring's and the definition's own
     assert added, "the scan found no term: the pattern no longer matches the code"
-    assert added <= set(MODEL_ERROR_TERMS), added - set(MODEL_ERROR_TERMS)
-    with pytest.raises(ValueError, match="not in MODEL_ERROR_TERMS"):
-        add_model_error([{"ml": 0.3}], "an_unnamed_term", [0.001])
+    assert all(a.endswith("_TERM") for a in added), added
+    text = (PKG / "pipeline" / "model_check.py").read_text(encoding="utf-8")
+    parts = set(re.findall(r'parts\["(\w+)"\]\s*=', text))
+    assert parts and parts <= {t.name for t in CHECK_TERMS}, parts
+    with pytest.raises(TypeError, match="BandTerm"):
+        add_model_error([{"ml": 0.3}], "an_undeclared_term", [0.001])
+    with pytest.raises(ValueError, match="none of the declared terms"):
+        set_model_error([{"ml": 0.3}], {"an_undeclared_term": [0.001]}, CHECK_TERMS)
 
 
 def _claim_writes(path):
@@ -90,9 +115,12 @@ def test_a_declared_source_widens_the_band_but_is_not_the_datas_failure():
 
 
 def test_claim_reads_the_rows_model_error_and_a_second_claim_withdraws():
+    from bayesdrag.pipeline.claim import PLACEMENT_TERM
+    from bayesdrag.pipeline.model_check import CHECK_TERMS
+
     rows = [{"ml": 0.3}, {"ml": 0.3}]
-    set_model_error(rows, {"effects": np.array([0.0, 0.003]), "noise": np.array([0.0, 0.002])})
-    add_model_error(rows, "placement", [0.0, 0.0])
+    set_model_error(rows, {"effects": np.array([0.0, 0.003]), "noise": np.array([0.0, 0.002])}, CHECK_TERMS)
+    add_model_error(rows, PLACEMENT_TERM, [0.0, 0.0])
     assert rows[1]["model_error_sd"] == pytest.approx(math.hypot(0.003, 0.002))
     data = DataBand.plain([0.0005, 0.0005])
     claim(rows, data)
@@ -110,7 +138,7 @@ def test_the_budget_reports_each_rows_terms(name):
     d = json.loads((GOLDEN / f"{name}.json").read_text())
     rows, by = d["cd"], d["uncertainty_budget"]["by_source"]
     parts = ((d["ml"].get("quality") or {}).get("model_error") or {}).get("parts") or {}
-    assert set(parts) <= set(MODEL_ERROR_TERMS)
+    assert set(parts) <= {n for n, (u, _) in declared_terms().items() if u == "model_error"}
     me = np.array([r.get("model_error_sd", 0.0) for r in rows])
     if parts:
         np.testing.assert_allclose(by["model_error"], me, rtol=ROUNDED_RTOL)

@@ -24,10 +24,10 @@ an effect it could not size, the track is seen from a site the round does not gi
 model misses the flexible fit of the same track). :func:`claimed` is that rule for a round's
 rows, a Scheme 2 window and its stitched grid, and a session's pooled rows alike.
 
-Adding a band term: compute its sd [Cd] per row in the stage that knows it and call
-``add_model_error(rows, "its_name", sd)`` there, with ``"its_name"`` added to
-:data:`MODEL_ERROR_TERMS`; the budget reports it under ``model_error`` and
-``tests/unit/test_claims.py`` checks every term has its key (docs/architecture.md shows it).
+Adding a band term changes one module, the stage that sizes it: declare the term there
+(``RATE_SCALE_TERM = BandTerm("rate_scale", why="...")``, reported under ``model_error`` unless
+said) and call ``add_model_error(rows, RATE_SCALE_TERM, sd)``; ``tests/unit/test_claims.py`` finds
+every declared term and checks its budget key (docs/architecture.md shows it).
 """
 from __future__ import annotations
 
@@ -36,33 +36,50 @@ from dataclasses import dataclass
 import numpy as np
 
 
-__all__ = ["DETERMINED_REL_SD", "DataBand", "claimed", "claim", "set_model_error", "add_model_error", "set_floor",
-           "DATA_TERMS", "MODEL_ERROR_TERMS", "BAND_TERMS"]
+__all__ = ["DETERMINED_REL_SD", "BandTerm", "DataBand", "claimed", "claim", "set_model_error", "add_model_error",
+           "set_floor", "DATA_TERMS", "BUDGET_KEYS"]
 
 #: a row is determined when its judged band is below this fraction of its Cd [-]
 DETERMINED_REL_SD = 0.01
-#: the data's band terms and the ``uncertainty_budget.by_source`` key each is reported under
-DATA_TERMS = {
-    "crb": "statistical",                  # the Cramér-Rao sd with the declared sources held
-    "crb_colored": "statistical",          # its colored-residual form where the residuals are correlated
-    "model_error_floor": "statistical",    # the white fit's colored sd under an AR(1) noise model
-    "short_track_bend": "statistical",     # how far Cd may bend between a short track's samples
-    "origin_density": "statistical",       # a frame not at the gun's height: the air's difference
-    "noise_model": "noise_model",          # the AR(1) noise's own uncertainty
-    "declared_sources": "<source>",        # each declared systematic under its own key (wind, density, ...)
-}
-#: the model-error terms (``ml.quality.model_error.parts``) and the key each is reported under
-MODEL_ERROR_TERMS = {
-    "effects": "model_error",              # the undeclared material effects the check fits
-    "shape_confounded": "model_error",     # a table's shape the data cannot tell from a decaying yaw
-    "alternative": "model_error",          # a close alternative explanation's Cd
-    "noise": "model_error",                # a robust or white-noise fit of the same track
-    "effect_residual": "model_error",      # what an added effect's simple form leaves
-    "placement": "model_error",            # the wind layers' equivalent placements
-    "narrow_shape": "model_error",         # one factor on the table over a narrow span: its lean
-}
-#: every term of a row's band
-BAND_TERMS = {**DATA_TERMS, **MODEL_ERROR_TERMS}
+#: the ``uncertainty_budget.by_source`` keys a band term may be reported under (``"<source>"``: a
+#: declared systematic source under its own stem: ``wind``, ``density``, ...)
+BUDGET_KEYS = ("statistical", "noise_model", "model_error", "<source>")
+
+
+@dataclass(frozen=True)
+class BandTerm:
+    """One named term of a row's band.
+
+    Attributes
+    ----------
+    name : str
+        Its name (the key of ``ml.quality.model_error.parts`` where the check records it).
+    reported_under : str
+        The ``uncertainty_budget.by_source`` key it is reported under (one of :data:`BUDGET_KEYS`).
+    why : str
+        What it holds, in a line.
+    """
+
+    name: str
+    reported_under: str = "model_error"
+    why: str = ""
+
+    def __post_init__(self):
+        if self.reported_under not in BUDGET_KEYS:
+            raise ValueError(f"band term {self.name!r}: reported under {self.reported_under!r}, not one of "
+                             f"{', '.join(BUDGET_KEYS)}")
+
+
+#: the data's band terms (made by the quality gate, :class:`DataBand`)
+DATA_TERMS = (
+    BandTerm("crb", "statistical", "the Cramér-Rao sd with the declared sources held"),
+    BandTerm("crb_colored", "statistical", "its colored-residual form where the residuals are correlated"),
+    BandTerm("model_error_floor", "statistical", "the white fit's colored sd under an AR(1) noise model"),
+    BandTerm("short_track_bend", "statistical", "how far Cd may bend between a short track's samples"),
+    BandTerm("origin_density", "statistical", "a frame not at the gun's height: the air's difference"),
+    BandTerm("noise_model", "noise_model", "the AR(1) noise's own uncertainty"),
+    BandTerm("declared_sources", "<source>", "each declared systematic under its own key"),
+)
 
 
 @dataclass(frozen=True)
@@ -136,10 +153,19 @@ def claim(rows, data, withdrawn=None):
         r["determined"] = bool(d)
 
 
-def set_model_error(rows, parts):
-    """The rows' ``model_error_sd`` from the check's terms ``parts`` (name -> (M,) sd [Cd], names
-    of :data:`MODEL_ERROR_TERMS`) added in squares; nothing written without parts."""
-    _known(parts)
+def set_model_error(rows, parts, terms):
+    """The rows' ``model_error_sd`` from the check's parts added in squares; nothing written
+    without parts.
+
+    Parameters
+    ----------
+    rows : list of dict
+    parts : dict
+        Term name -> (M,) sd [Cd] (None: left out).
+    terms : sequence of BandTerm
+        The terms the parts may name (each part must be one of them).
+    """
+    _known(parts, terms)
     arrays = [np.asarray(p, float) for p in parts.values() if p is not None]
     if not arrays:
         return
@@ -148,9 +174,9 @@ def set_model_error(rows, parts):
 
 
 def add_model_error(rows, term, sd):
-    """Add term ``term`` (a name of :data:`MODEL_ERROR_TERMS`), ``sd`` [Cd] per row, to each
-    row's ``model_error_sd`` in squares (independent model errors)."""
-    _known({term: sd})
+    """Add the :class:`BandTerm` ``term``, ``sd`` [Cd] per row, to each row's ``model_error_sd``
+    in squares (independent model errors)."""
+    _known({getattr(term, "name", term): sd}, (term,))
     for r, v in zip(rows, sd):
         r["model_error_sd"] = float(np.hypot(r.get("model_error_sd", 0.0) or 0.0, v))
 
@@ -163,8 +189,13 @@ def set_floor(rows, floor):
         r["crb_sd_colored"] = float(max(r["crb_sd_colored"], f))
 
 
-def _known(parts):
-    unknown = [k for k in parts if k not in MODEL_ERROR_TERMS]
+def _known(parts, terms):
+    """Each part is one of the declared :class:`BandTerm` ``terms``, reported under ``model_error``."""
+    if not all(isinstance(t, BandTerm) for t in terms):
+        raise TypeError(f"a model-error term is a BandTerm declared in the stage that sizes it, got "
+                        f"{', '.join(repr(t) for t in terms if not isinstance(t, BandTerm))}")
+    names = {t.name for t in terms if t.reported_under == "model_error"}
+    unknown = [k for k in parts if k not in names]
     if unknown:
-        raise ValueError(f"model-error term(s) {', '.join(unknown)} not in MODEL_ERROR_TERMS "
-                         f"({', '.join(MODEL_ERROR_TERMS)}): name each term once, with its budget key")
+        raise ValueError(f"model-error part(s) {', '.join(unknown)} are none of the declared terms "
+                         f"({', '.join(sorted(names))})")
