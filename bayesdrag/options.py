@@ -34,8 +34,7 @@ DEFAULT_NU = STUDENT_T_NU
 #: (below 1 the weights of every sample but the closest vanish: a bound of 0 and overflow)
 NU_RANGE = (1.0, 100.0)
 #: the smallest sampler step limit: the sampler's first convergence check comes after 100 steps,
-#: and a shorter chain has no autocorrelation time, r_hat or ESS to report (``--max-steps 1``
-#: used to finish with "tau max nan")
+#: and a shorter chain has no autocorrelation time, r_hat or ESS to report
 MIN_MAX_STEPS = 100
 #: caps checked before anything is allocated: a typing slip (``--walkers 1000000``) must not take
 #: the machine's memory or hours. 1024 walkers x 10 000 samples already hold ~0.5 GB of
