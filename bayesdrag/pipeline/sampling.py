@@ -3,6 +3,7 @@
 ``mcmc`` records of ``result.json``."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +16,6 @@ def sample_stage(prep, chk, chain_path, resume, log, progress, diag, timing, ml_
     check made after it when it was deferred (it cannot change what is sampled: its diagnosis ran
     beside the sampling). Returns ``(BayesResult, LogPosterior, chk)``, ``chk`` with the gap of a
     deferred check."""
-    from dataclasses import replace
-
     from .check import checked
 
     if not prep.opts.mcmc:

@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .model_error import combine
+
 
 __all__ = ["DETERMINED_REL_SD", "BandTerm", "DataBand", "claimed", "claim", "set_model_error", "add_model_error",
            "set_floor", "DATA_TERMS", "BUDGET_KEYS"]
@@ -166,10 +168,10 @@ def set_model_error(rows, parts, terms):
         The terms the parts may name (each part must be one of them).
     """
     _known(parts, terms)
-    arrays = [np.asarray(p, float) for p in parts.values() if p is not None]
-    if not arrays:
+    me = combine(*parts.values())
+    if me is None:
         return
-    for r, v in zip(rows, np.sqrt(sum(p**2 for p in arrays))):
+    for r, v in zip(rows, me):
         r["model_error_sd"] = float(v)
 
 
