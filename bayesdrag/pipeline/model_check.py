@@ -462,17 +462,20 @@ def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_lay
     stages (start, curve, launch check, smoothing walk, noise model) unchanged and then adds
     the effects to its last problem (stage C, :func:`~bayesdrag.estimate.build.sources.fit_with_sources`);
     its white-noise form adds them to the white fit it started from. So the same numbers come
-    from stage C alone, unless the effects change an earlier stage (a radar clock the launch
-    check allows for, a wind profile fitted before the noise model), the plain fit carries
-    declared sources or effects, or the change is another likelihood."""
+    from stage C alone, or from the noise model and stage C for a wind profile (fitted before the
+    noise model: :func:`_winds_first`), unless the effects change an earlier stage (a radar clock
+    the launch check allows for), the plain fit carries declared sources or effects, or the
+    change is another likelihood."""
     from ..estimate.build.smoothing import drop_coefficient_correlations
     from ..estimate.build.sources import fit_with_sources
 
     effects = tuple(with_effects)
     if (other or not effects or plain.effects or plain.sources or plain.problem.E or plain.rejected is not None
             or opts.likelihood != "gaussian" or rnd.systematics.declared() or rnd.systematics.wind_profile is not None
-            or {RADAR_TIME.name, WIND_PROFILE.name} & set(effects) or noise_model not in (None, "white")):
+            or RADAR_TIME.name in effects or noise_model not in (None, "white")):
         return None
+    if WIND_PROFILE.name in effects:
+        return _winds_first(plain, rnd, opts, effects, noise_model, wind_layers)
     prob, res, noise, white_ml = plain.problem, plain.ml, plain.noise, plain.white_ml
     if noise_model == "white" and opts.noise_model != "white":
         if plain.white_ml is None:      # the plain fit is white already when auto chose no AR(1)
@@ -488,6 +491,33 @@ def _from_plain(plain, rnd, opts, *, with_effects=(), noise_model=None, wind_lay
                    ml_without_effects=res if fitted else None, layer_placements=placements)
 
 
+
+
+def _winds_first(plain, rnd, opts, effects, noise_model, wind_layers):
+    """The fit with a wind profile among ``effects`` from the plain fit's state before its noise
+    model: :func:`~bayesdrag.estimate.scheme1.fit.fit_scheme1` fits a profile before the noise
+    model (:func:`~bayesdrag.estimate.scheme1.fit.noise_and_effects`), on the smoothed white fit
+    the plain fit kept (``white_ml``, or the plain fit itself when it stayed white). None when
+    that state is gone: one-sided outliers reweighted it, or AR(1) was asked for outright."""
+    from ..estimate.build.smoothing import drop_coefficient_correlations
+    from ..estimate.scheme1.fit import noise_and_effects
+
+    if (plain.noise or {}).get("contamination", {}).get("engaged"):
+        return None
+    prob = plain.problem
+    if plain.white_ml is not None:
+        prob, res = prob.replace(noise_model={c: "white" for c in prob.channels}), plain.white_ml
+    elif any(m != "white" for m in prob.noise_model.values()):
+        return None
+    else:
+        res = plain.ml
+    prob, res, smoothing, noise, _, white_ml, sources, fitted, before, placements = noise_and_effects(
+        prob, res, plain.smoothing, rnd, "gaussian", noise_model or opts.noise_model, dict(rnd.radar.sigma),
+        opts.ml_nu, effects, wind_layers, lambda step: None)
+    if plain.base is not None:          # a penalised spline: its neighbours' correlations are by design
+        res = drop_coefficient_correlations(res, prob.P)
+    return replace(plain, ml=res, problem=prob, smoothing=smoothing, noise=noise, white_ml=white_ml, sources=sources,
+                   effects=fitted, ml_without_effects=before if fitted else None, layer_placements=placements)
 
 
 def _beyond_half_band(rows, part):

@@ -377,7 +377,7 @@ def fit_scheme1(track, rnd, *, drag="spline", channels=None, sigma=None, free_ic
         else:
             prob = prob.replace(priors=used)
             res = prob.fit(fallback=True) if used else res_b
-        prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = _noise_and_effects(
+        prob, res, smoothing, noise, rejected, white_ml, sources, fitted_effects, before, placements = noise_and_effects(
             prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say)
         if pen is not None:
             res = drop_coefficient_correlations(res, P)
@@ -415,7 +415,7 @@ def _size_note(size, track, chans, smaller, narrow, span):
                         f"for the table's shape; a series of shots fitted as one session also fits the slope")
 
 
-def _noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say):
+def noise_and_effects(prob, res, smoothing, rnd, likelihood, noise_model, sig, nu, with_effects, wind_layers, say):
     """The noise model (robust reweighting or white / AR(1)) and stage C, the declared sources and
     ``--with`` effects (:func:`fit_with_sources`), in that order -- except a wind profile, which is
     model, not noise: fitted before the noise model is chosen (model-error noise chosen first took
