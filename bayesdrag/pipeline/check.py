@@ -66,7 +66,7 @@ def sizes_beside(later, prep: Prepared, fit):
     if later is None or not fit.effects:
         return None
     return later.enter_context(started_beside(
-        functools.partial(effect_sizes_record, prep.track, prep.rnd, prep.opts, prep.chans, fit), fork=True))
+        functools.partial(effect_sizes_record, fit), fork=True))
 
 
 def check_stage(prep: Prepared, ans: Answer, diag, timing, ml_progress, with_note, later) -> Checked:
@@ -130,12 +130,11 @@ def checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress):
     return out
 
 
-def effect_sizes_record(track, rnd, opts, chans, f1):
+def effect_sizes_record(f1):
     """The added effects' sizes (:func:`~bayesdrag.estimate.scheme1.effect_sizes.effect_sizes`)
     and their ``seconds``, JSON-ready (for :func:`~bayesdrag._runtime.beside.started_beside`)."""
     t0 = time.perf_counter()
-    return {"sizes": effect_sizes(track, rnd, chans, f1, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
-                                   nu=opts.ml_nu, noise_model=opts.noise_model), "seconds": time.perf_counter() - t0}
+    return {"sizes": effect_sizes(f1), "seconds": time.perf_counter() - t0}
 
 
 #: largest share of the Cd shift an effect's fit corrected that is kept as model error of the

@@ -17,6 +17,7 @@ from ..estimate.cd.model_error import check_sd, describe, shift_sd
 from ..estimate.cd.quality import assess
 from ..estimate.cd.table import cd_table, model_error_floor
 from ..estimate.scheme1.fit import fit_scheme1
+from .ml import diagnosis_layers
 from ..effects import DENSITY, DRAG_SHAPE, EFFECTS, RADAR_POSITION, RADAR_TIME, TEMPERATURE, WIND_PROFILE, \
     YAW_DRAG, air_state_effects, not_alternatives, partly_trading_with_cd
 
@@ -76,7 +77,11 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         rec["effects_fitted"] = list(carried)
         keep = tuple(n for n in keep if n not in carried)
     if keep:
-        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep))
+        # a wind profile in the form the diagnosis named it, on the axis its evidence chose (as
+        # ``--with auto`` fits it): the other axis's fit is not made again here
+        axis = diagnosis_layers(dsum, track, rnd) if WIND_PROFILE.name in keep and diagnose_effects and verdict else None
+        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep),
+                        **({"wind_layers": axis} if axis else {}))
         if alt is not None and (f1.model_size or {}).get("narrow_span") and not own_table(rnd) \
                 and aliased_with_cd(band, alt[1]):
             # one factor over a narrow span cannot be told from them (their fit beside it leaves Cd

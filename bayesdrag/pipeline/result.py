@@ -46,7 +46,7 @@ def result_stage(prep: Prepared, chk: Checked, quality, placement, bayes, post, 
         timing["beside"] += ["effect_sizes"] if sizes_job.forked else []
     if with_note is not None or WIND_PROFILE.name in f1.effects:
         if sizes is None:
-            made = effect_sizes_record(track, rnd, opts, prep.chans, f1)
+            made = effect_sizes_record(f1)
             sizes, timing["effect_sizes"] = made["sizes"], round(made["seconds"], 3)
         summary["ml"]["with_effects"] = with_effects_record(f1, with_note, sizes, placement)
     if ans.floored:

@@ -1,7 +1,8 @@
 """The model check's fits with the diagnosis's effects are built on the plain fit's stages
 (``bayesdrag.pipeline.model_check._from_plain``) instead of repeating them: the same numbers as
 ``fit_scheme1`` with the effects from the start, for the AR(1) fit and for its white-noise
-check; and no shortcut where the effects change an earlier stage.
+check, and for a wind profile (fitted before the noise model, on the plain fit's smoothed white
+state); and no shortcut where the effects change an earlier stage.
 
 The flight is the honesty suite's point-mass track with a 5 m/s head wind the round does not
 declare (its residuals are correlated, so the default noise model takes AR(1) and keeps the
@@ -55,10 +56,34 @@ def test_the_white_check_adds_the_effects_to_the_white_fit(flight):
     assert "ar1" in plain.problem.noise_model.values()
 
 
-@pytest.mark.parametrize("change", [dict(with_effects=("radar_time",)), dict(with_effects=("wind_profile",)),
+@pytest.mark.parametrize("noise_model", [None, "white"])
+def test_a_wind_profile_starts_from_the_plain_fits_white_state(flight, noise_model):
+    track, rnd, opts, plain = flight
+    # the profile is fitted before the noise model: on the white fit the plain fit kept, then the
+    # noise model chosen again with the profile in (the plain fit's AR(1) is no part of it)
+    change = {} if noise_model is None else {"noise_model": noise_model}
+    built = _from_plain(plain, rnd, opts, with_effects=("wind_profile",), wind_layers="altitude", **change)
+    full = fit_scheme1(track, rnd, noise_model=noise_model or opts.noise_model, with_effects=("wind_profile",),
+                       start=plain.start, wind_layers="altitude")
+    assert built.effects == ("wind_profile",)
+    _assert_same_fit(built, full)
+    assert built.smoothing == full.smoothing
+    np.testing.assert_allclose(built.ml_without_effects.theta, full.ml_without_effects.theta, rtol=SAME_REL, atol=0)
+
+
+@pytest.mark.parametrize("change", [dict(with_effects=("radar_time",)),
                                     dict(with_effects=("wind",), likelihood="student-t"), dict(with_effects=())])
 def test_no_shortcut_where_the_effects_change_an_earlier_stage(flight, change):
     _, rnd, opts, plain = flight
-    # a clock offset changes the launch check, a wind profile is fitted before the noise model,
-    # a Student-t fit reweights from the start: those fits are made whole
+    # a clock offset changes the launch check, a Student-t fit reweights from the start: those
+    # fits are made whole
     assert _from_plain(plain, rnd, opts, **change) is None
+
+
+def test_no_shortcut_for_a_profile_once_ar1_is_asked_outright(flight):
+    track, rnd, _, _ = flight
+    # noise_model="ar1" keeps no white fit: the state the profile is fitted on is gone
+    opts = FitOptions(mcmc=False, noise_model="ar1")
+    plain = fit_scheme1(track, rnd, noise_model="ar1")
+    assert plain.white_ml is None
+    assert _from_plain(plain, rnd, opts, with_effects=("wind_profile",)) is None

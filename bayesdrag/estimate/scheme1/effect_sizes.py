@@ -9,8 +9,9 @@ takes up the difference of the shapes: measured on a 105 mm 6-DOF flight in a 5 
 0.8 without its last quarter and 5.2 +- 1.1 without its last half.
 
 * **Split consistency.** Where the residuals show structure (a channel with AR(1) model-error
-  noise), the fit is repeated on the track's first samples only, without the last
-  :data:`SPLIT_SHARES` of them. Under a model that is right, such a part's estimate differs from
+  noise), the fit's own problem is fitted again on the track's first samples only, without
+  the last :data:`SPLIT_SHARES` of them, from its estimate (the same drag model, smoothing,
+  priors and noise models: nested data under one model). Under a model that is right, such a part's estimate differs from
   the whole's by noise of variance ``V_part - V_whole`` (the part holds less information; nested
   data). What the difference squared exceeds that by is the model error's variance, estimated
   from each cut (method of moments, never below zero) and averaged over the cuts: ``split_sd``.
@@ -65,40 +66,36 @@ def _bound(res, j):
     return max(sds) if sds else float("nan")
 
 
-def _part_fits(track, rnd, channels, f1, fit_options):
-    """Fits of the track without its last :data:`SPLIT_SHARES` of samples, with the same effects
-    and options (the ones that fail or do not converge are left out)."""
-    from .fit import fit_scheme1
-
-    n = track.n
+def _part_fits(f1):
+    """Fits of the track without its last :data:`SPLIT_SHARES` of samples: the fit's own problem
+    over its first samples (:meth:`~bayesdrag.estimate.model.problem.OutputErrorProblem.part`),
+    started at its estimate. The drag model, its smoothing, the priors, the effects and the noise
+    models stay the whole fit's: the parts are nested data under one model, as the method of
+    moments assumes (a fit of a part from its own start would also choose other knots and another
+    smoothing, and their difference is not the effect's model error). The ones that fail or do not
+    converge are left out."""
+    prob, res = f1.problem, f1.ml
+    n = prob.track.n
     out = []
     for share in SPLIT_SHARES:
         idx = np.arange(0, n - int(round(share * n)))
         try:
-            f = fit_scheme1(track.subset(idx), rnd, drag=f1.drag_model.name, channels=channels,
-                            with_effects=tuple(f1.effects), **fit_options)
+            part = prob.part(idx, theta0=res.theta).fit(fallback=True)
         except (InputError, FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
             continue
-        if f.ml.success and tuple(f.effects) == tuple(f1.effects):
-            out.append(f.ml)
+        if part.success:
+            out.append(part)
     return out
 
 
-def effect_sizes(track, rnd, channels, f1, **fit_options):
+def effect_sizes(f1):
     """``ml.with_effects.sizes``: each added effect parameter (wind layers apart) with the sd the
     fit stands by.
 
     Parameters
     ----------
-    track : RadarTrack
-    rnd : Round
-    channels : sequence of str
-        The fitted channels.
     f1 : Scheme1Fit
         The fit with the effects.
-    **fit_options
-        The fit's other keywords of :func:`~bayesdrag.estimate.scheme1.fit.fit_scheme1`
-        (``free_ic``, ``likelihood``, ``nu``, ``noise_model``), given to the split fits alike.
 
     Returns
     -------
@@ -114,7 +111,7 @@ def effect_sizes(track, rnd, channels, f1, **fit_options):
     if not idx:
         return {}
     structured = any(m == "ar1" for m in (getattr(f1.problem, "noise_model", None) or {}).values())
-    parts = _part_fits(track, rnd, channels, f1, fit_options) if structured else []
+    parts = _part_fits(f1) if structured else []
     out = {}
     for j in idx:
         n = names[j]
