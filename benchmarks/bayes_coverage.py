@@ -80,7 +80,7 @@ def replicate(i, dm, c_true, m101, duration, seed0=1000):
     return {"bayes": ((q05 <= true) & (true <= q95)).tolist(),
             "crb": (np.abs(ml - true) <= 1.645 * sd).tolist(),
             "width_ratio": ((q95 - q05) / (2 * 1.645 * sd)).tolist(),
-            "converged": b.converged, "steps": b.steps, "rhat_max": float(b.summary["r_hat"].max())}
+            "converged": b.converged, "steps": b.steps, "rhat_max": float(b.convergence["r_hat"].max())}
 
 
 def table(stats, n):

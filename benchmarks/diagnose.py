@@ -52,10 +52,10 @@ def main(argv=None):
         fit_effects(setup, [], setup.theta0)
     t_base = (time.perf_counter() - t0) / reps
     print(f"diagnosis of {track.n} samples: {t_diag:.2f} s warm (baseline fit alone {t_base:.2f} s); "
-          f"verdict {d.summary['verdict']}")
+          f"verdict {d.record['verdict']}")
     print(json.dumps({"diagnose_s": round(t_diag, 3), "baseline_fit_s": round(t_base, 3),
                       "ratio_vs_baseline_fit": round(t_diag / t_base, 2), "samples": int(track.n),
-                      "candidates": d.summary["tests"]["candidates"], "verdict": d.summary["verdict"],
+                      "candidates": d.record["tests"]["candidates"], "verdict": d.record["verdict"],
                       "meets_10s": t_diag <= 10.0}))
 
 

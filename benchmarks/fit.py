@@ -243,8 +243,8 @@ def time_demo_bayes(seed=DEMO_SEED, outputs=True):
     post = res.log_posterior
     us = kernel_us_per_trajectory(res.scheme1.problem, post.mode, post.laplace_cov[:post.n_theta, :post.n_theta])
     sampled = list(post.names)
-    ess_bulk = float(b.summary.loc[sampled, "ess_bulk"].min())
-    ess_tail = float(b.summary.loc[sampled, "ess_tail"].min())
+    ess_bulk = float(b.convergence.loc[sampled, "ess_bulk"].min())
+    ess_tail = float(b.convergence.loc[sampled, "ess_tail"].min())
     limit = kc.trajectories * us * 1e-6
     out = {"seconds": round(seconds, 3), "trajectories_simulated": kc.trajectories, "kernel_calls": kc.calls,
            "kernel_seconds": round(kc.seconds, 3), "kernel_us_per_trajectory_large_batch": round(us, 2),
@@ -254,7 +254,7 @@ def time_demo_bayes(seed=DEMO_SEED, outputs=True):
            "ess_per_sampling_second": round(ess_bulk / b.elapsed, 1),
            "parameters": post.ndim, "steps": b.steps, "walkers": b.nwalkers, "tau_max": float(np.max(b.tau)),
            "acceptance": round(b.acceptance, 3), "converged": b.converged,
-           "r_hat_max": float(b.summary["r_hat"].max()), "samples": track.n, "seed": seed,
+           "r_hat_max": float(b.convergence["r_hat"].max()), "samples": track.n, "seed": seed,
            "effects_option": which, "timing": res.to_dict().get("timing")}
     if write_seconds is not None:
         out["write_seconds"] = round(write_seconds, 3)
@@ -462,8 +462,8 @@ def main(argv=None):
             key = "bayes_reference-scale" if drag == "reference-scale" else "synthetic_bayes_spline"
             out[key] = {"seconds": round(t_b, 3), "tau_max": float(np.max(b.tau)), "steps": b.steps,
                         "walkers": b.nwalkers, "parameters": D, "converged": b.converged,
-                        "r_hat_max": float(b.summary["r_hat"].max()),
-                        "ess_bulk_min": float(b.summary["ess_bulk"].min())}
+                        "r_hat_max": float(b.convergence["r_hat"].max()),
+                        "ess_bulk_min": float(b.convergence["ess_bulk"].min())}
         if a.moves:
             out["moves"] = compare_moves(track, rnd, steps=400)
     out["load_average_1min_end"] = os.getloadavg()[0]

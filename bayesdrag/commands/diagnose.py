@@ -44,10 +44,10 @@ def run_diagnose(track_path, round_path, out, options=None, *, quiet=False, echo
         if also is not None:
             also(result, run.staging)
     if not quiet:
-        from ..diagnosis.summary import console_summary
+        from ..results.words import diagnosis_lines
 
         # from the file's content alone (every figure printed is one of diagnosis.json's)
-        for line in console_summary(result.to_dict()):
+        for line in diagnosis_lines(result.to_dict()):
             print(f"bayesdrag: diagnosis: {line}", file=sys.stderr)
     met = [n for n in ("diagnosis_met.csv", "diagnosis_wind_downrange.csv") if (out / n).is_file()]
     echo(f"diagnose: verdict {result.verdict or 'none'}; wrote {out / 'diagnosis.json'}, diagnosis.html, "

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..errors import BayesdragWarning, InputError
 from ..options import FitOptions
-from ..pipeline import fit, summary_line
+from ..pipeline import fit, outcome_line
 from ..results import PARTIAL
 from ..results.words import effect_lines
 from ..track import thin_for_fit
@@ -117,7 +117,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     if talk:
         for note in ((result.record.get("ml") or {}).get("quality") or {}).get("notes") or ():
             _echo_err(f"bayesdrag: note: {note}")
-    echo(summary_line(result))
+    echo(outcome_line(result))
     for line in effect_lines((result.record.get("ml") or {}).get("with_effects")):
         echo(line)            # what the fit added beside Cd is part of the answer
     if result.posterior is not None:

@@ -1,6 +1,6 @@
 """Planning a firing as a command, ``bayesdrag plan ROUND -o DIR`` (:func:`run_plan`); the Python
 API ``bayesdrag.plan`` is :func:`bayesdrag.pipeline.plans.plan`. The statistics are in
-:mod:`bayesdrag.planning.case` and :mod:`bayesdrag.planning.summary`."""
+:mod:`bayesdrag.planning.case` and :mod:`bayesdrag.planning.plan`."""
 from __future__ import annotations
 
 import sys

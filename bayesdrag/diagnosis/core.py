@@ -1,5 +1,5 @@
 """The diagnosis itself: :func:`diagnose` runs the steps of :mod:`bayesdrag.diagnosis` in order
-and returns a :class:`Diagnosis`, whose ``summary`` is the content of ``diagnosis.json``.
+and returns a :class:`Diagnosis`, whose ``record`` is the content of ``diagnosis.json``.
 """
 from __future__ import annotations
 
@@ -40,9 +40,9 @@ JOINT_CORR_WARN = 0.9
 
 @dataclass
 class Diagnosis:
-    """Result of :func:`diagnose`: ``summary`` is diagnosis.json; the arrays feed the figures."""
+    """Result of :func:`diagnose`: ``record`` is diagnosis.json; the arrays feed the figures."""
 
-    summary: dict
+    record: dict
     t: np.ndarray
     channels: tuple
     sigma: dict
@@ -89,7 +89,7 @@ def _baseline(setup):
 
 def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
     """Steps 6 and 10: the detected effects (ordered by what each explains alone), their joint
-    fit, its drop-one fits and, beside a table of another shell, the summary of the diagnosis
+    fit, its drop-one fits and, beside a table of another shell, the record of the diagnosis
     against a fitted Cd (else None). A wind model the evidence did not choose
     (``superseded_by``) takes no part."""
     found, selected_fit, drop_one, wrong_table = [], None, {}, None
@@ -109,7 +109,7 @@ def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec,
     """The drag effects' joint fit (:func:`bayesdrag.diagnosis.selection.wrong_table_fit`) and
     every other effect judged by a diagnosis of the round without its table (candidates: all
     but the drag effects). Returns (drag effects, their joint fit, its drop-one fits, that
-    diagnosis' summary); the selection unchanged and None when the drag effects' fit fails."""
+    diagnosis' record); the selection unchanged and None when the drag effects' fit fails."""
     drag = wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha)
     if drag is None:
         return found, fit, drop_one, None
@@ -119,7 +119,7 @@ def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec,
     sub = diagnose(setup.track, no_table, candidates=[n for n in EFFECTS if n not in DRAG_EFFECTS
                                                       and radar_effect_missing(n, setup.channels) is None],
                    sigma=dict(setup.sigma), channels=setup.channels, alpha=alpha, **opts)
-    return names, nfit, subs, sub.summary
+    return names, nfit, subs, sub.record
 
 
 def _profile_against_shape(setup, found, fit, fits, by_name, base_res):
@@ -209,7 +209,7 @@ def _wind_beside_others(setup, found, fit, drop_one, fits, by_name, b, sig_vec, 
 
 
 def _joint(setup, found, selected_fit, drop_one, by_name, chi2_base, gap):
-    """The joint fit of several detected effects, as ``summary["joint"]`` (None for fewer than
+    """The joint fit of several detected effects, as ``record["joint"]`` (None for fewer than
     two); every figure of a detected effect comes from it (written into its row)."""
     if len(found) <= 1:
         return None
@@ -286,8 +286,8 @@ def _after(track, chans, rows, found, fits, selected_fit):
     return best_name, resid_best
 
 
-def _baseline_summary(setup, track, b):
-    """``summary["baseline"]``: the nominal simulation's misfit, noise and nuisance."""
+def _baseline_record(setup, track, b):
+    """``record["baseline"]``: the nominal simulation's misfit, noise and nuisance."""
     chans = setup.channels
     base = b.fit[0]
     n_obs = n_weighted(setup)
@@ -343,8 +343,8 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
     Returns
     -------
     Diagnosis
-        ``summary["verdict"]`` lists the detected effects that are material, best first;
-        ``summary["immaterial"]`` those detected but immaterial.
+        ``record["verdict"]`` lists the detected effects that are material, best first;
+        ``record["immaterial"]`` those detected but immaterial.
 
     Raises
     ------
@@ -420,8 +420,8 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
         absorbed = absorbed_by_launch(b.prior_terms, {p.name: p.sd for p in setup.priors}, x_end)
         for r in rows:
             r.pop("inflation_raw", None)
-        summary = {
-            "baseline": _baseline_summary(setup, track, b),
+        record = {
+            "baseline": _baseline_record(setup, track, b),
             "where": where,
             "absorbed": absorbed,
             "effects": rows,
@@ -441,9 +441,9 @@ def diagnose(track, rnd, *, candidates=None, sigma=None, channels=None, alpha=AL
             "reference_drag": setup.has_reference,
         }
         try:
-            found = found_atmosphere(summary, rnd)
+            found = found_atmosphere(record, rnd)
         except ValueError as exc:  # an air no met file can hold (beyond the atmosphere model): said, not written
             setup.notes.append(f"the air found could not be written as a met file ({exc})")
             found = None
-        return Diagnosis(summary, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
+        return Diagnosis(record, np.asarray(track.t), chans, dict(setup.sigma), b.resid, resid_best,
                          b.mach, setup.weights, best_name, found)

@@ -54,13 +54,13 @@ def _layered(axis, edges, params):
     return WindProfile.layered(axis, edges, wx, wy)
 
 
-def found_atmosphere(summary, rnd):
+def found_atmosphere(record, rnd):
     """The air the diagnosis found.
 
     Parameters
     ----------
-    summary : dict
-        ``diagnosis.json`` (or the in-memory summary).
+    record : dict
+        ``diagnosis.json`` (or the in-memory record it is written from).
     rnd : Round
         The round diagnosed (its atmosphere is the starting air).
 
@@ -71,10 +71,10 @@ def found_atmosphere(summary, rnd):
         the wind by downrange distance (None unless the verdict's wind is one) and the lines of
         the files' header.
     """
-    verdict = summary.get("verdict") or []
+    verdict = record.get("verdict") or []
     if not set(verdict) & set(AIR_EFFECTS):
         return None, None, []
-    rows = {r["name"]: r for r in summary["effects"]}
+    rows = {r["name"]: r for r in record["effects"]}
     atm = rnd.atmosphere
     dT = _values(rows[TEMPERATURE.name])["dT"] if TEMPERATURE.name in verdict else 0.0
     ratio = _values(rows[DENSITY.name])["ratio"] if DENSITY.name in verdict else 1.0
@@ -120,7 +120,7 @@ def found_atmosphere(summary, rnd):
             wind_alt = base
         if wind_x is not None and base.axis == "downrange":
             wind_x = wind_x.plus(base)
-    top = summary["baseline"].get("z_max") or 0.0
+    top = record["baseline"].get("z_max") or 0.0
     if wind_alt is not None:
         top = max(top, wind_alt.levels[-1] - atm.gun_altitude)
     levels = atm.gun_altitude + np.arange(0.0, top + TOP_MARGIN + LEVEL_STEP, LEVEL_STEP)

@@ -38,12 +38,12 @@ from .ml import ml_stage
 from ..results.words import why_not_clean
 from .plans import plan
 from .preparation import Prepared, prepare, watched
-from .result import result_stage, summary_line
+from .result import result_stage, outcome_line
 from .sampling import sample_stage
 from .scheme2 import scheme2_fit
 from .simulation import simulate
 
-__all__ = ["fit", "diagnose", "plan", "simulate", "summary_line", "scheme1_fit", "scheme2_fit", "watched", "why_not_clean", "EFFECT_RESIDUAL_SHARE",
+__all__ = ["fit", "diagnose", "plan", "simulate", "outcome_line", "scheme1_fit", "scheme2_fit", "watched", "why_not_clean", "EFFECT_RESIDUAL_SHARE",
            "residual_share"]
 
 
@@ -149,7 +149,7 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
     """
     from ..diagnosis import MIN_DIAGNOSIS_SAMPLES
     from ..diagnosis import diagnose as analyse
-    from ..diagnosis.summary import summary_paragraph
+    from ..results.words import diagnosis_paragraph
     from ..estimate.build.model_size import check_constant_channels
     from ..estimate.build.start import check_heights
 
@@ -164,6 +164,6 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
     check_constant_channels(track, tuple(opts.channels) if opts.channels else track.names)
     d = analyse(track, rnd, channels=opts.channels, alpha=opts.alpha, material_cd_shift=opts.material_cd_shift,
                 material_end_sd=opts.material_end_sd)
-    record = dict(d.summary, summary=summary_paragraph(d.summary))     # what diagnosis.json holds
+    record = dict(d.record, summary=diagnosis_paragraph(d.record))     # what diagnosis.json holds
     return DiagnosisResult(record, d, track, rnd)
 

@@ -99,9 +99,9 @@ def requested_effects(track, rnd, opts, log):
         from ..diagnosis import diagnose
 
         d = diagnose(track, rnd)
-        names = list(d.summary["verdict"])
+        names = list(d.record["verdict"])
         if WIND_PROFILE.name in names:
-            layers = diagnosis_layers(d.summary, track, rnd)
+            layers = diagnosis_layers(d.record, track, rnd)
         if log is not None:
             log(f"--with auto: the diagnosis names {', '.join(names) if names else 'no material effect'}")
     else:
@@ -113,10 +113,10 @@ def requested_effects(track, rnd, opts, log):
         layers
 
 
-def diagnosis_layers(summary, track, rnd):
+def diagnosis_layers(record, track, rnd):
     """The axis of the diagnosis's ``wind_profile`` row (``altitude`` or ``downrange``; the fit
     lays its own layers on it), or None."""
-    row = next((e for e in summary.get("effects", []) if e.get("name") == WIND_PROFILE.name), None)
+    row = next((e for e in record.get("effects", []) if e.get("name") == WIND_PROFILE.name), None)
     return ((row or {}).get("layers") or {}).get("axis")
 
 

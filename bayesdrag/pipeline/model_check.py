@@ -53,8 +53,8 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
     verdict, shifts, profiles, effects_fit = [], {}, {}, None
     if diagnose_effects:              # else the fit carries the effects: the caller records them
         d = diagnosis if diagnosis is not None else diagnosis_record(track, rnd, chans)
-        if "summary" in d:
-            dsum = d["summary"]
+        if "record" in d:
+            dsum = d["record"]
             verdict = list(dsum["verdict"])
             shifts = {e["name"]: e.get("cd_shift_max") for e in dsum.get("effects", [])}
             profiles = {e["name"]: e["cd_shift"] for e in dsum.get("effects", [])
@@ -257,7 +257,7 @@ def close_alternative(dsum, keep, rnd):
     Parameters
     ----------
     dsum : dict
-        The diagnosis's summary (its ``effects`` rows carry ``shrink``: the share of the gap each
+        The diagnosis's record (its ``effects`` rows carry ``shrink``: the share of the gap each
         effect removes alone).
     keep : tuple of str
         The verdict's effects the fit adds.
@@ -311,7 +311,7 @@ def alternative_error(rows, gap):
 
 def diagnosis_record(track, rnd, chans):
     """The diagnosis the model check reads (:func:`bayesdrag.diagnosis.diagnose`), as JSON-ready
-    values: ``{"summary": ...}``, ``{"skipped": why}`` (a track too short for it) or
+    values: ``{"record": ...}``, ``{"skipped": why}`` (a track too short for it) or
     ``{"failed": why}`` (the check never costs the fit its answer: the record says it could not
     be made), with its ``seconds``. It reads the track, the round and the channels only."""
     from ..diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
@@ -321,7 +321,7 @@ def diagnosis_record(track, rnd, chans):
         out = {"skipped": f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"}
     else:
         try:
-            out = {"summary": diagnose(track, rnd, channels=chans).summary}
+            out = {"record": diagnose(track, rnd, channels=chans).record}
         except (InputError, FitError, ValueError, np.linalg.LinAlgError) as exc:
             out = {"failed": f"{type(exc).__name__}: {exc}"}
     out["seconds"] = time.perf_counter() - t0

@@ -9,7 +9,7 @@ from typing import Any
 from ..drag import ReferenceTable
 from ..errors import InputError
 from ..options import PLAN_MAX_CASES, PlanOptions
-from ..planning.summary import make_plan
+from ..planning.plan import make_plan
 from ..results import PlanResult
 from ..round import Round
 

@@ -1,14 +1,14 @@
 """Stage 6 of a fit, *result*: the frozen :class:`~bayesdrag.results.FitResult` of a Scheme 1
 fit (``result.json``'s record: the ML part, the claimed rows, the budget folded to add up to each
 row's band, the added effects' sizes, the sampled columns, the timing and the headline), and the
-outcome line the command prints (:func:`summary_line`)."""
+outcome line the command prints (:func:`outcome_line`)."""
 from __future__ import annotations
 
 import time
 
 import numpy as np
 
-from ..results.words import summary_line, why_not_clean
+from ..results.words import outcome_line, why_not_clean
 from ..estimate.cd.headline import headline
 from ..estimate.cd.model_error import fold_into_budget
 from ..estimate.cd.table import determined_range
@@ -20,7 +20,7 @@ from .model_check import clock_note
 from .preparation import Prepared
 from .sampling import mcmc_json, posterior_json, sampled_rows
 
-__all__ = ["result_stage", "with_effects_record", "fitted_layers", "layers_wind_sd", "ml_summary", "summary_line"]
+__all__ = ["result_stage", "with_effects_record", "fitted_layers", "layers_wind_sd", "ml_record", "outcome_line"]
 
 
 def result_stage(prep: Prepared, chk: Checked, quality, placement, bayes, post, timing, t_start):
@@ -32,8 +32,8 @@ def result_stage(prep: Prepared, chk: Checked, quality, placement, bayes, post, 
     f1, grid, rows, budget = ans.f1, ans.grid, ans.rows, ans.budget
     res = f1.ml
     cd = sizes = None
-    summary = ml_summary(f1, rows, quality, ans.lo, ans.hi, opts)
-    summary["uncertainty_budget"] = budget
+    record = ml_record(f1, rows, quality, ans.lo, ans.hi, opts)
+    record["uncertainty_budget"] = budget
     stated = getattr(rnd.atmosphere, "stated_error", None)
     if stated is not None and rnd.systematics.from_met_file:
         # the sds the met file carried into the band, and why (docs/fitting.md)
@@ -48,7 +48,7 @@ def result_stage(prep: Prepared, chk: Checked, quality, placement, bayes, post, 
         if sizes is None:
             made = effect_sizes_record(f1)
             sizes, timing["effect_sizes"] = made["sizes"], round(made["seconds"], 3)
-        summary["ml"]["with_effects"] = with_effects_record(f1, with_note, sizes, placement)
+        record["ml"]["with_effects"] = with_effects_record(f1, with_note, sizes, placement)
     if ans.floored:
         budget["model_error_floor"] = [float(f"{r['model_error_floor']:.6g}") for r in rows]
     nm = [r.get("noise_model_sd", 0.0) for r in rows]
@@ -58,23 +58,23 @@ def result_stage(prep: Prepared, chk: Checked, quality, placement, bayes, post, 
     fold_into_budget(budget, rows)
     # what the Cd is conditional on is one line of the report and uncertainty_budget.conditional_on
     warnings = [w for w in res.warnings if w.kind != "at_bound"] + list(quality["problems"])
-    warnings += clock_note(summary["ml"])
+    warnings += clock_note(record["ml"])
     if opts.mcmc:
         rows, cd = sampled_rows(bayes, f1, rows, grid)
-        summary["cd"] = rows
-        summary["posterior"] = posterior_json(bayes)
-        summary["mcmc"] = mcmc_json(bayes, post)
+        record["cd"] = rows
+        record["posterior"] = posterior_json(bayes)
+        record["mcmc"] = mcmc_json(bayes, post)
         warnings += list(bayes.warnings)
         info = [r for r in rows if r["crb_sd"] > 0 and r["ml"] > 0 and r["crb_sd"] / r["ml"] < 0.01]
         ratios = [r["sd_over_crb"] for r in info if r.get("sd_over_crb") is not None]
         if ratios:
-            summary["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
+            record["mcmc"]["sd_over_crb_determined_range"] = [float(min(ratios)), float(max(ratios))]
         timing["sampling"] = round(float(bayes.elapsed), 3)
     timing["total"] = round(time.perf_counter() - t_start, 3)
-    summary["timing"] = timing
-    summary["headline"] = headline(summary["cd"], summary["ml"]["mach_range_determined"], quality["ok"],
+    record["timing"] = timing
+    record["headline"] = headline(record["cd"], record["ml"]["mach_range_determined"], quality["ok"],
                                    None if quality["ok"] else why_not_clean(quality))
-    return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
+    return FitResult(record=record, track=track, round=rnd, options=opts, scheme1=f1, posterior=bayes,
                      log_posterior=post, grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start, cd_draws=cd)
 
@@ -122,7 +122,7 @@ def layers_wind_sd(f1):
     return float(sds[0]) if sds else None
 
 
-def ml_summary(f1, rows, quality, lo, hi, opts):
+def ml_record(f1, rows, quality, lo, hi, opts):
     """The ``scheme``, ``drag_model``, ``ml`` and ``cd`` parts of result.json."""
     res = f1.ml
     det = determined_range(rows)

@@ -55,7 +55,7 @@ def sampled_rows(bayes, f1, rows, grid):
 def posterior_json(b):
     """``result.json`` ``posterior``: each sampled coordinate's mean, sd, R-hat, bulk and tail ESS and
     5 and 95 % quantiles."""
-    s = b.summary
+    s = b.convergence
     col = lambda k: {n: float(v) for n, v in zip(s.index, s[k])}  # noqa: E731
     return {"mean": col("mean"), "sd": col("sd"), "r_hat": col("r_hat"), "ess_bulk": col("ess_bulk"),
             "ess_tail": col("ess_tail"), "q05": col("q05"), "q95": col("q95")}

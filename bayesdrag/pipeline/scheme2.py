@@ -47,7 +47,7 @@ def scheme2_fit(prep: Prepared, log, t_start):
             rows[k].update(mean=float(flat.mean()), sd=float(flat.std(ddof=1)), q05=float(q[0]), q50=float(q[1]),
                            q95=float(q[2]),
                            sd_over_crb=float(flat.std(ddof=1) / rows[k]["crb_sd"]) if rows[k]["crb_sd"] else None,
-                           r_hat_max=float(b.summary["r_hat"].max()), ess_bulk_min=float(b.summary["ess_bulk"].min()),
+                           r_hat_max=float(b.convergence["r_hat"].max()), ess_bulk_min=float(b.convergence["ess_bulk"].min()),
                            mcmc_converged=b.converged, steps=b.steps)
             draws[k] = cd
             if not b.converged:
@@ -61,18 +61,18 @@ def scheme2_fit(prep: Prepared, log, t_start):
     grid = np.round(np.linspace(lo, hi, 81), 4)
     cd_rows, quality = stitched_rows(rows, ok, mach, grid, rnd, bool(draws))
     warnings += quality["problems"]
-    summary = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
+    record = {"scheme": 2, "drag_model": "constant per window", "window": opts.window,
                "ml": {"converged": all(r.converged for r in r2.results), "windows_converged": len(ok),
                       "windows": len(rows), "notes": list(r2.notes) + scheme2_effects_note(opts, quality),
                       "quality": quality},
                "cd": cd_rows, "windows": rows, "uncertainty_budget": budget}
     if draws:
-        summary["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
+        record["mcmc"] = {"windows_converged": int(sum(rows[k]["mcmc_converged"] for k in ok)),
                            "r_hat_max": float(max(rows[k]["r_hat_max"] for k in ok))}
     det = determined_range(cd_rows)
-    summary["headline"] = headline(cd_rows, det, quality["ok"],
+    record["headline"] = headline(cd_rows, det, quality["ok"],
                                    "; ".join(str(p) for p in quality["problems"][:1]) or None)
-    return FitResult(summary=summary, track=track, round=rnd, options=opts, scheme2=r2,
+    return FitResult(record=record, track=track, round=rnd, options=opts, scheme2=r2,
                      window_draws=draws or None, windows_ok=tuple(ok), grid=grid, warnings=tuple(warnings),
                      seconds=time.perf_counter() - t_start)
 

@@ -6,7 +6,7 @@ velocity of the round, the radar's noise and sample interval, the tracked part o
 into the sd of Cd by Mach that the default fit (``bayesdrag fit``, Scheme 1, penalised spline)
 will report, and splits it into the statistical part and the share of each declared systematic
 source. :func:`plan` runs every elevation x velocity case and
-:mod:`bayesdrag.planning.summary` answers "which cases reach the target".
+:mod:`bayesdrag.planning.plan` answers "which cases reach the target".
 
 How one case is predicted, and why (decisions):
 

@@ -6,7 +6,7 @@ import matplotlib
 import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator
 
-from ..planning.summary import combine
+from ..planning.plan import combine
 from .common import new_axes
 
 __all__ = ["plot_plan", "plot_budget", "PLAN_FIGSIZE"]
@@ -22,7 +22,7 @@ def plot_plan(plan, ax=None):
     Parameters
     ----------
     plan : Plan
-        :func:`bayesdrag.planning.summary.make_plan` (``PlanResult.plan``).
+        :func:`bayesdrag.planning.plan.make_plan` (``PlanResult.plan``).
     ax : matplotlib Axes, optional
 
     Returns

@@ -10,7 +10,7 @@ from ..io.met import write_met_profile, write_wind_profile
 from ..io.outputs import ensure_output_dir, write_bytes, write_json
 from ..plots.diagnosis import plot_ranking, plot_residuals_before_after, plot_where
 from ..plots.wind import plot_found_wind, wind_layer_table
-from ..diagnosis.summary import impact_text, reported_values, summary_paragraph
+from ..results.words import impact_text, reported_values, diagnosis_paragraph
 from ..results.document import jsonable
 from .render import figure_png, png_base64, render_report
 from ..effects import WIND
@@ -27,10 +27,10 @@ WIND_FILE = "diagnosis_wind_downrange.csv"
 def diagnosis_figures(d):
     """The figures of a diagnosis: ``{name: Figure}`` for ``residuals``, ``ranking``, ``where``
     and, with a wind in the verdict, ``wind`` (written as ``diagnosis_<name>.png``)."""
-    figs = {"residuals": plot_residuals_before_after(d), "ranking": plot_ranking(d.summary).figure,
+    figs = {"residuals": plot_residuals_before_after(d), "ranking": plot_ranking(d.record).figure,
             "where": plot_where(d)}
-    if wind_layer_table(d.summary)[0]:
-        figs[WIND.name] = plot_found_wind(d.summary).figure
+    if wind_layer_table(d.record)[0]:
+        figs[WIND.name] = plot_found_wind(d.record).figure
     return figs
 
 
@@ -66,8 +66,8 @@ def write_diagnosis(out, d, *, track_name="", round_name=""):
         The summary paragraph (also ``diagnosis.json``'s ``summary``).
     """
     out = ensure_output_dir(out)
-    paragraph = summary_paragraph(d.summary)
-    s = dict(d.summary, summary=paragraph)
+    paragraph = diagnosis_paragraph(d.record)
+    s = dict(d.record, summary=paragraph)
     write_json(out / "diagnosis.json", jsonable(s))
     b64 = {}
     for name, fig in diagnosis_figures(d).items():

@@ -433,8 +433,8 @@ def noise_explanation(sampled, used, source=None):
     return rows
 
 
-def _noise_sources(summary):
-    q = (summary.get("ml") or {}).get("quality") or {}
+def _noise_sources(record):
+    q = (record.get("ml") or {}).get("quality") or {}
     return {c: f.get("noise_source") for c, f in (q.get("channels") or {}).items()}
 
 
@@ -447,9 +447,9 @@ def _context_scheme1(result, sources):
     for n, v, sd, f in zip(res.names, res.theta, res.crb, res.free):
         r = {"name": n + ("" if f else " (fixed)"), "value": v, "crb": sd if f else None,
              "crb_colored": crb_c[n] if f else None, "mean": None, "sd": None, "ratio": None}
-        if bayes is not None and n in bayes.summary.index:
-            r["mean"] = bayes.summary.loc[n, "mean"]
-            r["sd"] = bayes.summary.loc[n, "sd"]
+        if bayes is not None and n in bayes.convergence.index:
+            r["mean"] = bayes.convergence.loc[n, "mean"]
+            r["sd"] = bayes.convergence.loc[n, "sd"]
             r["ratio"] = r["sd"] / sd if sd > 0 else None
         mlrows.append(r)
     det = s["ml"]["mach_range_determined"]
@@ -475,16 +475,16 @@ def _context_scheme1(result, sources):
                          ("autocorrelation time tau (max, mean)", f"{m['tau_max']:.2f}, {m['tau_mean']:.2f} steps"),
                          ("acceptance", f"{m['acceptance']:.3f}"), ("retained draws", m["draws"]),
                          ("resumed from step", m["resumed_from"]),
-                         ("max r_hat", f"{bayes.summary['r_hat'].max():.4f}"),
+                         ("max r_hat", f"{bayes.convergence['r_hat'].max():.4f}"),
                          ("min ESS bulk / tail",
-                          f"{bayes.summary['ess_bulk'].min():.0f} / {bayes.summary['ess_tail'].min():.0f}"),
+                          f"{bayes.convergence['ess_bulk'].min():.0f} / {bayes.convergence['ess_tail'].min():.0f}"),
                          ("noise sd (posterior median)",
                           ", ".join(f"{c} {v['median']:.3g}" for c, v in m["sigma"].items())),
                          *noise_explanation(m["sigma"], res.sigma, _noise_sources(s)),
                          ("sampling time", f"{m['seconds']:.1f} s")]}
         cols = ["mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk", "ess_tail", "mcse_mean"]
         post_ctx = {"columns": cols,
-                    "rows": [(n, [bayes.summary.loc[n, c] for c in cols]) for n in bayes.summary.index]}
+                    "rows": [(n, [bayes.convergence.loc[n, c] for c in cols]) for n in bayes.convergence.index]}
     headline = (f"Scheme 1, {f1.drag_model.name} drag. ML: {res.message}. "
                 + (f"Posterior: {bayes.message}." if bayes is not None else "No sampling (maximum likelihood only)."))
     ctx = _common(result, sources, "")
@@ -496,16 +496,16 @@ def _context_scheme1(result, sources):
     return ctx
 
 
-def budget_context(summary, n=6):
+def budget_context(record, n=6):
     """The report's budget section: one line on what the Cd is conditional on or includes, and
     the sd by source in percent of Cd at ``n`` Mach values of the determined range."""
-    b = summary.get("uncertainty_budget")
+    b = record.get("uncertainty_budget")
     if not b:
         return None
     cond = b.get("conditional_on") or []
     srcs = [k for k in b["by_source"] if k not in ("statistical", "cross")]
     assumed = b.get("assumed") or {}
-    effects = [k for k in srcs if k in ((summary["ml"].get("with_effects") or {}).get("fitted") or [])]
+    effects = [k for k in srcs if k in ((record["ml"].get("with_effects") or {}).get("fitted") or [])]
     declared = [k for k in srcs if k not in ("model_error", "noise_model") and k not in assumed and k not in effects]
     note = ("Includes the declared sources " + ", ".join(declared) + " (fitted with their priors); "
             if declared else "No systematic source is declared: ")
@@ -528,8 +528,8 @@ def budget_context(summary, n=6):
     rows = []
     if srcs or b.get("model_error_floor"):
         mach = np.asarray(b["mach"], float)
-        det = summary["ml"].get("mach_range_determined") or [mach.min(), mach.max()]
-        cd = {round(r["mach"], 4): r["ml"] for r in summary["cd"]}
+        det = record["ml"].get("mach_range_determined") or [mach.min(), mach.max()]
+        cd = {round(r["mach"], 4): r["ml"] for r in record["cd"]}
         keys = ["statistical"] + srcs + ["cross"] + (["model_error_floor"] if b.get("model_error_floor") else [])
         for x in np.linspace(det[0], det[1], n):
             i = int(np.argmin(np.abs(mach - x)))

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
     from ..planning.case import CasePlan
-    from ..planning.summary import Plan
+    from ..planning.plan import Plan
     from ..round import Round
 
 __all__ = ["PlanResult", "load_plan", "CASE_COLUMNS"]

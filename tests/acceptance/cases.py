@@ -383,15 +383,15 @@ def run_case(case, origin=True):
     """Diagnose one case; returns a dict of what the acceptance checks (with ``origin``, also
     whether the fit's origin check fires on the track)."""
     from bayesdrag.diagnosis import diagnose
-    from bayesdrag.diagnosis.summary import console_summary, summary_paragraph
+    from bayesdrag.results.words import diagnosis_lines, diagnosis_paragraph
     from bayesdrag.results import DiagnosisResult
     from support.text_figures import unmatched_numbers
 
     track, rnd = make_track(case), diagnosis_round(case)
     d = diagnose(track, rnd)
-    s = d.summary
-    doc = DiagnosisResult(dict(s, summary=summary_paragraph(s)), d, track, rnd).to_dict()
-    texts = [summary_paragraph(doc)] + console_summary(doc)
+    s = d.record
+    doc = DiagnosisResult(dict(s, summary=diagnosis_paragraph(s)), d, track, rnd).to_dict()
+    texts = [diagnosis_paragraph(doc)] + diagnosis_lines(doc)
     rows = {r["name"]: r for r in s["effects"]}
     verdict = s["verdict"]
     immaterial = s.get("immaterial", [])

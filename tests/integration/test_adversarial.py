@@ -829,7 +829,7 @@ def test_every_figure_of_the_paragraph_comes_from_the_verdicts_joint_fit():
     """The paragraph printed the joint fit's wind, then the Cd shift of the wind-only fit (where the
     wind stood in for a hot day): the values and the impact of a verdict effect are its joint
     fit's; a lone fit's tailwind of 7.9 m/s appears nowhere."""
-    from bayesdrag.diagnosis.summary import summary_paragraph
+    from bayesdrag.results.words import diagnosis_paragraph
 
     row = {"name": "wind", "params": {"wx": 7.9, "wy": 0.1}, "sd": {"wx": 0.2, "wy": 0.3},
            "params_joint": {"wx": -0.52, "wy": 0.08}, "sd_joint": {"wx": 0.05, "wy": 0.04},
@@ -841,7 +841,7 @@ def test_every_figure_of_the_paragraph_comes_from_the_verdicts_joint_fit():
          "effects": [row, temp], "verdict": ["temperature", "wind"], "immaterial": [],
          "joint": {"effects": ["temperature", "wind"], "shrink": 0.99, "strongly_correlated": []},
          "materiality": {"cd_shift": 0.001, "end_sd": 3.0}, "where": [], "absorbed": []}
-    text = summary_paragraph(s)
+    text = diagnosis_paragraph(s)
     assert "wx = -0.52" in text and "dT = 15.1" in text
     assert "7.9" not in text and "dT = 18" not in text
     assert "shift by up to 0.004 (relative)" in text and "shift by up to 0.19 (relative)" in text

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import bayesdrag
-from bayesdrag.pipeline import summary_line
+from bayesdrag.pipeline import outcome_line
 from fixtures import met_flight as M
 
 #: the other shell's drag level against the table [-]
@@ -49,7 +49,7 @@ def test_the_fit_names_the_confound_and_blames_neither(case, tmp_path):
     expected = f"Cd is {pct} % above the table, or the air {pct} % denser than stated"
     assert air["line"].startswith(expected) and "the track cannot tell which" in air["line"]
     assert "contradicts" not in air["line"]                      # no blame on the air
-    line = summary_line(res)
+    line = outcome_line(res)
     assert f"air: {expected}" in line and "NOT a clean answer" not in line
     assert not any(w.kind == "air" for w in res.warnings)
     res.write(tmp_path / "out")

@@ -52,7 +52,7 @@ def test_an_absent_effect_beside_the_wind_is_dismissed(headwind):
 
 
 def _summary(tr, rnd):
-    return json.dumps(diagnose(tr, rnd).summary, sort_keys=True, default=str)
+    return json.dumps(diagnose(tr, rnd).record, sort_keys=True, default=str)
 
 
 def test_the_screen_changes_nothing_and_saves_fits(monkeypatch):

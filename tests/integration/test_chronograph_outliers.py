@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import bayesdrag
-from bayesdrag.pipeline import summary_line
+from bayesdrag.pipeline import outcome_line
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "acceptance"))
 import run_chronograph_outliers as R  # noqa: E402
@@ -47,7 +47,7 @@ def test_late_high_outliers_do_not_pull_cd(shot):
     assert out["side"] == "high"
     down = np.asarray(out["down_weighted"], int)
     assert down.size > 0 and np.isin(down, moved).mean() >= DOWN_WEIGHTED_MOVED_MIN
-    assert "one-sided outliers down-weighted" in summary_line(dirty)
+    assert "one-sided outliers down-weighted" in outcome_line(dirty)
     # the same noise in both: Cd moves by less than PAIRED_SHIFT_MAX band sd on average
     a, b = clean.cd, dirty.cd
     m = a.mach[(a.mach >= b.mach.min()) & (a.mach <= b.mach.max())]

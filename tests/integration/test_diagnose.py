@@ -77,7 +77,7 @@ def test_where_finds_the_segment_that_misses():
 
 def test_null_track_has_an_empty_verdict_and_design_keys():
     rnd = _round()
-    s = diagnose(_track(rnd, seed=11), rnd).summary
+    s = diagnose(_track(rnd, seed=11), rnd).record
     assert s["verdict"] == []
     assert set(s) >= {"baseline", "where", "effects", "verdict"}
     assert set(s["baseline"]) >= {"rms", "chi2_per_sample"}
@@ -91,7 +91,7 @@ def test_null_track_has_an_empty_verdict_and_design_keys():
 def test_headwind_found_with_density_and_drag_scale_confounded():
     rnd = _round(el=12.0)
     d = diagnose(_track(rnd, seed=2, wind=(-6.0, 0.0, 0.0)), rnd)
-    s = d.summary
+    s = d.record
     assert s["verdict"][0] == "wind"
     w = s["effects"][0]
     assert w["params"]["wx"] == pytest.approx(-6.0, abs=0.5) and abs(w["params"]["wy"]) < 0.5
@@ -104,7 +104,7 @@ def test_headwind_found_with_density_and_drag_scale_confounded():
 def test_no_reference_drag_says_so_and_skips_drag_only_effects():
     rnd = _round(el=10.0)
     tr = _track(rnd, seed=7, clock_offset=0.04)
-    s = diagnose(tr, _round(el=10.0, ref=False)).summary
+    s = diagnose(tr, _round(el=10.0, ref=False)).record
     assert s["reference_drag"] is False
     assert any("no reference drag" in n for n in s["notes"])
     assert "drag_scale" in s["skipped"] and "density" in s["skipped"]
@@ -137,7 +137,7 @@ def test_speed_only_track_finds_a_headwind_with_the_cross_wind_held():
     """A Doppler (v-only) track cannot see drift: wy is held at 0, lift is not found."""
     rnd = _round(el=10.0)
     tr = _track(rnd, seed=4, wind=(-7.0, 0.0, 0.0)).with_channels(["v"])
-    s = diagnose(tr, rnd).summary
+    s = diagnose(tr, rnd).record
     assert s["verdict"][:1] == ["wind"]
     w = s["effects"][0]
     assert w["params"]["wx"] == pytest.approx(-7.0, abs=0.5) and w["params"]["wy"] == 0.0
@@ -169,14 +169,14 @@ def test_sixdof_clock_offset_is_found_beside_the_spin_drift_with_its_joint_value
     """The 6-DOF shell drifts 100 m at 10 deg; a 40 ms clock is 2 % of that gap. Both are named,
     the joint fit gives dt, and the clock removes nearly all of what the drift leaves."""
     tr, rnd = _sixdof_case(effect="radar_time", params={"dt": 0.04}, elevation=10.0)
-    s = diagnose(tr, rnd).summary
+    s = diagnose(tr, rnd).record
     assert set(s["verdict"]) == {"lift", "radar_time"}
     rt = next(r for r in s["effects"] if r["name"] == "radar_time")
     assert rt["params_joint"]["dt"] == pytest.approx(0.04, abs=CLOCK_TOL_S)
     assert s["joint"]["shrink_given_others"]["radar_time"] >= CONDITIONAL_SHRINK_MIN
     assert rt["shrink_given_others"] == s["joint"]["shrink_given_others"]["radar_time"]
-    from bayesdrag.diagnosis.summary import summary_paragraph
-    assert "of what the others leave" in summary_paragraph(s)
+    from bayesdrag.results.words import diagnosis_paragraph
+    assert "of what the others leave" in diagnosis_paragraph(s)
 
 
 def test_backward_elimination_drops_a_wind_that_stood_in_for_two_effects():
@@ -184,7 +184,7 @@ def test_backward_elimination_drops_a_wind_that_stood_in_for_two_effects():
     explains most. Forward selection then adds lift and density; backward elimination must drop
     the wind, whose joint values are ~0."""
     tr, rnd = _sixdof_case(effect="density", params={"ratio": 0.95}, elevation=35.0)
-    s = diagnose(tr, rnd).summary
+    s = diagnose(tr, rnd).record
     assert s["effects"][[r["name"] for r in s["effects"]].index("wind")]["significant"]
     assert set(s["verdict"]) == {"lift", "density"}
     d = next(r for r in s["effects"] if r["name"] == "density")
@@ -200,7 +200,7 @@ def test_coriolis_beside_a_wind_is_added_and_the_cross_wind_freed_of_it():
 
     tr, rnd = _case_track(Case("wc", "pm", "coriolis", {"wx": -5.0, "wy": 3.0}, 30.0,
                                             latitude=45.0, azimuth=45.0, seed=9))
-    s = diagnose(tr, rnd).summary
+    s = diagnose(tr, rnd).record
     assert set(s["verdict"]) == {"wind", "coriolis"}
     w = next(r for r in s["effects"] if r["name"] == "wind")
     assert w["params_joint"]["wx"] == pytest.approx(-5.0, abs=0.5)
@@ -222,7 +222,7 @@ def test_a_zone_step_inside_a_diagnosis_layer_is_a_wind_not_the_tables_shape():
 
     case = next(c for c in HOLDOUT if c.name == "h130-g1-zones2")
     track = add_noise(truth_track(case), _sigma(case), np.random.default_rng(2900 + case.seed))
-    s = diagnose(track, round_of(case)).summary
+    s = diagnose(track, round_of(case)).record
     assert s["verdict"] == ["wind_profile"]
     row = next(r for r in s["effects"] if r["name"] == "wind_profile")
     assert row["shrink"] >= WIND_SHRINK_MIN and row["layers"]["axis"] == "downrange"
@@ -269,7 +269,7 @@ def test_no_table_baseline_is_the_scheme1_spline_and_names_nothing(track_130_g1)
     from bayesdrag.estimate.scheme1.fit import fit_scheme1
 
     rnd = _round_130(None)
-    s = diagnose(track_130_g1, rnd).summary
+    s = diagnose(track_130_g1, rnd).record
     assert s["verdict"] == [] and s["immaterial"] == []
     assert abs(s["baseline"]["chi2_per_sample"] - 1.0) < CHI2_PER_SAMPLE_TOL
     f1 = fit_scheme1(track_130_g1, rnd, drag="spline", sigma=SIG_130)
@@ -283,7 +283,7 @@ def test_no_table_baseline_is_the_scheme1_spline_and_names_nothing(track_130_g1)
 def test_a_table_of_another_shell_blames_the_drag_not_the_weather(track_130_g1):
     """A G1 shell handed a G7 (boat-tail) table: the diagnosis names a drag finding
     (drag_shape, with the level as drag_scale or its twin density), no weather effect."""
-    s = diagnose(track_130_g1, _round_130(_std_table("G7"))).summary
+    s = diagnose(track_130_g1, _round_130(_std_table("G7"))).record
     assert "drag_shape" in s["verdict"]
     assert not set(s["verdict"]) & {"wind", "temperature", "yaw_drag"}
     rows = {r["name"]: r for r in s["effects"]}
@@ -292,10 +292,10 @@ def test_a_table_of_another_shell_blames_the_drag_not_the_weather(track_130_g1):
 
 def test_the_right_table_names_nothing_and_a_wind_is_still_found(track_130_g1):
     g1 = _std_table("G1")
-    assert diagnose(track_130_g1, _round_130(g1)).summary["verdict"] == []
+    assert diagnose(track_130_g1, _round_130(g1)).record["verdict"] == []
     tr = add_noise(simulate_round(_round_130(g1), dt=0.05, wind=(-6.0, 4.0, 0.0)), SIG_130,
                    np.random.default_rng(131))
-    s = diagnose(tr, _round_130(g1)).summary
+    s = diagnose(tr, _round_130(g1)).record
     assert s["verdict"] == ["wind"]
     w = s["effects"][0]
     assert w["params"]["wx"] == pytest.approx(-6.0, abs=0.5) and w["params"]["wy"] == pytest.approx(4.0, abs=0.5)
@@ -306,22 +306,22 @@ def test_materiality_thresholds_move_a_small_clock_offset_out_of_the_verdict():
     thresholds (the contract (docs/formats.md) defaults: 0.1 % of Cd, 3 noise sd at the track's end). Above them it is
     listed as detectable but immaterial, worded as such, never as a finding."""
     from bayesdrag.diagnosis import MATERIAL_CD_SHIFT, MATERIAL_END_SD
-    from bayesdrag.diagnosis.summary import summary_paragraph
+    from bayesdrag.results.words import diagnosis_paragraph
 
     rnd = _round(el=15.0)
     tr = _track(rnd, seed=14, clock_offset=0.01)
-    s = diagnose(tr, rnd).summary
+    s = diagnose(tr, rnd).record
     rt = next(r for r in s["effects"] if r["name"] == "radar_time")
     assert rt["detected"] and rt["significant"]
     assert (s["materiality"]["cd_shift"], s["materiality"]["end_sd"]) == (MATERIAL_CD_SHIFT, MATERIAL_END_SD)
-    big = diagnose(tr, rnd, material_cd_shift=10 * rt["cd_shift_max"], material_end_sd=10 * rt["end_shift_sd"]).summary
+    big = diagnose(tr, rnd, material_cd_shift=10 * rt["cd_shift_max"], material_end_sd=10 * rt["end_shift_sd"]).record
     assert big["verdict"] == [] and big["immaterial"] == ["radar_time"]
     row = next(r for r in big["effects"] if r["name"] == "radar_time")
     assert row["material"] is False and row["materiality"].startswith("immaterial")
-    text = summary_paragraph(big)
+    text = diagnosis_paragraph(big)
     assert "Detectable but immaterial: radar_time (if ignored, Cd would shift" in text and "noise sd)" in text
     assert "Found" not in text
-    small = diagnose(tr, rnd, material_cd_shift=0.1 * rt["cd_shift_max"], material_end_sd=1e9).summary
+    small = diagnose(tr, rnd, material_cd_shift=0.1 * rt["cd_shift_max"], material_end_sd=1e9).record
     assert small["verdict"] == ["radar_time"] and small["immaterial"] == []
     with pytest.raises(ValueError, match="materiality thresholds must be >= 0"):
         diagnose(tr, rnd, material_end_sd=-1.0)
@@ -331,7 +331,7 @@ def test_a_verdict_members_impact_comes_from_the_joint_fit():
     """6-DOF 40 ms clock beside the spin drift: both members' Cd and end-of-track shifts are
     computed in the joint fit (the clock's alone would carry the drift's misfit)."""
     tr, rnd = _sixdof_case(effect="radar_time", params={"dt": 0.04}, elevation=10.0)
-    s = diagnose(tr, rnd).summary
+    s = diagnose(tr, rnd).record
     assert set(s["verdict"]) == {"lift", "radar_time"}
     for r in s["effects"]:
         if r["name"] in s["verdict"]:
@@ -368,27 +368,27 @@ def test_the_paragraph_and_console_print_only_the_jsons_numbers():
     file's (the joint fit's density 1.082, not the lone fit's 1.0705, and no percentages made up
     from fractions), one console line per verdict effect, and nothing about another shell's shape
     while drag_shape is not in the verdict."""
-    from bayesdrag.diagnosis.summary import console_summary, summary_paragraph
+    from bayesdrag.results.words import diagnosis_lines, diagnosis_paragraph
     from support.text_figures import unmatched_numbers
 
     doc = _summary_doc()
-    text = summary_paragraph(doc)
-    lines = console_summary(doc)
+    text = diagnosis_paragraph(doc)
+    lines = diagnosis_lines(doc)
     assert unmatched_numbers(text, doc) == [] and all(unmatched_numbers(ln, doc) == [] for ln in lines)
     assert "ratio = 1.082 ± 0.0016" in text and "1.0705" not in text and "%" not in text
     assert "another shell" not in text + " ".join(lines)
     assert [ln.split(":")[0].strip() for ln in lines[1:3]] == ["Found", "Also"] and len(lines) == 4
     assert lines[1].startswith("  Found: density") and lines[2].startswith("  Also: wind")
     shaped = dict(doc, verdict=["drag_shape", "wind"], immaterial=[])
-    assert "another shell" in summary_paragraph(shaped)
+    assert "another shell" in diagnosis_paragraph(shaped)
     # the checker itself catches a figure the JSON does not hold
     assert unmatched_numbers("ratio = 1.083, wx_1 = 2", doc) == ["1.083", "2"]
 
 
-def test_the_console_summary_is_the_written_files(tmp_path, capsys):
+def test_the_diagnosis_lines_is_the_written_files(tmp_path, capsys):
     """``bayesdrag diagnose`` prints, line by line, the console summary of the diagnosis.json it
     wrote."""
-    from bayesdrag.diagnosis.summary import console_summary
+    from bayesdrag.results.words import diagnosis_lines
 
     rnd = _round(el=30.0)
     write_track(tmp_path / "t.csv", _track(rnd, seed=8, wind=(-5.0, 2.0, 0.0)))
@@ -399,5 +399,5 @@ def test_the_console_summary_is_the_written_files(tmp_path, capsys):
     doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
     assert doc["verdict"] == ["wind"]
     printed = [ln[len("bayesdrag: diagnosis: "):] for ln in err.splitlines() if ln.startswith("bayesdrag: diagnosis: ")]
-    assert printed == console_summary(doc)
+    assert printed == diagnosis_lines(doc)
     assert len(printed) >= 1 + len(doc["verdict"])

@@ -67,7 +67,7 @@ def test_a_large_slowly_damped_yaw_is_found_and_no_row_is_claimed_wrong():
 
     c = wc.Case("pmyaw-0.16-0.3-30", "pm", "yaw_drag", {"delta0": 0.16, "decay": 0.3}, 30.0, seed=727)
     track, rnd, truth = hs.make(hs.HonestyCase(f"w-{c.id}", "withheld", seed=c.seed, withheld=c))
-    s = diagnose(track, rnd).summary
+    s = diagnose(track, rnd).record
     assert s["verdict"][0] == "yaw_drag"
     yaw = next(e for e in s["effects"] if e["name"] == "yaw_drag")
     assert yaw["params"]["delta0"] == pytest.approx(0.16, rel=0.1)

@@ -70,7 +70,7 @@ def cases(m101):
 def test_the_undeclared_effect_is_named_first_and_sized(name, cases):
     rnd, track = cases[name]
     _, _, _, first, param, truth, _ = CASES[name]
-    s = diagnose(track, rnd).summary
+    s = diagnose(track, rnd).record
     assert s["verdict"][:1] == [first], (s["verdict"], [(r["name"], r["shrink"]) for r in s["effects"]])
     row = next(r for r in s["effects"] if r["name"] == first)
     value = row["params"][param]
@@ -80,7 +80,7 @@ def test_the_undeclared_effect_is_named_first_and_sized(name, cases):
 @pytest.mark.parametrize("make, sigma, seed", [(_tracking_round, TRACKING, 285), (_mortar_round, DOPPLER, 286)])
 def test_a_track_without_an_effect_has_an_empty_verdict(make, sigma, seed, m101):
     rnd = make(m101)
-    s = diagnose(_track(rnd, sigma, None, seed), rnd).summary
+    s = diagnose(_track(rnd, sigma, None, seed), rnd).record
     assert s["verdict"] == [], [(r["name"], r["test_statistic"], r["threshold"]) for r in s["effects"]]
 
 
@@ -88,7 +88,7 @@ def test_a_range_rate_alone_reports_what_it_cannot_see(cases):
     """Behind the mortar on its line of fire a range rate sees no sideways drift: the cross wind
     is held and said to be not identifiable, the lift (a sideways drift) is not fitted."""
     rnd, track = cases["doppler-headwind"]
-    s = diagnose(track, rnd).summary
+    s = diagnose(track, rnd).record
     assert "not identifiable" in s["skipped"]["lift"]
     wind = next(r for r in s["effects"] if r["name"] == "wind")
     assert set(wind["not_identifiable"]) == {"wy"}

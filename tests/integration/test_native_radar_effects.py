@@ -59,7 +59,7 @@ CASES = {
 def test_the_radar_error_is_named_first_and_sized(name, m101):
     sd_muzzle, change, effect, truth, seed = CASES[name]
     rnd = _round(m101, sd_muzzle)
-    s = diagnose(_track(rnd, seed, **change), rnd).summary
+    s = diagnose(_track(rnd, seed, **change), rnd).record
     assert s["verdict"][:1] == [effect], (s["verdict"], [(r["name"], r["delta_chi2"]) for r in s["effects"][:4]])
     row = next(r for r in s["effects"] if r["name"] == effect)
     for p, t in truth.items():
@@ -69,7 +69,7 @@ def test_the_radar_error_is_named_first_and_sized(name, m101):
 @pytest.mark.parametrize("seed", [2864, 2865])
 def test_a_clean_track_gains_no_radar_finding(seed, m101):
     rnd = _round(m101)
-    s = diagnose(_track(rnd, seed), rnd).summary
+    s = diagnose(_track(rnd, seed), rnd).record
     assert not set(s["verdict"] + s["immaterial"]) & set(RADAR_EFFECT_CHANNELS), s["verdict"]
     tested = {r["name"] for r in s["effects"]}
     assert {"range_bias", "elevation_bias"} <= tested      # they were candidates, not left out
@@ -78,7 +78,7 @@ def test_a_clean_track_gains_no_radar_finding(seed, m101):
 def test_a_gun_frame_track_has_no_radar_candidate(m101):
     rnd = _round(m101)
     s = diagnose(simulate_round(rnd, channels=("x", "y", "z", "v")), rnd, sigma={"x": 1, "y": 1, "z": 1, "v": 0.3},
-                 cd_shifts=False).summary
+                 cd_shifts=False).record
     assert not {r["name"] for r in s["effects"]} & set(RADAR_EFFECT_CHANNELS)
     assert not set(s["skipped"]) & set(RADAR_EFFECT_CHANNELS)
 
@@ -87,7 +87,7 @@ def test_a_range_rate_alone_skips_the_biases_it_has_no_channel_for(m101):
     rnd = Round(Projectile("120 mm mortar", 13.2, 0.12, m101, None), Launch(60.0, 310.0),
                 radar=Radar({"range_rate": 0.1}, position=(-10.0, 0.0, 1.0)), path="mortar.toml")
     s = diagnose(add_noise(simulate_round(rnd, channels=("range_rate",)), {"range_rate": 0.1},
-                           np.random.default_rng(2866)), rnd).summary
+                           np.random.default_rng(2866)), rnd).record
     assert "no range channel" in s["skipped"]["range_bias"]
     assert "no elevation channel" in s["skipped"]["elevation_bias"]
     site = next(r for r in s["effects"] if r["name"] == "radar_position")

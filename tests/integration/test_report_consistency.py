@@ -112,7 +112,7 @@ def test_headline_precedes_the_first_figure(fitted):
     assert p.events.index("headline") < p.events.index("figure")
 
 
-def test_summary_line_names_the_next_step(fitted, capsys):
+def test_outcome_line_names_the_next_step(fitted, capsys):
     from bayesdrag.pipeline import why_not_clean
 
     _, r = fitted

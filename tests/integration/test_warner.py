@@ -67,8 +67,8 @@ def test_diagnose_finds_thin_air(bullet):
     from bayesdrag.diagnosis import diagnose
 
     d = diagnose(read_track(WARNER / bullet / "track.csv"), read_round(WARNER / bullet / "round.toml"))
-    assert d.summary["verdict"][0] == "density"
-    eff = {e["name"]: e for e in d.summary["effects"]}["density"]
+    assert d.record["verdict"][0] == "density"
+    eff = {e["name"]: e for e in d.record["effects"]}["density"]
     assert DENSITY_RATIO_RANGE[0] < eff["params"]["ratio"] < DENSITY_RATIO_RANGE[1]
     assert "drag_scale" in eff["confounded_with"]
 

@@ -11,7 +11,7 @@ import pytest
 import bayesdrag
 from bayesdrag.errors import InputError
 from bayesdrag.planning.case import CasePlan, expected_log_evidence, walk_evidence
-from bayesdrag.planning.summary import best_combination, combine
+from bayesdrag.planning.plan import best_combination, combine
 from bayesdrag.round import Launch, Projectile, Radar, Round, Systematics
 
 SIGMA = {"x": 1.0, "y": 1.0, "z": 1.0, "v": 0.3}

@@ -49,7 +49,7 @@ def test_registration_is_undone_after_the_block():
 def test_the_diagnosis_finds_the_toy_effect(case):
     tr, rnd = case
     with registered(SPEED_SCALE):
-        s = diagnose(tr, rnd, candidates=["wind", "speed_scale"]).summary
+        s = diagnose(tr, rnd, candidates=["wind", "speed_scale"]).record
     assert s["verdict"][:1] == ["speed_scale"]
     row = next(r for r in s["effects"] if r["name"] == "speed_scale")
     assert row["params"]["s"] == pytest.approx(TRUE_SCALE, abs=SCALE_TOL)

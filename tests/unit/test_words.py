@@ -18,17 +18,17 @@ def test_the_range_names_its_holes():
     assert determined_words([0.894, 2.34], [[1.0, 1.03]], digits=3) == "Mach 0.894-2.340 except 1.000-1.030"
 
 
-def test_console_summary_and_report_say_the_same(tmp_path):
+def test_diagnosis_lines_and_report_say_the_same(tmp_path):
     """One fit's determined range in the console line, summary() and the report, in the same words."""
     import bayesdrag
-    from bayesdrag.pipeline import summary_line
+    from bayesdrag.pipeline import outcome_line
     from fixtures import met_flight as M
 
     tp, rp = M.write_icao_case(tmp_path, seed=9)          # the independent integrator's flight
     res = bayesdrag.fit(bayesdrag.read_track(tp), bayesdrag.read_round(rp), mcmc=False, model_check=False)
     ml = res.record["ml"]
     words = determined_words(ml["mach_range_determined"], ml["quality"].get("undetermined", []))
-    assert f"Cd determined over {words}" in summary_line(res)
+    assert f"Cd determined over {words}" in outcome_line(res)
     assert words in str(res.summary())
     res.write(tmp_path / "out")
     assert f"Cd determined over {words}." in (tmp_path / "out" / "report.html").read_text()

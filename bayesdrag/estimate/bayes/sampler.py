@@ -82,7 +82,7 @@ class BayesResult:
         Mean acceptance fraction.
     converged : bool
     message : str
-    summary : pandas.DataFrame
+    convergence : pandas.DataFrame
         Per name of ``names``: mean, sd, q05, q50, q95, mcse_mean, ess_bulk, ess_tail, r_hat
         (:func:`summarize`; ArviZ's definitions).
     elapsed : float
@@ -110,7 +110,7 @@ class BayesResult:
     acceptance: float
     converged: bool
     message: str
-    summary: object
+    convergence: object
     elapsed: float
     moves: str
     likelihood: str
@@ -122,17 +122,17 @@ class BayesResult:
     @property
     def r_hat(self):
         """dict name -> rank-normalised split R-hat."""
-        return dict(zip(self.summary.index, self.summary["r_hat"].astype(float)))
+        return dict(zip(self.convergence.index, self.convergence["r_hat"].astype(float)))
 
     @property
     def ess_bulk(self):
         """dict name -> bulk effective sample size [draws]."""
-        return dict(zip(self.summary.index, self.summary["ess_bulk"].astype(float)))
+        return dict(zip(self.convergence.index, self.convergence["ess_bulk"].astype(float)))
 
     @property
     def ess_tail(self):
         """dict name -> tail effective sample size [draws]."""
-        return dict(zip(self.summary.index, self.summary["ess_tail"].astype(float)))
+        return dict(zip(self.convergence.index, self.convergence["ess_tail"].astype(float)))
 
 
 # --------------------------------------------------------------------------- diagnostics
@@ -391,9 +391,9 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, 
         full = draws
         names = post.names
     thetas = post.full_theta(flat).reshape(W, S, -1)
-    summary = summarize(full, names)
+    convergence = summarize(full, names)
     warns = [] if converged else [FitWarning("sampler", message)]
-    bad_r = [n for n, r in zip(summary.index, summary["r_hat"]) if not r < RHAT_MAX]
+    bad_r = [n for n, r in zip(convergence.index, convergence["r_hat"]) if not r < RHAT_MAX]
     if bad_r:
         warns.append(FitWarning("sampler", f"r_hat >= {RHAT_MAX} for {', '.join(bad_r[:6])}", tuple(bad_r[:6])))
     acc = float(np.mean(sampler.acceptance_fraction))
@@ -402,7 +402,7 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, 
                                 + (" (the posterior is far from its Gaussian approximation, e.g. a poorly "
                                    "identified drag model; try --moves de)" if moves == "auto" else "")))
     return BayesResult(names, full, lp, thetas, np.asarray(tau), int(sampler.iteration), burn, thin, W,
-                       acc, converged, message, summary, elapsed, describe_moves(moves), post.likelihood,
+                       acc, converged, message, convergence, elapsed, describe_moves(moves), post.likelihood,
                        tuple(warns), resumed, tau_hist, sampler.get_chain())
 
 

@@ -24,7 +24,7 @@ from ..track import ANGLE_CHANNELS, NATIVE_CHANNELS
 from .case import (ASSUMPTIONS, PLAN_MACH_STEP, PLAN_SOURCES, declared_sources, drag_assumption, plan_case,
                    radar_channels, site_round)
 
-__all__ = ["Plan", "make_plan", "combine", "best_combination", "summary_paragraph", "target_paragraph",
+__all__ = ["Plan", "make_plan", "combine", "best_combination", "plan_paragraph", "target_paragraph",
            "EXHAUSTIVE_MAX"]
 
 #: every combination of up to this many cases is tried (2^12 - 1 = 4095 combinations)
@@ -79,7 +79,7 @@ class Plan:
         """The plan in one paragraph (with a target: the recommendation)."""
         if self.target is not None:
             return target_paragraph(self)
-        return summary_paragraph(self)
+        return plan_paragraph(self)
 
     def to_dict(self):
         """The content of ``plan.json`` (docs/planning.md: ``cases`` with ``elevation``, ``velocity``,
@@ -98,7 +98,7 @@ class Plan:
                 "radar": {"sigma": dict(self.sigma), "dt": self.dt, "lock_on": self.lock_on, "loss": self.loss},
                 "rounds": self.rounds, "scatter": self.scatter,
                 "systematics": {"declared": dict(self.declared), "undeclared": undeclared},
-                "target": target, "summary": summary_paragraph(self), "assumptions": list(ASSUMPTIONS),
+                "target": target, "summary": plan_paragraph(self), "assumptions": list(ASSUMPTIONS),
                 "notes": sorted({n for c in self.cases for n in c.notes}),
                 **self._sites()}
 
@@ -362,7 +362,7 @@ def _pct(x):
     return f"{100 * x:.2g} %" if x < 0.01 else f"{100 * x:.2f} %"
 
 
-def summary_paragraph(plan):
+def plan_paragraph(plan):
     """The plan in one paragraph, without a target."""
     cs = plan.cases
     parts = []
