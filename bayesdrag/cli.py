@@ -451,7 +451,7 @@ def cmd_fit(args):
                              f"track {args.track} (it has {', '.join(track.names)})")
     opts = _fit_options(args)
     if args.round is None:  # bayesdrag fit CAMPAIGN.toml -o DIR
-        from .commands.batch import run_campaign, summarise
+        from .commands.batch import run_campaign, say_done
         from .io.campaign import is_campaign_file
 
         if not is_campaign_file(args.track):
@@ -463,7 +463,7 @@ def cmd_fit(args):
         res = run_campaign(args.track, args.output, jobs=("fit",), options=opts, executor="sequential",
                            quiet=args.quiet > 0, echo=_stdout(args), pool_seed=args.seed or 0, resume=args.resume,
                            allow_outside=args.allow_outside_inputs)
-        return summarise(res, echo=_batch_stdout(args, res))
+        return say_done(res, echo=_batch_stdout(args, res))
     from .commands.fit import run_fit
 
     run_fit(args.track, args.round, args.output, opts, resume=args.resume, verbosity=args.quiet,
@@ -472,7 +472,7 @@ def cmd_fit(args):
 
 
 def cmd_batch(args):
-    from .commands.batch import run_campaign, summarise
+    from .commands.batch import run_campaign, say_done
     from .options import BatchOptions
 
     jobs = tuple(j.strip() for j in args.jobs.split(",") if j.strip())
@@ -483,7 +483,7 @@ def cmd_batch(args):
                        scheduler=b.scheduler, workers=workers, covariance=b.covariance, quiet=args.quiet > 0,
                        echo=_stdout(args), pool_seed=args.seed or 0, resume=args.resume,
                        allow_outside=args.allow_outside_inputs)
-    return summarise(res, echo=_batch_stdout(args, res))
+    return say_done(res, echo=_batch_stdout(args, res))
 
 
 def cmd_diagnose(args):

@@ -38,7 +38,7 @@ class PackageCacheLocator(caching.UserProvidedCacheLocator):
         return super().from_function(py_func, py_file)
 
 
-def compile_summary():
+def compile_record():
     """What this process compiled of bayesdrag's cached numba functions, and what it loaded.
 
     Looks at the dispatchers of the bayesdrag modules already imported (none is imported

@@ -443,7 +443,7 @@ class PooledResult:
                  "reference": None if self.reference is None else float(self.reference[i])}
                 for i, m in enumerate(self.mach)]
 
-    def scatter_summary(self, band=BAND):
+    def scatter_record(self, band=BAND):
         """``campaign.json`` ``scatter``: mean, q05, q95 (and median) of ``s``. One round shows no
         round-to-round scatter (its posterior is its prior): the values are then NaN (null in
         campaign.json) and ``note`` says why."""
@@ -455,7 +455,7 @@ class PooledResult:
         q = np.quantile(s, [band[0], 0.5, band[1]])
         return {"mean": float(s.mean()), "q05": float(q[0]), "median": float(q[1]), "q95": float(q[2])}
 
-    def delta_summary(self, band=BAND):
+    def delta_records(self, band=BAND):
         """Per round: mean, q05, q95 of ``delta_r`` (relative offset of its Cd)."""
         q = np.quantile(self.delta_draws, band, axis=0)
         m = self.delta_draws.mean(axis=0)
@@ -561,7 +561,7 @@ def campaign_json(pooled, inputs=None, campaign_name="", failed=()):
     """The ``campaign.json`` document (keys: ``name``, ``rounds``, ``cd``, ``scatter``, and ``deltas``, ``sampler``,
     ``model``, ``failed``, ``rounds_detail``)."""
     doc = {"name": campaign_name, "rounds": list(pooled.names), "cd": pooled.cd_rows(),
-           "scatter": pooled.scatter_summary(), "deltas": pooled.delta_summary(),
+           "scatter": pooled.scatter_record(), "deltas": pooled.delta_records(),
            "success": pooled.success, "message": pooled.message, "sampler": pooled.sampler,
            "model": "log Cd_r = log Cd_pop + log(1 + delta_r), delta_r ~ N(0, scatter^2); "
                     "stage-1 covariance per round (" + (inputs[0]["covariance"] if inputs else "?") + ")",

@@ -51,7 +51,7 @@ from ..io.outputs import OutputRun, read_json, sha256_file, write_json
 from ..io.tracks import read_track
 from ..options import JOBS, FitOptions
 
-__all__ = ["run_campaign", "round_task", "pool_campaign", "summarise", "fingerprint", "job_done"]
+__all__ = ["run_campaign", "round_task", "pool_campaign", "say_done", "fingerprint", "job_done"]
 #: environment of every worker process: one thread per numeric library
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
               "MKL_NUM_THREADS": "1"}
@@ -531,7 +531,8 @@ def _pooling_doc(path, name=None):
     return doc
 
 
-def summarise(res, echo=print):
+def say_done(res, echo=print):
+    """Say what a campaign did: rounds, jobs run, skipped and failed (``echo``), each failure on stderr."""
     done = sum(1 for r in res["reports"] for v in r["jobs"].values() if v["status"] == "done")
     skipped = sum(1 for r in res["reports"] for v in r["jobs"].values() if v["status"] == "skipped")
     echo(f"batch: {len(res['reports'])} rounds, {done} jobs run, {skipped} skipped (done earlier), "

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime.garbage import paused_gc
-from .._runtime.numba_cache import compile_summary
+from .._runtime.numba_cache import compile_record
 from ..errors import InputError
 from ..io.outputs import write_figure, write_json
 from .fit import run_fit
@@ -138,7 +138,7 @@ def _demo_run(run, track, rnd, track_path, round_path, seed, quiet):
                    "warnings": [str(w) for w in res.warnings]},
         "mcmc": {k: result["mcmc"][k] for k in ("converged", "message", "steps", "walkers", "tau_max", "seconds")},
         "report": str((run.folder / "report.html").resolve()),
-        "compiled_code": compile_summary(),
+        "compiled_code": compile_record(),
         "note": "the 6-DOF shell flies slightly longer and drifts right (yaw of repose, not in the "
                 "point-mass model), which the fit partly absorbs in Cd and the initial state; the "
                 "residual autocorrelation in the report shows it",

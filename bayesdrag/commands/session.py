@@ -10,14 +10,14 @@ from ..errors import InputError
 from ..io.outputs import OutputRun
 from .runs import round_files
 
-__all__ = ["run_session", "session_summary"]
+__all__ = ["run_session", "session_lines"]
 
 
 def _err(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-def session_summary(record):
+def session_lines(record):
     """The console's lines for a session: its central row, form factors, muzzle speeds."""
     c, ff, bc, mv = record["central"], record["form_factor"], record["bc"], record["muzzle_velocity"]
     state = "determined" if c["determined"] else ("claimed, not determined" if c["claimed"] else "not determined")
@@ -92,7 +92,7 @@ def run_session(tracks, round_path, out, *, verbosity=0, echo=print, figures=Tru
             _err(f"bayesdrag: warning: {w}")
         for w in record["conditional_on"]:
             _err(f"bayesdrag: note: Cd is conditional on {w}")
-    for line in session_summary(record):
+    for line in session_lines(record):
         echo(line)
     echo(f"  wrote {out / 'campaign.json'}, campaign.html, session_cd.png"
          + (", drag_table.json and .csv (py-ballisticcalc, mach,cd)" if record["cd"] else "")

@@ -121,10 +121,10 @@ def fit_cases_loaded(names, root=None):
 
 
 def _print(names):
-    from bayesdrag._runtime.numba_cache import compile_summary
+    from bayesdrag._runtime.numba_cache import compile_record
 
     out = {name: fit_case(name) for name in names}
-    out["_compiled"] = compile_summary()["compiled"]
+    out["_compiled"] = compile_record()["compiled"]
     print(json.dumps(out))
 
 

@@ -127,7 +127,7 @@ def test_summary_diagnostics_match_arviz():
     constant parameter."""
     import arviz as az
 
-    from bayesdrag.estimate.bayes.sampler import summarize
+    from bayesdrag.estimate.bayes.sampler import convergence_table
 
     rng = np.random.default_rng(4)
     for W, S in ((16, 300), (8, 57), (4, 1001)):
@@ -138,7 +138,7 @@ def test_summary_diagnostics_match_arviz():
             x[:, i] = np.array([0.5, 0.8, 0.95, 0.0]) * x[:, i - 1] + e[:, i]
         x[:2, :, 1] += 0.5                                 # two chains off
         x[..., 3] = 2.5                                    # constant
-        ours = summarize(x, list("abcd"))
+        ours = convergence_table(x, list("abcd"))
         ds = az.convert_to_dataset({"p": x}, dims={"p": ["k"]})
         ref = {"r_hat": az.rhat(ds)["p"].values, "ess_bulk": az.ess(ds, method="bulk")["p"].values,
                "ess_tail": az.ess(ds, method="tail")["p"].values, "mcse_mean": az.mcse(ds, method="mean")["p"].values}

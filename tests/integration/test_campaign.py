@@ -139,7 +139,7 @@ def test_pooled_band_covers_truth_and_scatter_interval_covers_one_percent(synthe
     rows = pooled.cd_rows()
     inside = [r["q05"] <= float(m101.value(r["mach"])) <= r["q95"] for r in rows]
     assert np.mean(inside) >= 0.9, f"truth inside the 90 % band at {sum(inside)} of {len(rows)} nodes"
-    s = pooled.scatter_summary()
+    s = pooled.scatter_record()
     assert s["q05"] <= 0.01 <= s["q95"], s
     # the band is honest but not vacuous: ~ scatter / sqrt(7) wide, not the prior's 5 %
     width = np.median([(r["q95"] - r["q05"]) / r["mean"] for r in rows])
@@ -152,7 +152,7 @@ def test_round_offsets_are_recovered_when_rounds_are_precise(m101):
     rng = np.random.default_rng(5)
     inputs, deltas = _synthetic(m101, rng, n_rounds=6, scatter=0.02, noise=0.0005)
     pooled = pool_rounds(inputs, rng=np.random.default_rng(1))
-    d = pooled.delta_summary()
+    d = pooled.delta_records()
     # offsets relative to the campaign are identified; their mean is shared with Cd_pop
     got = np.array([x["mean"] for x in d])
     true_rel = (1 + deltas) / np.exp(np.mean(np.log1p(deltas))) - 1
@@ -169,7 +169,7 @@ def test_pooling_is_reproducible_with_the_same_rng(synthetic):
 
 def test_no_scatter_gives_an_interval_near_zero(m101):
     inputs, _ = _synthetic(m101, np.random.default_rng(8), scatter=0.0, noise=0.001)
-    s = pool_rounds(inputs, rng=np.random.default_rng(2)).scatter_summary()
+    s = pool_rounds(inputs, rng=np.random.default_rng(2)).scatter_record()
     assert s["q95"] < 0.006  # well below the 1 % a campaign with scatter shows
 
 

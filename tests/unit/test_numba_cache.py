@@ -51,7 +51,7 @@ def test_compile_summary_names_the_package_functions_it_compiled_or_loaded():
     from bayesdrag.estimate.model import colored
 
     colored.whitened_ss(np.zeros((2, 5)), 0.5, 1.0, np.ones(4))
-    s = _numba_cache.compile_summary()
+    s = _numba_cache.compile_record()
     assert set(s) == {"compiled", "compile_seconds", "loaded", "cache_dir"}
     assert s["loaded"] + len(s["compiled"]) >= 1
     assert all(n.split(".")[0] in ("dynamics", "estimate") for n in s["compiled"])

@@ -1,7 +1,7 @@
 """Convergence diagnostics of an MCMC chain, in numpy (the ranks' tie pass compiled): the integrated autocorrelation time
 (:func:`integrated_time`, emcee's walker-averaged estimator), the rank-normalised split R-hat
 (:func:`split_rank_rhat`), the bulk and tail effective sample size (:func:`ess`) and the
-per-parameter summary (:func:`summarize`). They are ArviZ's ``rhat``, ``ess`` and ``mcse``
+per-parameter convergence table (:func:`convergence_table`). They are ArviZ's ``rhat``, ``ess`` and ``mcse``
 (Vehtari et al. 2021): the same numbers (tests compare them with ArviZ), without ArviZ, which
 only :mod:`bayesdrag.estimate.bayes.inference` imports. :mod:`bayesdrag.estimate.bayes.sampler` stops its
 chains by them.
@@ -14,7 +14,7 @@ from numba import njit
 from scipy.fft import next_fast_len
 from scipy.special import ndtri
 
-__all__ = ["integrated_time", "average_ranks", "split_rank_rhat", "ess", "summarize"]
+__all__ = ["integrated_time", "average_ranks", "split_rank_rhat", "ess", "convergence_table"]
 
 
 def integrated_time(chain, *, c=5):
@@ -205,7 +205,7 @@ def ess(draws, *, method="bulk"):
     return out
 
 
-def summarize(draws, names):
+def convergence_table(draws, names):
     """Convergence summary of draws: the columns of ``arviz.summary`` that bayesdrag reports.
 
     Parameters

@@ -13,7 +13,7 @@ Run (choices measured, see ``docs/bayes.md`` and ``benchmarks/fit.py --moves``)
       split ``r_hat < 1.01`` and bulk and tail ESS >= 400 for every parameter; or at
       ``max_steps`` (then ``converged=False`` with a message). Burn-in = ceil(3 max tau),
       thinning = max(1, floor(min tau / 2)).
-    * Diagnostics (:func:`split_rank_rhat`, :func:`ess`, :func:`summarize`, in
+    * Diagnostics (:func:`split_rank_rhat`, :func:`ess`, :func:`convergence_table`, in
       :mod:`bayesdrag.estimate.bayes.chain_diagnostics`) are numpy versions of ArviZ's ``rhat``,
       ``ess`` and ``mcse`` (Vehtari et al. 2021): the same numbers, without ArviZ.
     * Progress: the bar's total (and the status lines) are the steps convergence needs by the
@@ -39,7 +39,7 @@ from ..._runtime.threads import single_blas
 from ..._runtime.signals import deferred_interrupt
 from ...errors import FitWarning, InputError
 from ...io.chain import ChainFile
-from .chain_diagnostics import ess, integrated_time, split_rank_rhat, summarize
+from .chain_diagnostics import ess, integrated_time, split_rank_rhat, convergence_table
 from .coords import TEMPERATURE
 from .moves import describe_moves, make_moves
 
@@ -84,7 +84,7 @@ class BayesResult:
     message : str
     convergence : pandas.DataFrame
         Per name of ``names``: mean, sd, q05, q50, q95, mcse_mean, ess_bulk, ess_tail, r_hat
-        (:func:`summarize`; ArviZ's definitions).
+        (:func:`convergence_table`; ArviZ's definitions).
     elapsed : float
         Wall-clock seconds of sampling (this call).
     moves : str
@@ -353,7 +353,7 @@ def steps_to_converge(done, tau_max, nwalkers, check_every, max_steps):
 
 
 def _min_finite(x):
-    """Smallest non-NaN value of ``x`` (NaN when there is none), as ``summarize``'s columns'
+    """Smallest non-NaN value of ``x`` (NaN when there is none), as ``convergence_table``'s columns'
     ``min()`` gives it."""
     x = np.asarray(x, float)
     x = x[~np.isnan(x)]
@@ -391,7 +391,7 @@ def _collect(post, sampler, tau, converged, message, elapsed, moves, noise_rng, 
         full = draws
         names = post.names
     thetas = post.full_theta(flat).reshape(W, S, -1)
-    convergence = summarize(full, names)
+    convergence = convergence_table(full, names)
     warns = [] if converged else [FitWarning("sampler", message)]
     bad_r = [n for n, r in zip(convergence.index, convergence["r_hat"]) if not r < RHAT_MAX]
     if bad_r:
