@@ -82,6 +82,11 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         axis = diagnosis_layers(dsum, track, rnd) if WIND_PROFILE.name in keep and diagnose_effects and verdict else None
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep),
                         **({"wind_layers": axis} if axis else {}))
+        if axis and (alt is None or WIND_PROFILE.name not in alt[2].effects):
+            # its fit with Cd free fails on that axis: both axes, the better kept
+            alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep))
+        if alt is not None and set(keep) - set(alt[2].effects):
+            alt = None        # a fit without the effects asked for sizes nothing: the diagnosis's shift below
         if alt is not None and (f1.model_size or {}).get("narrow_span") and not own_table(rnd) \
                 and aliased_with_cd(band, alt[1]):
             # one factor over a narrow span cannot be told from them (their fit beside it leaves Cd

@@ -87,3 +87,45 @@ def test_no_shortcut_for_a_profile_once_ar1_is_asked_outright(flight):
     plain = fit_scheme1(track, rnd, noise_model="ar1")
     assert plain.white_ml is None
     assert _from_plain(plain, rnd, opts, with_effects=("wind_profile",)) is None
+
+
+def _check_with_profile(flight, monkeypatch, carries):
+    """The model check of the plain fit against a diagnosis naming ``wind_profile`` on the
+    altitude axis, its fits with Cd replaced by the plain fit carrying ``carries(call)``'s
+    effects; returns (the record, the calls' keywords)."""
+    from dataclasses import replace
+
+    from bayesdrag.estimate.cd.table import cd_grid, cd_table
+    from bayesdrag.pipeline import model_check as mc
+
+    track, rnd, opts, plain = flight
+    grid = cd_grid(0.9, 2.0)
+    rows = cd_table(plain.ml, plain.drag_model, grid)
+    calls = []
+
+    def fake_alt(track_, rnd_, opts_, chans_, f1_, grid_, plain=None, **change):
+        calls.append(change)
+        fit = replace(f1_, effects=carries(len(calls)))
+        return np.array([r["ml"] for r in rows]), np.array([r["crb_sd"] for r in rows]), fit
+
+    monkeypatch.setattr(mc, "_alt_rows", fake_alt)
+    diagnosis = {"record": {"verdict": ["wind_profile"], "skipped": {},
+                            "effects": [{"name": "wind_profile", "cd_shift_max": 0.02,
+                                         "layers": {"axis": "altitude"}}]}}
+    rec, fit = mc.model_error(track, rnd, opts, track.names, plain, grid, rows, diagnosis=diagnosis)
+    return rec, fit, calls
+
+
+def test_a_profile_is_fitted_on_the_diagnosis_axis_then_on_both_when_that_fails(flight, monkeypatch):
+    rec, fit, calls = _check_with_profile(flight, monkeypatch, lambda k: ("wind_profile",) if k > 1 else ())
+    # the diagnosis's axis first; its fit carried no profile, so both axes were tried
+    assert calls[0]["wind_layers"] == "altitude" and "wind_layers" not in calls[1]
+    assert fit.effects == ("wind_profile",) and rec["effects"] == ["wind_profile"]
+
+
+def test_a_fit_that_drops_the_effect_sizes_it_by_the_diagnosis(flight, monkeypatch):
+    rec, fit, _ = _check_with_profile(flight, monkeypatch, lambda k: ())
+    # no fit carried the profile: its shift is not read off a fit without it (that shift is 0)
+    assert fit is None
+    assert rec["effects_from"].startswith("the diagnosis's Cd shift")
+    assert min(rec["parts"]["effects"]) > 0
