@@ -36,8 +36,8 @@ __all__ = ["select_effects", "forward_selection", "backward_elimination", "is_be
 MIN_SECOND_SHARE = 0.02
 #: ... or at least this fraction of what the effects already selected leave: a mismatch no
 #: effect describes leaves residuals a wrong effect only nibbles at (removing a small part),
-#: while a second real effect explains most of what is left -- e.g. the spin drift (lift) of
-#: a shell fired into a head wind, 0.2 % of that gap (6-DOF validation case)
+#: while a second real effect explains most of what is left (the spin drift of a shell fired
+#: into a head wind is a tiny share of the wind's gap)
 MIN_LEFT_SHARE = 0.8
 #: ... which counts only when what is left stands out of the noise: above this many sd of the
 #: noise-only chi2 (with the residuals' own autocorrelation, :func:`chi2_noise_sd`)

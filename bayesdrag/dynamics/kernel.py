@@ -521,8 +521,7 @@ def _renamed(fn, name):
 
 
 #: the same block integrator compiled without ``noalias``, for batches of fewer than
-#: LANE_WIDTH trajectories (one block of B lanes): LLVM then leaves the lane loops scalar, which
-#: for 1-2 lanes is 1.3-1.5x faster than the vector loops' remainder path, and its results are
-#: those of the scalar kernel before (a trajectory's last bits depend on the code that runs it)
+#: LANE_WIDTH trajectories (one block of B lanes): LLVM then leaves the lane loops scalar, faster
+#: for so few lanes than the vector loops' remainder path, with the scalar kernel's last bits
 integrate_blocks_scalar = njit(nogil=True, cache=True, no_cfunc_wrapper=True, **_OPTS)(
     _renamed(integrate_blocks.py_func, "integrate_blocks_scalar"))

@@ -18,8 +18,8 @@ __all__ = ["WIND", "CORIOLIS", "YAW_DRAG", "LIFT", "WIND_PROFILE", "K_YAW", "YAW
 K_YAW = 10.0
 
 #: largest yaw amplitude k delta0^2 a yaw_drag fit may take: delta0 = 0.3 rad (17 deg). A stable
-#: shell leaves the muzzle with a few degrees; beyond this it tumbles. Without the bound a
-#: yaw_drag at 0.4 rad that never damps stood in for a firing table 2.4 times too low
+#: shell leaves the muzzle with a few degrees; beyond this it tumbles, and a fitted "yaw" that
+#: large stands in for a wrong firing table
 YAW_AMP_MAX = K_YAW * 0.3**2
 
 #: slowest yaw decay [1/s] (amplitude e-folding in 10 s): a launch yaw of a stable shell damps in

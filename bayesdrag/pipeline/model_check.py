@@ -165,7 +165,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         near = _white_near(f1, track, rnd, grid)
         if near is not None and (alt is None or _data_chi2(alt[2]) > _data_chi2(near[2]) + CHECK_CHI2_SLACK):
             # the refit from the start stopped at a worse optimum than the white fit started at this
-            # fit's own estimate (a late clock on a Doppler track: Cd 12 times off): that one is the check
+            # fit's own estimate: that one is the check
             alt, rec["noise_check_from"] = near, "the white-noise fit started at this fit's estimate"
         if alt is not None:
             # its band's excess over the AR(1) fit's is kept too, not taken as the difference's
@@ -188,8 +188,8 @@ NOT_ALTERNATIVES = not_alternatives()
 
 #: a yaw fit that stands for a launch yaw: its decay above this many times the slowest allowed
 #: (YAW_DECAY_MIN) and its delta0 below this share of the largest (sqrt(YAW_AMP_MAX / K_YAW)). A
-#: table of another shell drives the yaw to 0.29-0.3 rad never damping (decay at the bound, Cd
-#: shifts of 90-530 %): that is the table's error, which the fit's free curve estimates
+#: table of another shell drives the yaw to the largest amplitude, never damping: that is the
+#: table's error, which the fit's free curve estimates
 PLAUSIBLE_YAW_DECAY_FACTOR, PLAUSIBLE_YAW_SHARE = 1.5, 0.8
 
 

@@ -234,7 +234,7 @@ def sample_posterior(post, *, nwalkers=None, max_steps=20000, min_steps=100, che
         if nwalkers < 8:
             raise InputError(f"--walkers {nwalkers}: at least 8 walkers are needed")
         # a check reads the whole chain (autocorrelation FFT, split R-hat): its cost grows with the
-        # walkers, so larger ensembles check less often (128 walkers every 25 steps: ~85 % of the run)
+        # walkers, so larger ensembles check less often
         check_every = int(check_every or CHECK_EVERY * max(1, nwalkers // DEFAULT_WALKERS))
         streams = _streams(rng, seed)
         move_list = make_moves(moves, post, nwalkers=nwalkers, **(move_options or {}))
