@@ -55,6 +55,16 @@ class Diagnosis:
     #: by downrange distance, header lines), the first two None when the verdict leaves the air
     found_air: tuple | None = None
 
+    @property
+    def summary(self) -> dict:
+        """Deprecated name of :attr:`record` (removed in release 0.3): "summary" is a result's
+        printable table."""
+        import warnings
+
+        warnings.warn("Diagnosis.summary is now Diagnosis.record (removed in release 0.3)", DeprecationWarning,
+                      stacklevel=2)
+        return self.record
+
 
 @dataclass
 class _Baseline:

@@ -463,3 +463,10 @@ def absorbed_text(a: dict[str, Any]) -> str:
     return (f"Absorbed: the fit turned the launch {a['name']} by {fmt(a['moved_deg'], 3)} deg ({fmt(a['moved_sd'], 2)} "
             f"sd of the round's launch uncertainty), which takes up a {what} of {fmt(a['drift_m'], 3)} m at the "
             f"end of the track; the ranking of where the simulation misses counts only what is left.")
+
+
+def __getattr__(name: str) -> Any:
+    """``summary_line``, the deprecated name of :func:`outcome_line` (removed in release 0.3)."""
+    if name == "summary_line":
+        return outcome_line
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

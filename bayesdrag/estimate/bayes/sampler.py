@@ -120,6 +120,16 @@ class BayesResult:
     chain: np.ndarray = None
 
     @property
+    def summary(self):
+        """Deprecated name of :attr:`convergence` (removed in release 0.3): "summary" is a
+        result's printable table."""
+        import warnings
+
+        warnings.warn("BayesResult.summary is now BayesResult.convergence (removed in release 0.3)",
+                      DeprecationWarning, stacklevel=2)
+        return self.convergence
+
+    @property
     def r_hat(self):
         """dict name -> rank-normalised split R-hat."""
         return dict(zip(self.convergence.index, self.convergence["r_hat"].astype(float)))
