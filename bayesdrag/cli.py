@@ -378,7 +378,7 @@ def _stdout(args):
 
 
 def _batch_stdout(args, res):
-    """A campaign's summary line: as :func:`_stdout`, but ``-q`` still prints it when a round
+    """A campaign's last line: as :func:`_stdout`, but ``-q`` still prints it when a round
     failed (the run did not succeed; ``-qq`` leaves only the failures' lines on stderr)."""
     return print if (not args.quiet or (res["failed"] and args.quiet < 2)) else (lambda *a, **k: None)
 

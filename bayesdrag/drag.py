@@ -318,7 +318,7 @@ class Poly2Split(DragModel):
 #: Default interior-knot candidates for :class:`Spline` (Mach). Double knots (C1 joints) sit at
 #: the onset of the drag rise (~0.90), its steepest part (~0.96) and its top (~1.02): there the
 #: curvature of a shell's Cd(M) jumps, which a C2 cubic cannot follow with few knots (single
-#: knots at the same count follow the M101 curve three to five times worse: docs/drag_models.md)
+#: knots at the same count follow the M101 curve 3-6 times worse: docs/measurements.md)
 SPLINE_KNOT_CANDIDATES = (0.7, 0.9, 0.9, 0.93, 0.96, 0.96, 0.99, 1.02, 1.02, 1.06, 1.12, 1.22,
                           1.5, 2.0, 2.6, 3.2, 4.0)
 

@@ -45,6 +45,7 @@ import sys
 import time
 from pathlib import Path
 
+from .._runtime.renamed import renamed_getattr
 from ..errors import InputError
 from ..io.csv import read_toml
 from ..io.outputs import OutputRun, read_json, sha256_file, write_json
@@ -467,7 +468,7 @@ def pool_campaign(camp, out, failed=(), seed=0, echo=print, into=None, left_out=
         if p.is_file() and marker_path(Path(out) / r.name, "fit").is_file():
             try:
                 inputs.append(_pooling_doc(p, r.name))
-            except InputError as exc:   # reported with the failed rounds (summarise)
+            except InputError as exc:   # reported with the failed rounds (say_done)
                 entry = {"name": r.name, "job": "pool", "message": f"left out of the pooling: {exc}"}
                 failed.append(entry)
                 if left_out is not None:
@@ -540,3 +541,6 @@ def say_done(res, echo=print):
     for f in res["failed"]:
         print(f"bayesdrag: round {f['name']} ({f['job']}) failed: {f['message']}", file=sys.stderr)
     return 1 if res["failed"] else 0
+
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"summarise": "say_done"}, globals())

@@ -42,7 +42,7 @@ def run_fit(track_path, round_path, out, options=None, *, resume=False, quiet=Fa
     ----------
     quiet : bool
         Nothing on stderr (the batch collects warnings itself); ``echo`` still receives the
-        summary.
+        outcome line.
     verbosity : int, optional
         Overrides ``quiet``: 0 notes, progress and warnings on stderr; 1 (``-q``) warnings only;
         2 (``-qq``) nothing. The command line passes ``echo`` a no-op from 1 on.

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .._runtime.renamed import renamed_getattr
 from ..errors import InputError
 from ..io.outputs import OutputRun
 from .runs import round_files
@@ -98,3 +99,6 @@ def run_session(tracks, round_path, out, *, verbosity=0, echo=print, figures=Tru
          + (", drag_table.json and .csv (py-ballisticcalc, mach,cd)" if record["cd"] else "")
          + f" and {len(outcome.fit.shots)} shot folders")
     return 0
+
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"session_summary": "session_lines"}, globals())

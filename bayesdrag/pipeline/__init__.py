@@ -26,6 +26,7 @@ import time
 import warnings as py_warnings
 from typing import Any, Callable
 
+from .._runtime.renamed import renamed_getattr
 from .._runtime.threads import single_blas
 from ..errors import BayesdragWarning, InputError
 from ..options import DiagnoseOptions, FitOptions
@@ -167,3 +168,5 @@ def diagnose(track: RadarTrack, rnd: Round, options: DiagnoseOptions | None = No
     record = dict(d.record, summary=diagnosis_paragraph(d.record))     # what diagnosis.json holds
     return DiagnosisResult(record, d, track, rnd)
 
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"summary_line": "outcome_line"}, globals())

@@ -1,7 +1,7 @@
 """The checks a default fit makes of its own Cd: the model error of the misfit that remains
 (:mod:`bayesdrag.estimate.cd.model_error`: the diagnosis's material effects fitted, a robust
 fit where the noise is correlated or has gross outliers), what the Cd assumes of the air, and
-the reason and next step a not-clean answer's summary gives."""
+the reason and next step the outcome line of a not-clean answer gives."""
 from __future__ import annotations
 
 import math
@@ -17,6 +17,7 @@ from ..estimate.cd.model_error import check_sd, describe, shift_sd
 from ..estimate.cd.quality import assess
 from ..estimate.cd.table import cd_table, model_error_floor
 from ..estimate.scheme1.fit import fit_scheme1
+from ..estimate.build.winds import WIND_AXES
 from .ml import diagnosis_layers
 from ..effects import DENSITY, DRAG_SHAPE, EFFECTS, RADAR_POSITION, RADAR_TIME, TEMPERATURE, WIND_PROFILE, \
     YAW_DRAG, air_state_effects, not_alternatives, partly_trading_with_cd
@@ -82,11 +83,10 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         axis = diagnosis_layers(dsum, track, rnd) if WIND_PROFILE.name in keep and diagnose_effects and verdict else None
         alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep),
                         **({"wind_layers": axis} if axis else {}))
-        if axis and (alt is None or WIND_PROFILE.name not in alt[2].effects):
-            # its fit with Cd free fails on that axis: both axes, the better kept
-            alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep))
-        if alt is not None and set(keep) - set(alt[2].effects):
-            alt = None        # a fit without the effects asked for sizes nothing: the diagnosis's shift below
+        if axis and alt is None:
+            # its fit with Cd free fails on that axis: the other axis (as a fit trying both keeps it)
+            alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep),
+                            wind_layers=next(a for a in WIND_AXES if a != axis))
         if alt is not None and (f1.model_size or {}).get("narrow_span") and not own_table(rnd) \
                 and aliased_with_cd(band, alt[1]):
             # one factor over a narrow span cannot be told from them (their fit beside it leaves Cd
@@ -106,7 +106,7 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
             # the effect could not be fitted with Cd: the diagnosis's own largest Cd shift of each,
             # taken at every row (a bound where the fit cannot say where along the flight)
             rel = [shifts.get(n) for n in keep]
-            rec["effects_from"] = "the diagnosis's Cd shift (the fit with the effects failed)"
+            rec["effects_from"] = "the diagnosis's Cd shift (the fit with the effects failed or dropped them)"
             if all(r is not None for r in rel):
                 parts["effects"] = np.full(ml.size, math.sqrt(sum(r**2 for r in rel))) * np.abs(ml)
             else:
@@ -409,7 +409,7 @@ def _same_effects(f1):
 
 def _alt_rows(track, rnd, opts, chans, f1, grid, plain=None, **change):
     """``(cd, band_sd, fit)`` on ``grid`` of the same fit with ``change`` (effects, likelihood);
-    None when it fails. ``plain``: the fit without effects ``f1`` was made from (default
+    None when it fails or does not carry every effect asked for. ``plain``: the fit without effects ``f1`` was made from (default
     ``f1``), whose stages the changed fit shares when :func:`_from_plain` can take them over."""
     kw = dict(drag=f1.drag_model.name, channels=chans, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
               nu=opts.ml_nu, noise_model=opts.noise_model, start=f1.start)   # the plain fit's start: no new search
@@ -420,8 +420,8 @@ def _alt_rows(track, rnd, opts, chans, f1, grid, plain=None, **change):
             alt = fit_scheme1(track, rnd, **kw)
     except (InputError, FitError):
         return None
-    if not alt.ml.success:
-        return None
+    if not alt.ml.success or set(change.get("with_effects", ())) - set(alt.effects):
+        return None     # a fit that dropped an effect asked for is no fit of it (its shift would read 0)
     return _rows_of(alt, grid, track, rnd)
 
 

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 
+from .._runtime.renamed import renamed_getattr
 from ..results.words import outcome_line, why_not_clean
 from ..estimate.cd.headline import headline
 from ..estimate.cd.model_error import fold_into_budget
@@ -146,3 +147,6 @@ def ml_record(f1, rows, quality, lo, hi, opts):
                "quality": quality},
         "cd": rows,
     }
+
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"summary_line": "outcome_line", "ml_summary": "ml_record"}, globals())

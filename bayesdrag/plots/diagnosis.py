@@ -79,7 +79,7 @@ def plot_ranking(s, ax=None):
     Parameters
     ----------
     s : dict
-        The diagnosis summary (``diagnosis.json``).
+        The diagnosis record (``diagnosis.json``).
     ax : matplotlib Axes, optional
 
     Returns

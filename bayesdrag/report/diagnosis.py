@@ -1,5 +1,5 @@
-"""What ``bayesdrag diagnose`` writes: ``diagnosis.json`` (the summary of
-:func:`bayesdrag.diagnosis.diagnose` and its one-paragraph summary), the figures as PNG,
+"""What ``bayesdrag diagnose`` writes: ``diagnosis.json`` (the record of
+:func:`bayesdrag.diagnosis.diagnose` and its paragraph), the figures as PNG,
 ``diagnosis.html`` (self-contained, figures embedded), through the reports' one jinja2
 environment and figure helper (:mod:`bayesdrag.report.render`), and the air the diagnosis found
 as a met file (``diagnosis_met.csv``, and ``diagnosis_wind_downrange.csv`` for a wind by

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from typing import Any, Iterable, Sequence
 
+from .._runtime.renamed import renamed_getattr
 from ..effects import DRAG_SHAPE, EFFECTS
 
 __all__ = ["mach_interval", "determined_words", "alternatives", "verdict_words", "grouped_effects", "effect_lines",
@@ -137,7 +138,7 @@ NOISE_FREE_SD = 1e-3
 
 
 def why_not_clean(quality: dict[str, Any]) -> str:
-    """The summary's reason a Scheme 1 fit is not a clean answer and the next step
+    """The reason a Scheme 1 fit is not a clean answer and the next step
     (its ``ml.quality``)."""
     from ..estimate.cd.quality import ACF_LIMIT, CHI2_LIMIT
 
@@ -458,15 +459,11 @@ def diagnosis_lines(s: dict[str, Any]) -> list:
 
 def absorbed_text(a: dict[str, Any]) -> str:
     """One sentence on a miss the baseline fit absorbed into its launch angles (a row of the
-    summary's ``absorbed``)."""
+    record's ``absorbed``)."""
     what = "cross drift (y)" if a["channel"] == "y" else "height (z)"
     return (f"Absorbed: the fit turned the launch {a['name']} by {fmt(a['moved_deg'], 3)} deg ({fmt(a['moved_sd'], 2)} "
             f"sd of the round's launch uncertainty), which takes up a {what} of {fmt(a['drift_m'], 3)} m at the "
             f"end of the track; the ranking of where the simulation misses counts only what is left.")
 
-
-def __getattr__(name: str) -> Any:
-    """``summary_line``, the deprecated name of :func:`outcome_line` (removed in release 0.3)."""
-    if name == "summary_line":
-        return outcome_line
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"summary_line": "outcome_line"}, globals())

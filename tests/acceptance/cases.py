@@ -429,7 +429,7 @@ def run_case(case, origin=True):
             "gap": s["baseline"]["gap"],
             "shrink_sd": (true_row or {}).get("shrink_sd"),
             "remaining_gap_fraction": (true_row or {}).get("remaining_gap_fraction"),
-            # every number the paragraph and the console summary print is one of diagnosis.json's
+            # every number the paragraph and the console lines print is one of diagnosis.json's
             "text_numbers_not_in_json": [n for t in texts for n in unmatched_numbers(t, doc)],
             "paragraph": texts[0],
             "profile": profile_verdict_ok(case, s) if case.effect == "wind_profile" else None}

@@ -53,7 +53,7 @@ def test_full_suite_meets_the_acceptance():
     assert s["magnitude_rate"] >= 0.9, s
     found, n_clock = (int(v) for v in s["radar_clock_origin_found"].split("/"))
     assert s["false_origin_alarms"] == 0 and found == n_clock > 0, s
-    # every number the paragraph and the console summary print is one of diagnosis.json's
+    # every number the paragraph and the console lines print is one of diagnosis.json's
     assert all(r["text_numbers_not_in_json"] == [] for r in results), \
         [(r["id"], r["text_numbers_not_in_json"]) for r in results if r["text_numbers_not_in_json"]]
 

@@ -343,7 +343,7 @@ def test_a_verdict_members_impact_comes_from_the_joint_fit():
 MATERIAL_END_SD_FOR_TEST = 3.0
 
 
-def _summary_doc():
+def _record_doc():
     """A diagnosis.json with two verdict effects beside a table of another shell's shape judged
     immaterial (hand-made: every wording branch the texts have)."""
     wind = {"name": "wind", "params": {"wx": 7.9, "wy": 0.1}, "sd": {"wx": 0.2, "wy": 0.3},
@@ -371,7 +371,7 @@ def test_the_paragraph_and_console_print_only_the_jsons_numbers():
     from bayesdrag.results.words import diagnosis_lines, diagnosis_paragraph
     from support.text_figures import unmatched_numbers
 
-    doc = _summary_doc()
+    doc = _record_doc()
     text = diagnosis_paragraph(doc)
     lines = diagnosis_lines(doc)
     assert unmatched_numbers(text, doc) == [] and all(unmatched_numbers(ln, doc) == [] for ln in lines)
@@ -385,8 +385,8 @@ def test_the_paragraph_and_console_print_only_the_jsons_numbers():
     assert unmatched_numbers("ratio = 1.083, wx_1 = 2", doc) == ["1.083", "2"]
 
 
-def test_the_diagnosis_lines_is_the_written_files(tmp_path, capsys):
-    """``bayesdrag diagnose`` prints, line by line, the console summary of the diagnosis.json it
+def test_the_diagnosis_lines_are_the_written_files(tmp_path, capsys):
+    """``bayesdrag diagnose`` prints, line by line, the console lines of the diagnosis.json it
     wrote."""
     from bayesdrag.results.words import diagnosis_lines
 

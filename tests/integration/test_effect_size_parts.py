@@ -34,6 +34,7 @@ def test_the_whole_as_a_part_is_the_same_problem(fitted):
     same = part.cost(part.z - part.predict(res.theta)[0][0], res.sigma, res.theta, res.ar)
     assert same == pytest.approx(whole, rel=1e-12)
     assert part.priors == prob.priors and dict(part.noise_model) == dict(prob.noise_model)
+    np.testing.assert_array_equal(part.steps, prob.steps)   # a continued fit differentiates as the first
 
 
 def test_a_part_refitted_from_the_whole_is_the_part_fitted_afresh(fitted):

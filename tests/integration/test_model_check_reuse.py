@@ -106,6 +106,8 @@ def _check_with_profile(flight, monkeypatch, carries):
     def fake_alt(track_, rnd_, opts_, chans_, f1_, grid_, plain=None, **change):
         calls.append(change)
         fit = replace(f1_, effects=carries(len(calls)))
+        if set(change["with_effects"]) - set(fit.effects):
+            return None     # as _alt_rows answers a fit that dropped an effect asked for
         return np.array([r["ml"] for r in rows]), np.array([r["crb_sd"] for r in rows]), fit
 
     monkeypatch.setattr(mc, "_alt_rows", fake_alt)
@@ -116,10 +118,10 @@ def _check_with_profile(flight, monkeypatch, carries):
     return rec, fit, calls
 
 
-def test_a_profile_is_fitted_on_the_diagnosis_axis_then_on_both_when_that_fails(flight, monkeypatch):
+def test_a_profile_is_fitted_on_the_diagnosis_axis_then_on_the_other_when_that_fails(flight, monkeypatch):
     rec, fit, calls = _check_with_profile(flight, monkeypatch, lambda k: ("wind_profile",) if k > 1 else ())
-    # the diagnosis's axis first; its fit carried no profile, so both axes were tried
-    assert calls[0]["wind_layers"] == "altitude" and "wind_layers" not in calls[1]
+    # the diagnosis's axis first; its fit carried no profile, so the other axis was tried
+    assert [c["wind_layers"] for c in calls] == ["altitude", "downrange"]
     assert fit.effects == ("wind_profile",) and rec["effects"] == ["wind_profile"]
 
 
@@ -129,3 +131,15 @@ def test_a_fit_that_drops_the_effect_sizes_it_by_the_diagnosis(flight, monkeypat
     assert fit is None
     assert rec["effects_from"].startswith("the diagnosis's Cd shift")
     assert min(rec["parts"]["effects"]) > 0
+
+
+def test_a_check_fit_that_drops_an_effect_is_no_fit_of_it(flight, monkeypatch):
+    from dataclasses import replace
+
+    from bayesdrag.estimate.cd.table import cd_grid
+    from bayesdrag.pipeline import model_check as mc
+
+    track, rnd, opts, plain = flight
+    # stage C could not add the effect (its fit failed): the plain fit comes back without it
+    monkeypatch.setattr(mc, "_from_plain", lambda plain_, rnd_, opts_, **change: replace(plain_, effects=()))
+    assert mc._alt_rows(track, rnd, opts, track.names, plain, cd_grid(0.9, 2.0), with_effects=("wind",)) is None

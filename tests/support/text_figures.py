@@ -1,5 +1,5 @@
 """Check that every number a text prints is a value of a JSON document (the diagnosis paragraph
-and console summary against ``diagnosis.json``)."""
+and console lines against ``diagnosis.json``)."""
 from __future__ import annotations
 
 import re

@@ -1,4 +1,4 @@
-"""The firing planner (``bayesdrag.planning.case``, ``plan_summary``, ``bayesdrag.plan``): the
+"""The firing planner (``bayesdrag.planning.case``, ``bayesdrag.planning.plan``, ``bayesdrag.plan``): the
 plan.json contract, the budget's arithmetic (density floor, rounds scaling, scatter), the
 expected evidence against a Monte Carlo of a linear problem, the combination rule and the error
 paths. The check of the prediction against fits of simulated firings is

@@ -14,6 +14,8 @@ from numba import njit
 from scipy.fft import next_fast_len
 from scipy.special import ndtri
 
+from ..._runtime.renamed import renamed_getattr
+
 __all__ = ["integrated_time", "average_ranks", "split_rank_rhat", "ess", "convergence_table"]
 
 
@@ -235,3 +237,6 @@ def convergence_table(draws, names):
 
 
 # --------------------------------------------------------------------------- the run
+
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"summarize": "convergence_table"}, globals())

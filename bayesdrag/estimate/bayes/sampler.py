@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import emcee
 import numpy as np
 
+from ..._runtime.renamed import renamed_getattr
 from ..._runtime.threads import single_blas
 from ..._runtime.signals import deferred_interrupt
 from ...errors import FitWarning, InputError
@@ -438,3 +439,6 @@ def default_walkers(post, moves="auto"):
     if coords is not None and TEMPERATURE in coords.pos:
         return SOURCE_WALKERS
     return DEFAULT_WALKERS
+
+#: old names, kept with a warning until release 0.3
+__getattr__ = renamed_getattr(__name__, {"summarize": "convergence_table"}, globals())

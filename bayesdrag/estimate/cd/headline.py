@@ -27,7 +27,7 @@ def headline(rows, determined_range, clean, reason=None, points=HEADLINE_POINTS)
     clean : bool
         ``ml.quality.ok``.
     reason : str, optional
-        Why the answer is not clean and the next step (the command's summary line says the same).
+        Why the answer is not clean and the next step (the command's outcome line says the same).
     points : int
 
     Returns

@@ -249,8 +249,8 @@ class OutputErrorProblem:
 
     def part(self, index, theta0=None):
         """The same problem over the samples ``index`` of its track: its model, parameters, priors,
-        effects, noise models and per-sample arrays, started at ``theta0`` (default its own
-        start). A fit of it is the nested-data fit :mod:`~bayesdrag.estimate.scheme1.effect_sizes`
+        effects, noise models, per-sample arrays and finite-difference steps, started at
+        ``theta0`` (default its own start). A fit of it is the nested-data fit :mod:`~bayesdrag.estimate.scheme1.effect_sizes`
         compares with the whole's.
 
         Parameters
@@ -264,11 +264,13 @@ class OutputErrorProblem:
         OutputErrorProblem
         """
         idx = np.asarray(index)
-        return OutputErrorProblem(self.model, self.track.subset(idx), self.theta0 if theta0 is None else theta0,
-                                  free=self.free, sigma=self.sigma_fixed, priors=self.priors, channels=self.channels,
-                                  extras=self.extras, effect_fn=self.effect_fn, t_ic=self.t_ic,
-                                  weights=self.weights[idx], noise_model=dict(self.noise_model), site=self.site,
-                                  noise_scale=self.noise_scale[idx], effect_names=self.effect_names)
+        new = OutputErrorProblem(self.model, self.track.subset(idx), self.theta0 if theta0 is None else theta0,
+                                 free=self.free, sigma=self.sigma_fixed, priors=self.priors, channels=self.channels,
+                                 extras=self.extras, effect_fn=self.effect_fn, t_ic=self.t_ic,
+                                 weights=self.weights[idx], noise_model=dict(self.noise_model), site=self.site,
+                                 noise_scale=self.noise_scale[idx], effect_names=self.effect_names)
+        object.__setattr__(new, "steps", self.steps)    # it differentiates as this problem does
+        return new
 
     def replace(self, **changes):
         """A copy of this problem with some of :attr:`REPLACEABLE` changed.

@@ -73,7 +73,8 @@ def _part_fits(f1):
     models stay the whole fit's: the parts are nested data under one model, as the method of
     moments assumes (a fit of a part from its own start would also choose other knots and another
     smoothing, and their difference is not the effect's model error). The ones that fail or do not
-    converge are left out."""
+    converge are left out: a plain spline (no smoothness penalty) whose coefficients at low Mach
+    only the track's end reaches leaves them undetermined in a part, whose fit then fails."""
     prob, res = f1.problem, f1.ml
     n = prob.track.n
     out = []
