@@ -142,7 +142,7 @@ def _sixdof(rnd, ref, L, dt, clock_offset, wind, max_time):
     t_imp = float(res.t[-1])
     t_rec = _sample_times(t_imp, dt, clock_offset)
     # every requested time, the impact included: a second run's impact event may land a hair
-    # before the first's and drop the last sample (it did at QE 30: 2057 of 2058 rows)
+    # before the first's and drop the last sample
     res = sixdof.simulate_6dof(shell, L.velocity, L.elevation_deg, t_out=t_rec + clock_offset,
                                atmosphere=rnd.atmosphere, wind=tuple(wind),
                                azimuth_deg=L.azimuth_deg, max_time=max_time, stop_at_impact=False)

@@ -521,7 +521,7 @@ def pool_rounds(inputs, rng=None, n_draws=4000, nwalkers=16, n_steps=600, prior_
     x0 = grid[int(np.argmax(st.log_post_log_s(grid, prior_sd)))]
     p0 = x0 + 0.1 * rng.standard_normal((nwalkers, 1))
     # 1-D target: the stretch move mixes slowly in one dimension, the differential-evolution
-    # move with a snooker share four times faster
+    # move with a snooker share faster
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(nwalkers, 1, lambda x: st.log_post_log_s(x[:, 0], prior_sd),
                                     moves=moves, vectorize=True)

@@ -70,8 +70,8 @@ DOWN_WEIGHTED = 0.5
 #: fewer samples than this in a channel: no test (too few to tell a tail from the core)
 MIN_SAMPLES = 40
 #: EM stops when the tails hold fewer samples' worth than this: the mixture is the Gaussian (a
-#: clean channel's tails shrink geometrically towards nothing; waiting for that costs ~20 ms a
-#: channel and changes no likelihood ratio beyond round-off)
+#: clean channel's tails shrink geometrically towards nothing; waiting for that costs time and
+#: changes no likelihood ratio beyond round-off)
 COLLAPSED_TAIL_SAMPLES = 0.5
 #: EM iterations of the one-dimensional mixture and its relative log-likelihood tolerance
 EM_ITERATIONS, EM_TOL = 200, 1e-7
