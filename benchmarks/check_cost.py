@@ -20,7 +20,10 @@ its ``result.json`` ``timing``: ``ml`` (the first ML fit) and ``total``; the che
 when it refits a material effect), with the effects the fit added. The machine's load is printed:
 on a shared 2-core machine every time scales with it.
 
-    python3 benchmarks/check_cost.py [--only NAME ...] [--json FILE]
+    python3 benchmarks/check_cost.py [--only NAME ...] [--json FILE] [--own]
+
+``--own`` times the check's own work instead (:func:`own_work`: ``model_error`` given the
+diagnosis, and the added effects' sizes), which the fork decisions of a busy machine do not move.
 
 The last line is one JSON object ``{case: {...}}``.
 """
@@ -126,13 +129,61 @@ def measure(name):
             "verdict": ((ml.get("quality") or {}).get("model_error") or {}).get("verdict")}
 
 
+def own_work(name):
+    """The check's own work on case ``name`` with the diagnosis already made, so a shared machine's
+    fork decisions do not enter: the plain fit (timed: ``ml``), ``model_error`` given the
+    diagnosis (best of two: ``check_own``) and the added effects' sizes (``sizes``), in seconds,
+    all in this process with one BLAS thread."""
+    import time
+    import warnings
+
+    from bayesdrag._runtime.threads import single_blas
+    from bayesdrag.estimate.scheme1.effect_sizes import effect_sizes
+    from bayesdrag.estimate.scheme1.fit import fit_scheme1
+    from bayesdrag.options import FitOptions
+    from bayesdrag.pipeline.ml import answer_of
+    from bayesdrag.pipeline.model_check import diagnosis_record, model_error
+
+    with tempfile.TemporaryDirectory() as tmp, single_blas(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        track, rnd = case_inputs(name, tmp)
+        opts = FitOptions(mcmc=False)
+        t0 = time.perf_counter()
+        f1 = fit_scheme1(track, rnd, noise_model=opts.noise_model)
+        ml = time.perf_counter() - t0
+        diagnosis = diagnosis_record(track, rnd, track.names)
+        own, fit = [], None
+        for _ in range(2):
+            ans = answer_of(f1, rnd, None)
+            t0 = time.perf_counter()
+            _, fit = model_error(track, rnd, opts, track.names, f1, ans.grid, ans.rows, diagnosis=diagnosis)
+            own.append(time.perf_counter() - t0)
+        sizes = None
+        if fit is not None and fit.effects:
+            t0 = time.perf_counter()
+            effect_sizes(fit)
+            sizes = time.perf_counter() - t0
+    return {"ml": round(ml, 3), "check_own": round(min(own), 3), "sizes": None if sizes is None else round(sizes, 3),
+            "effects": list(fit.effects) if fit is not None else []}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--own", action="store_true",
+                    help="the check's own work with the diagnosis made (own_work), not the fit's timing")
     args = ap.parse_args(argv)
     out = {}
     print(f"load {os.getloadavg()[0]:.2f}")
+    if args.own:
+        for name in args.only or CASES:
+            out[name] = r = own_work(name)
+            print(f"{name:18s} ml {r['ml']:6.2f} s  check's own {r['check_own']:6.2f} s  sizes "
+                  f"{'-' if r['sizes'] is None else format(r['sizes'], '.2f')} s  added {','.join(r['effects']) or '-'}",
+                  flush=True)
+        print(json.dumps(out))
+        return
     for name in args.only or CASES:
         out[name] = r = measure(name)
         t = r["timing"]
