@@ -78,15 +78,15 @@ def model_error(track, rnd, opts, chans, f1, grid, rows, *, diagnose_effects=Tru
         rec["effects_fitted"] = list(carried)
         keep = tuple(n for n in keep if n not in carried)
     if keep:
-        # a wind profile in the form the diagnosis named it, on the axis its evidence chose (as
-        # ``--with auto`` fits it): the other axis's fit is not made again here
+        # a wind profile on the axis the diagnosis's evidence chose (as ``--with auto`` fits it);
+        # the other axis only when that fit fails (as a fit trying both would keep it)
         axis = diagnosis_layers(dsum, track, rnd) if WIND_PROFILE.name in keep and diagnose_effects and verdict else None
-        alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep),
-                        **({"wind_layers": axis} if axis else {}))
-        if axis and alt is None:
-            # its fit with Cd free fails on that axis: the other axis (as a fit trying both keeps it)
+        alt = None
+        for layers in ((axis,) + tuple(a for a in WIND_AXES if a != axis) if axis else (None,)):
             alt = _alt_rows(track, rnd, opts, chans, f1, grid, with_effects=carried + tuple(keep),
-                            wind_layers=next(a for a in WIND_AXES if a != axis))
+                            **({"wind_layers": layers} if layers else {}))
+            if alt is not None:
+                break
         if alt is not None and (f1.model_size or {}).get("narrow_span") and not own_table(rnd) \
                 and aliased_with_cd(band, alt[1]):
             # one factor over a narrow span cannot be told from them (their fit beside it leaves Cd
@@ -409,8 +409,9 @@ def _same_effects(f1):
 
 def _alt_rows(track, rnd, opts, chans, f1, grid, plain=None, **change):
     """``(cd, band_sd, fit)`` on ``grid`` of the same fit with ``change`` (effects, likelihood);
-    None when it fails or does not carry every effect asked for. ``plain``: the fit without effects ``f1`` was made from (default
-    ``f1``), whose stages the changed fit shares when :func:`_from_plain` can take them over."""
+    None when it fails or does not carry every effect asked for. ``plain``: the fit without
+    effects ``f1`` was made from (default ``f1``), whose stages the changed fit shares when
+    :func:`_from_plain` can take them over."""
     kw = dict(drag=f1.drag_model.name, channels=chans, free_ic=not opts.fix_ic, likelihood=opts.likelihood,
               nu=opts.ml_nu, noise_model=opts.noise_model, start=f1.start)   # the plain fit's start: no new search
     kw.update(change)
