@@ -77,6 +77,9 @@ class Setup:
     #: the baseline's path in the gun's frame (N, 3) [m] of a track without x and z channels
     #: (radar-native): wind layers and the apex are read off it (:func:`gun_path`)
     path: np.ndarray | None = None
+    #: the baseline's nuisance basis (:func:`bayesdrag.diagnosis.signatures.nuisance_basis`),
+    #: with the bytes of the parameters it was made at
+    basis: tuple | None = None
 
     @property
     def seen_as(self):

@@ -17,7 +17,7 @@ from scipy.stats import chi2 as _chi2
 from .setup import effect_problem, k_free
 from ..effects import LIFT, RADAR_POSITION, WIND_PROFILE, YAW_DRAG
 
-__all__ = ["signatures", "canonical_corr", "mark_confounded", "seen_axes"]
+__all__ = ["signatures", "nuisance_basis", "canonical_corr", "mark_confounded", "seen_axes"]
 
 #: canonical correlation of two effects' signatures above which the data cannot separate them
 CONFOUND_CORR = 0.995
@@ -26,14 +26,16 @@ CONFOUND_CORR = 0.995
 IDENTIFIABLE_FRACTION = 0.02
 
 
-def signatures(setup, base_theta, effects):
-    """Effect signatures at the baseline with the nuisance parameters projected out.
-
-    Returns
-    -------
-    dict name -> (Q (n, r) orthonormal basis of the projected signature or None, fraction of the
-    signature norm left after projection)
-    """
+def nuisance_basis(setup, base_theta):
+    """The noise weights, the baseline's outputs and an orthonormal basis of what the nuisance
+    parameters (the initial state with its launch priors and, without a reference drag, the
+    fitted Cd) can do at ``base_theta``: ``(sw (N, C), y0 (N, C), Qn, n_pr)``, ``n_pr`` the
+    prior rows appended. Made once per baseline (``setup.basis``): the signatures of the wind
+    profile's chosen layers are asked again after its fit, and the baseline's sensitivities
+    (with a nuisance spline, 50-odd columns) cost more than the profile's own."""
+    key = np.asarray(base_theta, float).tobytes()
+    if setup.basis is not None and setup.basis[0] == key:
+        return setup.basis[1]
     sw = np.sqrt(setup.weights / np.array([setup.sigma[c] for c in setup.channels])[None, :] ** 2)
     prob0 = effect_problem(setup, [], base_theta)
     y0, _, S0 = prob0.sensitivities(base_theta)
@@ -44,6 +46,20 @@ def signatures(setup, base_theta, effects):
     n_pr = pJ.shape[0]
     A = np.vstack([A, pJ]) if n_pr else A
     Qn, _ = np.linalg.qr(A)
+    setup.basis = (key, (sw, y0, Qn, n_pr))
+    return setup.basis[1]
+
+
+def signatures(setup, base_theta, effects):
+    """Effect signatures at the baseline with the nuisance parameters projected out
+    (:func:`nuisance_basis`).
+
+    Returns
+    -------
+    dict name -> (Q (n, r) orthonormal basis of the projected signature or None, fraction of the
+    signature norm left after projection)
+    """
+    sw, y0, Qn, n_pr = nuisance_basis(setup, base_theta)
     out = {}
     for e in effects:
         if e.k == 0:
