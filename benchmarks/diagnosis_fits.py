@@ -19,8 +19,10 @@ process) is run with :func:`bayesdrag.diagnosis.setup.fit_effects` wrapped, and 
   candidate without its fit; where the score falls far short (a table's shape beside a table of
   another shell) it could not.
 
-The last line is one JSON object ``{case: {"fits": [...], "candidates": [...], "seconds": ...}}``.
-Timings are those of a shared 2-core machine: compare fits within one run.
+The last line is one JSON object ``{case: {"fits": [...], "candidates": [...], "seconds": ...,
+"fit_share": ..., "stuck_share": ...}}``: ``fit_share`` is the share of the diagnosis's time spent
+in its fits, ``stuck_share`` the share of that fitting time in fits that stopped unconverged
+(ratios within one run; the seconds are those of a shared 2-core machine).
 """
 from __future__ import annotations
 
@@ -116,7 +118,11 @@ def profile_case(name):
                           "score_drop": _score_drop(c["setup"], c["base"], q),
                           "statistic": float(row["test_statistic"]), "threshold": float(row["threshold"]),
                           "significant": bool(row["significant"])})
+    total = sum(f["seconds"] for f in fits)
+    stuck = sum(f["seconds"] for f in fits if not f["converged"])
     return {"fits": fits, "candidates": cands, "seconds": round(seconds, 3),
+            "fit_share": round(total / seconds, 3) if seconds > 0 else None,
+            "stuck_share": round(stuck / total, 3) if total > 0 else None,
             "verdict": d.get("record", {}).get("verdict")}
 
 
