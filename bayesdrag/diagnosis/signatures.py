@@ -30,9 +30,8 @@ def nuisance_basis(setup, base_theta):
     """The noise weights, the baseline's outputs and an orthonormal basis of what the nuisance
     parameters (the initial state with its launch priors and, without a reference drag, the
     fitted Cd) can do at ``base_theta``: ``(sw (N, C), y0 (N, C), Qn, n_pr)``, ``n_pr`` the
-    prior rows appended. Made once per baseline (``setup.basis``): the signatures of the wind
-    profile's chosen layers are asked again after its fit, and the baseline's sensitivities
-    (with a nuisance spline, 50-odd columns) cost more than the profile's own."""
+    prior rows appended. Made once per baseline and kept on the setup (``setup.basis``): the
+    signature of the wind profile is asked again once the evidence has chosen its layers."""
     key = np.asarray(base_theta, float).tobytes()
     if setup.basis is not None and setup.basis[0] == key:
         return setup.basis[1]
