@@ -327,10 +327,12 @@ class _Dask:
             # the worker processes configure distributed's logging when they import it, before the
             # cluster's env= applies: their INFO lines ("Connection ... has been closed") are
             # silenced by the environment they are spawned with
+            # no dashboard; the scheduler's own HTTP server (health routes) on a free port: on its
+            # default port a second batch running at the same time warns on stderr that it is taken
             with _environment(DASK_LOGGING__DISTRIBUTED="error"):
                 cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, env=dict(WORKER_ENV),
-                                       silence_logs=logging.CRITICAL)
+                                       dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},
+                                       env=dict(WORKER_ENV), silence_logs=logging.CRITICAL)
             client = Client(cluster)
         try:
             futures = [client.submit(round_task, **kw, key=f"round-{kw['name']}", pure=False) for kw in calls]

@@ -657,3 +657,28 @@ def test_batch_quiet_prints_nothing(case):
     assert r.returncode == 0 and r.stderr == "", r.stderr
     assert r.stdout == "", r.stdout
     assert (case / "out" / "campaign.json").is_file()
+
+
+def test_batch_quiet_beside_another_cluster(case):
+    """Two batches at once: the second's Dask scheduler found its HTTP server's default port
+    (8787) taken and warned on stderr although ``--quiet``. Here the port is held by this test
+    (or already by something else) while the batch runs."""
+    import socket
+    import subprocess
+    import sys
+
+    _campaign(case, ["r1"])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    holder = socket.socket()
+    try:
+        try:
+            holder.bind(("", 8787))
+            holder.listen(1)
+        except OSError:
+            pass            # taken already: the condition under test holds
+        r = subprocess.run([sys.executable, "-m", "bayesdrag", "batch", "camp.toml", "-o", "out", "--workers", "1",
+                            "--quiet", *QUICK], cwd=case, env=env, capture_output=True, text=True, timeout=600)
+    finally:
+        holder.close()
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert (case / "out" / "campaign.json").is_file()
