@@ -15,7 +15,8 @@ from ..track import NATIVE_CHANNELS
 from ..estimate.model.layout import ParameterLayout
 from .candidates import fit_candidates, screen_candidates
 from .impact import MATERIAL_CD_SHIFT, MATERIAL_END_SD, judge_impacts
-from .selection import DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects, wrong_table_fit
+from .selection import (DRAG_EFFECTS, admits, conditional_shrinks, drop_one_fits, select_effects,
+                        shape_beside_level, wrong_table_fit)
 from .setup import (edf, fit_effects, fit_starts, flown_mach_span, gun_path, held_params, make_setup, n_weighted,
                     noise_floor, report_params, unseen_effects)
 from .signatures import mark_confounded, signatures
@@ -106,7 +107,8 @@ def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
     rows = [r for r in rows if not r.get("superseded_by")]
     if rows and rows[0]["significant"]:
         found, selected_fit, drop_one = select_effects(setup, rows, fits, gap, sig_vec, alpha, K)
-        if DRAG_SHAPE.name in found and set(found) - set(DRAG_EFFECTS):
+        if ((DRAG_SHAPE.name in found and set(found) - set(DRAG_EFFECTS))
+                or shape_beside_level(setup, found, selected_fit, rows, sig_vec, alpha, K)):
             found, selected_fit, drop_one, wrong_table = _beside_a_wrong_table(
                 setup, rows, found, selected_fit, drop_one, fits, gap, sig_vec, alpha, opts)
         # ordered by what each effect explains alone (its single chi2 drop)

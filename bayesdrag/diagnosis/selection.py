@@ -29,7 +29,8 @@ from .winds import finer_layers, refined_start
 from .statistics import (autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation,
                          threshold)
 
-__all__ = ["select_effects", "forward_selection", "backward_elimination", "is_better", "admits", "drop_one_fits",
+__all__ = ["select_effects", "forward_selection", "backward_elimination", "is_better", "admits", "significant_beside",
+           "shape_beside_level", "drop_one_fits",
            "conditional_shrinks", "structural_twins", "wrong_table_fit", "beyond_resolution", "DRAG_EFFECTS"]
 
 #: a second (third) effect must remove at least this fraction of the baseline gap ...
@@ -242,14 +243,46 @@ def admits(setup, e, small, big, gap, sig_vec, a):
     (res, prob, y)). Its conditional chi2 drop ``d`` must be significant at level ``a`` in
     colored units (inflation from the residuals of ``big``) and remove ``MIN_SECOND_SHARE`` of
     the gap or, by :func:`_left_share_ok`, most of what ``small`` leaves. Returns (ok, d)."""
+    sres, bres = small[0], big[0]
+    d = float(sres.cost - bres.cost)
+    left = float(sres.cost) - noise_floor(setup, sres)
+    ok = (significant_beside(setup, e, small, big, sig_vec, a)
+          and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, bres, d, left, sig_vec)))
+    return ok, d
+
+
+def significant_beside(setup, e, small, big, sig_vec, a):
+    """The significance part of :func:`admits`: the conditional chi2 drop of adding effect ``e``
+    to ``small`` (giving ``big``; fits as (res, prob, y)) over its colored inflation (from the
+    residuals of ``big``) above the threshold at level ``a``, without the share rules."""
     (sres, _, sy), (bres, _, by) = small, big
     d = float(sres.cost - bres.cost)
     resid = np.stack([bres.residuals[c] for c in setup.channels], axis=-1)
     infl = colored_inflation(by - sy, autocovariance(resid, setup.weights), sig_vec, setup.weights)
-    left = float(sres.cost) - noise_floor(setup, sres)
-    ok = (tested_drop(setup, e, d, sres, bres) / tested_inflation(e, infl) > threshold(e, a, k_free(setup, e))
-          and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, bres, d, left, sig_vec)))
-    return ok, d
+    return bool(tested_drop(setup, e, d, sres, bres) / tested_inflation(e, infl) > threshold(e, a, k_free(setup, e)))
+
+
+def shape_beside_level(setup, found, fit, rows, sig_vec, alpha, K):
+    """Is the table of another shell although the selection chose only its level? True when the
+    selection is one drag-level effect (``density`` or ``drag_scale``), ``drag_shape`` is
+    significant alone, and added to that level its conditional drop is significant too (the
+    test of :func:`admits` without its share rules, which keep out an effect that only nibbles at
+    a misfit: the shape of another shell's table is no nibble, yet beside the level it can leave
+    most of what is left to a third effect, the spin's lift on the demo's 6-DOF track with G1 as
+    its table). The caller then judges the round as beside a table of another shell."""
+    by = {r["name"]: r for r in rows}
+    if not found or not set(found) <= set(drag_level_effects()) or fit is None:
+        return False
+    if not by.get(DRAG_SHAPE.name, {}).get("significant"):
+        return False
+    e = EFFECTS[DRAG_SHAPE.name]
+    try:
+        big = fit_effects(setup, [EFFECTS[n] for n in found] + [e], np.concatenate([fit[0].theta, fit_starts(e)]))
+    except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return False
+    if not np.all(np.isfinite(big[2])) or not big[0].cost < fit[0].cost:
+        return False
+    return significant_beside(setup, e, fit, big, sig_vec, alpha / max(K, 1))
 
 
 def drop_one_fits(setup, verdict, fit, fits):

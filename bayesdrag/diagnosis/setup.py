@@ -36,10 +36,9 @@ SPEED_HALF_WINDOW = 5
 #: starting yaw amplitude k delta0^2 of a yaw_drag fit (delta0 = 0.045 rad)
 YAW_AMP_START = 0.02
 #: Levenberg-Marquardt iterations of a fit with drag_shape before scipy's trust-region
-#: reflective method takes over (``OutputErrorProblem.fit(fallback=True)``): with a coefficient
-#: against its bound the clipped LM steps crawl (a table of another shell: chi2 2.7e5 after 60
-#: iterations where the trust region reaches 1.5e4 in 9 evaluations); where the fit converges it
-#: does so in 5-10
+#: reflective method takes over (``OutputErrorProblem.fit(fallback=True)``): where the fit
+#: converges it does so in 5-10; one that does not is a fit whose effects fight over the same
+#: drag change (docs/measurements.md, "Where the constants come from")
 DRAG_SHAPE_MAX_ITER = 12
 #: ... and the trust region's function evaluations (each a sensitivity batch); a fit that needs
 #: more is one whose effects fight over the same drag change (yaw drag beside the shape)

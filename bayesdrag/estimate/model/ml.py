@@ -12,7 +12,9 @@ SIDPAC ``oe.m``; Jategaonkar, *Flight Vehicle System Identification*, ch. 4):
   by *relaxation*: alternate a Gauss-Newton step in ``theta`` at fixed R with
   ``R = diag(mean residual^2)`` at fixed theta;
 * optional Gaussian priors enter as pseudo-measurements (extra weighted residuals);
-* Gauss-Newton with Levenberg-Marquardt damping, parameters kept inside their bounds;
+* Gauss-Newton with Levenberg-Marquardt damping, parameters kept inside their bounds (a
+  parameter on its bound that the step would push out is held for that step,
+  :func:`bounded_step`);
   sensitivities by central differences, all perturbed trajectories in one batched kernel call.
 
 Convergence rules (all must hold, checked after each accepted step):
@@ -263,6 +265,63 @@ def fit_trust_region(problem, theta, sigma, max_nfev=200, ar=None):
     return _finish(problem, th, y, mach, S, resid, dict(sigma), ar, cost, ok, msg, int(sol.nfev), [cost])
 
 
+def bounded_step(A, g, at_lo, at_hi):
+    """The damped Gauss-Newton step ``A^-1 g`` with the parameters that sit at a bound and that
+    it would push beyond it held where they are (the active set of a bound-constrained
+    least-squares step, found by holding them one round at a time).
+
+    Clipping such a parameter after the step, with the other components still computed as if it
+    moved, gives a step that raises the cost; the damping then grows until the steps are tiny, and
+    a fit whose optimum lies on a bound (a density ratio at its lowest beside a table of another
+    shell) crept towards it for its whole iteration budget.
+
+    Parameters
+    ----------
+    A : (n, n) array
+        The damped information ``M + lambda D``.
+    g : (n,) array
+        The cost's descent direction ``S' R^-1 r``.
+    at_lo, at_hi : (n,) bool arrays
+        Parameters at their lower and upper bound.
+
+    Returns
+    -------
+    (n,) array
+        The step; exactly ``np.linalg.solve(A, g)`` when neither the descent direction nor that
+        step pushes a parameter on a bound out (a fit that never touches a bound is unchanged).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        A singular (reduced) system.
+    """
+    # first the bounds the descent direction itself points out of (the active set's Lagrange
+    # condition), then any the step of the others still pushes out
+    held = _held(g, at_lo, at_hi)
+    if not held.any():
+        step = np.linalg.solve(A, g)
+    else:
+        keep = ~held
+        step = np.zeros(g.size)
+        if keep.any():
+            step[keep] = np.linalg.solve(A[np.ix_(keep, keep)], g[keep])
+    while True:
+        out = ((at_lo & (step < 0)) | (at_hi & (step > 0))) & ~held
+        if not out.any():
+            return step
+        held |= out
+        keep = ~held
+        step = np.zeros(g.size)
+        if keep.any():
+            step[keep] = np.linalg.solve(A[np.ix_(keep, keep)], g[keep])
+
+
+def _held(g, at_lo, at_hi):
+    """The parameters on a bound that the descent direction ``g`` points out of (boolean mask):
+    no decrease is to be had by moving them."""
+    return (at_lo & (g < 0)) | (at_hi & (g > 0))
+
+
 def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
     theta = np.clip(problem.theta0, problem.lower, problem.upper)
     idx = np.flatnonzero(problem.free)
@@ -294,9 +353,11 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
         D = np.diag(np.diag(M)).copy()
         D[D == 0] = 1.0
         accepted = False
+        at_lo = theta[idx] <= problem.lower[idx]
+        at_hi = theta[idx] >= problem.upper[idx]
         while lam < 1e10:
             try:
-                step = np.linalg.solve(M + lam * D, g)
+                step = bounded_step(M + lam * D, g, at_lo, at_hi)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
@@ -316,7 +377,8 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
             # no step reduces the cost: at the minimum when the Gauss-Newton decrease the
             # model predicts is negligible against one unit of chi2 (the cost's scale)
             try:
-                pred = float(g @ np.linalg.lstsq(M, g, rcond=None)[0])
+                keep = ~_held(g, at_lo, at_hi)
+                pred = float(g[keep] @ np.linalg.lstsq(M[np.ix_(keep, keep)], g[keep], rcond=None)[0])
             except np.linalg.LinAlgError:
                 pred = np.inf
             if pred < STUCK_PREDICTED_DECREASE:

@@ -1,0 +1,33 @@
+"""A firing table of another shell whose level the selection explains alone: the demo's 6-DOF
+155 mm track (M101 drag, a spin's lift) with the G1 function as the round's table. The level
+(``density``, 0.54) leaves far more than the noise, and the table's shape is significant beside
+it although it leaves a third effect (the lift) part of what is left: the round is judged as
+beside a table of another shell (``diagnosis.selection.shape_beside_level``), the drag effects in
+their joint fit and the lift found against a fitted Cd."""
+from pathlib import Path
+
+import pytest
+
+import bayesdrag
+from bayesdrag.diagnosis import diagnose
+
+
+@pytest.fixture(scope="module")
+def demo_with_g1(tmp_path_factory):
+    from bayesdrag.commands.demo import demo_inputs
+
+    tp, rp = demo_inputs()
+    text = Path(rp).read_text().replace('reference_drag = "cd_m101.csv"', 'reference_drag = "G1"')
+    assert 'reference_drag = "G1"' in text
+    folder = tmp_path_factory.mktemp("g1")
+    (folder / "round.toml").write_text(text)
+    return bayesdrag.read_track(tp), bayesdrag.read_round(folder / "round.toml")
+
+
+def test_the_shape_beside_the_level_is_a_table_of_another_shell(demo_with_g1):
+    track, rnd = demo_with_g1
+    rec = diagnose(track, rnd).record
+    assert set(rec["verdict"]) == {"density", "drag_shape", "lift"}, rec["verdict"]
+    assert any("another shell's shape" in n for n in rec["notes"]), rec["notes"]
+    lift = next(r for r in rec["effects"] if r["name"] == "lift")
+    assert lift.get("judged_against") == "fitted Cd", lift

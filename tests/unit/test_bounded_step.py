@@ -1,0 +1,59 @@
+"""The Levenberg-Marquardt step with parameters on their bounds (``estimate.model.ml.bounded_step``):
+a parameter on a bound that the descent direction, or the others' step, pushes out is held, and
+the others take the step of the reduced system; with none pushed out the step is the plain one,
+bit for bit (a fit that never touches a bound is unchanged)."""
+import numpy as np
+import pytest
+
+from bayesdrag.estimate.model.ml import bounded_step
+
+#: agreement of two solves of the same small system [-]
+SOLVE_RTOL = 1e-12
+
+
+def _system(rng, n=5):
+    J = rng.normal(size=(40, n))
+    return J.T @ J + 0.1 * np.eye(n), rng.normal(size=n)
+
+
+def test_no_bound_touched_gives_the_plain_step_bit_for_bit():
+    A, g = _system(np.random.default_rng(1))
+    none = np.zeros(g.size, bool)
+    assert np.array_equal(bounded_step(A, g, none, none), np.linalg.solve(A, g))
+
+
+def test_a_bound_the_descent_points_out_of_is_held_and_the_rest_solve_without_it():
+    A, g = _system(np.random.default_rng(2))
+    g[0] = -abs(g[0]) - 1.0            # descent pushes parameter 0 below its lower bound
+    at_lo = np.zeros(g.size, bool)
+    at_lo[0] = True
+    step = bounded_step(A, g, at_lo, np.zeros(g.size, bool))
+    assert step[0] == 0.0
+    np.testing.assert_allclose(step[1:], np.linalg.solve(A[1:, 1:], g[1:]), rtol=SOLVE_RTOL)
+
+
+def test_a_bound_the_descent_points_away_from_is_left_free():
+    A = np.eye(3)
+    g = np.array([1.0, -2.0, 0.5])     # parameter 0 sits on its lower bound and is pushed up
+    at_lo = np.array([True, False, False])
+    step = bounded_step(A, g, at_lo, np.zeros(3, bool))
+    np.testing.assert_allclose(step, g, rtol=SOLVE_RTOL)
+
+
+def test_a_bound_the_others_step_pushes_out_is_held_too():
+    # parameter 1 on its upper bound: its own descent component is 0 (not pushed out), but the
+    # coupled step would raise it; it is held and parameter 0 solves alone
+    A = np.array([[1.0, -0.9], [-0.9, 1.0]])
+    g = np.array([1.0, 0.0])
+    at_hi = np.array([False, True])
+    assert np.linalg.solve(A, g)[1] > 0
+    step = bounded_step(A, g, np.zeros(2, bool), at_hi)
+    assert step[1] == 0.0
+    assert step[0] == pytest.approx(g[0] / A[0, 0], rel=SOLVE_RTOL)
+
+
+def test_every_parameter_held_gives_no_step():
+    A, g = _system(np.random.default_rng(3), n=2)
+    g = -np.abs(g) - 0.1
+    step = bounded_step(A, g, np.ones(2, bool), np.zeros(2, bool))
+    assert np.array_equal(step, np.zeros(2))
