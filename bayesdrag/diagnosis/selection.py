@@ -372,7 +372,8 @@ def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
     rows : list of dict
         Candidate rows, best first.
     found : list of str
-        The selected effects (``drag_shape`` among them).
+        The selected effects (``drag_shape`` among them, or a level alone that it is significant
+        beside: :func:`shape_beside_level`).
     fit : (MLResult, OutputErrorProblem, (N, C) outputs)
         Their joint fit (its values start the drag effects' fit).
     fits : dict

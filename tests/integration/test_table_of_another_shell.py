@@ -31,3 +31,16 @@ def test_the_shape_beside_the_level_is_a_table_of_another_shell(demo_with_g1):
     assert any("another shell's shape" in n for n in rec["notes"]), rec["notes"]
     lift = next(r for r in rec["effects"] if r["name"] == "lift")
     assert lift.get("judged_against") == "fitted Cd", lift
+
+
+@pytest.mark.parametrize("case_id", ["pm-density-10", "pm-density-11"])
+def test_a_density_error_beside_the_right_table_stays_the_level_alone(case_id):
+    """The shape's rule must not turn a real density change into a table of another shell: the
+    round's table is the shell's own (M101), the air 5 % denser (6 % thinner), and the shape adds
+    nothing significant beside the level (the diagnosis suite's cases)."""
+    from acceptance import cases as C
+
+    case = next(c for c in C.EFFECT_CASES if c.id == case_id)
+    rec = diagnose(C.make_track(case), C.diagnosis_round(case)).record
+    assert rec["verdict"] == ["density"], rec["verdict"]
+    assert not any("another shell's shape" in n for n in rec["notes"]), rec["notes"]

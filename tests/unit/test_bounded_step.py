@@ -57,3 +57,23 @@ def test_every_parameter_held_gives_no_step():
     g = -np.abs(g) - 0.1
     step = bounded_step(A, g, np.ones(2, bool), np.zeros(2, bool))
     assert np.array_equal(step, np.zeros(2))
+
+
+def test_a_bound_touched_but_not_pushed_out_gives_the_plain_step_bit_for_bit():
+    A, g = _system(np.random.default_rng(4))
+    plain = np.linalg.solve(A, g)
+    at_lo = plain > 0                  # on the lower bound where the step moves up: free
+    at_hi = plain < 0                  # on the upper bound where it moves down: free
+    at_lo &= g > 0
+    at_hi &= g < 0
+    assert at_lo.any() or at_hi.any()
+    assert np.array_equal(bounded_step(A, g, at_lo, at_hi), plain)
+
+
+def test_a_parameter_pinned_by_equal_bounds_never_moves():
+    A, g = _system(np.random.default_rng(5), n=3)
+    pinned = np.array([False, True, False])      # lower == upper: on both bounds at once
+    step = bounded_step(A, g, pinned, pinned)
+    assert step[1] == 0.0
+    np.testing.assert_allclose(step[[0, 2]], np.linalg.solve(A[np.ix_([0, 2], [0, 2])], g[[0, 2]]),
+                               rtol=SOLVE_RTOL)

@@ -267,8 +267,10 @@ def fit_trust_region(problem, theta, sigma, max_nfev=200, ar=None):
 
 def bounded_step(A, g, at_lo, at_hi):
     """The damped Gauss-Newton step ``A^-1 g`` with the parameters that sit at a bound and that
-    it would push beyond it held where they are (the active set of a bound-constrained
-    least-squares step, found by holding them one round at a time).
+    it would push beyond it held where they are: a binding set found by the sign of the descent
+    direction, then by the reduced step, one round at a time (a projected-Newton step in
+    Bertsekas' manner, not the exact bound-constrained subproblem; every such step descends, and
+    a held parameter whose descent points inwards is released at the next iteration).
 
     Clipping such a parameter after the step, with the other components still computed as if it
     moved, gives a step that raises the cost; the damping then grows until the steps are tiny, and
@@ -361,6 +363,8 @@ def _fit_lm(problem, max_iter, tol_cost, tol_step, tol_sigma, restricted):
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
+            if not step.any() and (at_lo.any() or at_hi.any()):
+                break   # every parameter held on its bound: no step can lower the cost
             trial = theta.copy()
             trial[idx] = np.clip(theta[idx] + step, problem.lower[idx], problem.upper[idx])
             yt, _ = problem.predict(trial)
