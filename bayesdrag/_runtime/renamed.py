@@ -6,10 +6,18 @@ from __future__ import annotations
 import warnings
 from typing import Any, Callable, Mapping
 
-__all__ = ["renamed_getattr", "REMOVED_IN"]
+__all__ = ["renamed_getattr", "warn_renamed", "REMOVED_IN"]
 
 #: the release that removes the old names
 REMOVED_IN = "0.3"
+
+
+def warn_renamed(old: str, new: str, stacklevel: int = 3) -> None:
+    """Warn that ``old`` (a qualified name) is now ``new`` until :data:`REMOVED_IN`;
+    ``stacklevel`` counts from the caller of this function's caller (a deprecated property or
+    method: the user's line)."""
+    warnings.warn(f"{old} is now {new} (the old name is removed in release {REMOVED_IN})", DeprecationWarning,
+                  stacklevel=stacklevel)
 
 
 def renamed_getattr(module: str, renamed: Mapping[str, str], namespace: Mapping[str, Any]) -> Callable[[str], Any]:
@@ -18,8 +26,7 @@ def renamed_getattr(module: str, renamed: Mapping[str, str], namespace: Mapping[
     warning; any other name is an :class:`AttributeError` as without it."""
     def __getattr__(name: str) -> Any:
         if name in renamed:
-            warnings.warn(f"{module}.{name} is now {renamed[name]} (the old name is removed in release {REMOVED_IN})",
-                          DeprecationWarning, stacklevel=2)
+            warn_renamed(f"{module}.{name}", renamed[name], stacklevel=3)
             return namespace[renamed[name]]
         raise AttributeError(f"module {module!r} has no attribute {name!r}")
     return __getattr__

@@ -45,6 +45,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._runtime.renamed import warn_renamed
+
 
 #: node spacing of the pooled curve [Mach]
 NODE_SPACING = 0.05
@@ -464,21 +466,13 @@ class PooledResult:
 
     def scatter_summary(self, band=BAND):
         """Deprecated name of :meth:`scatter_record` (removed in release 0.3)."""
-        _renamed("scatter_summary", "scatter_record")
+        warn_renamed("PooledResult.scatter_summary", "scatter_record")
         return self.scatter_record(band)
 
     def delta_summary(self, band=BAND):
         """Deprecated name of :meth:`delta_records` (removed in release 0.3)."""
-        _renamed("delta_summary", "delta_records")
+        warn_renamed("PooledResult.delta_summary", "delta_records")
         return self.delta_records(band)
-
-
-def _renamed(old, new):
-    """Warn that ``PooledResult.old`` is now ``new``."""
-    import warnings
-
-    warnings.warn(f"PooledResult.{old} is now {new} (the old name is removed in release 0.3)", DeprecationWarning,
-                  stacklevel=3)
 
 
 def pool_rounds(inputs, rng=None, n_draws=4000, nwalkers=16, n_steps=600, prior_sd=SCATTER_PRIOR_SD,

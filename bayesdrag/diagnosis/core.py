@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._runtime.renamed import warn_renamed
 from .._runtime.threads import single_blas
 from ..effects import EFFECTS, check_radar_effects, radar_effect_missing
 from ..errors import FitError
@@ -60,10 +61,7 @@ class Diagnosis:
     def summary(self) -> dict:
         """Deprecated name of :attr:`record` (removed in release 0.3): "summary" is a result's
         printable table."""
-        import warnings
-
-        warnings.warn("Diagnosis.summary is now Diagnosis.record (removed in release 0.3)", DeprecationWarning,
-                      stacklevel=2)
+        warn_renamed("Diagnosis.summary", "Diagnosis.record")
         return self.record
 
 
@@ -107,22 +105,25 @@ def _select(setup, rows, fits, gap, sig_vec, alpha, K, opts):
     rows = [r for r in rows if not r.get("superseded_by")]
     if rows and rows[0]["significant"]:
         found, selected_fit, drop_one = select_effects(setup, rows, fits, gap, sig_vec, alpha, K)
-        if ((DRAG_SHAPE.name in found and set(found) - set(DRAG_EFFECTS))
-                or shape_beside_level(setup, found, selected_fit, rows, sig_vec, alpha, K)):
+        beside_weather = DRAG_SHAPE.name in found and set(found) - set(DRAG_EFFECTS)
+        level_and_shape = None if beside_weather else shape_beside_level(setup, found, selected_fit, rows, sig_vec,
+                                                                           alpha, K)
+        if beside_weather or level_and_shape is not None:
             found, selected_fit, drop_one, wrong_table = _beside_a_wrong_table(
-                setup, rows, found, selected_fit, drop_one, fits, gap, sig_vec, alpha, opts)
+                setup, rows, found, selected_fit, drop_one, fits, gap, sig_vec, alpha, opts, joint=level_and_shape)
         # ordered by what each effect explains alone (its single chi2 drop)
         rank = {r["name"]: i for i, r in enumerate(rows)}
         found = sorted(found, key=rank.get)
     return found, selected_fit, drop_one, wrong_table
 
 
-def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec, alpha, opts):
+def _beside_a_wrong_table(setup, rows, found, fit, drop_one, fits, gap, sig_vec, alpha, opts, joint=None):
     """The drag effects' joint fit (:func:`bayesdrag.diagnosis.selection.wrong_table_fit`) and
     every other effect judged by a diagnosis of the round without its table (candidates: all
     but the drag effects). Returns (drag effects, their joint fit, its drop-one fits, that
-    diagnosis' record); the selection unchanged and None when the drag effects' fit fails."""
-    drag = wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha)
+    diagnosis' record); the selection unchanged and None when the drag effects' fit fails.
+    ``joint``: the level and shape's fit already made (:func:`~bayesdrag.diagnosis.selection.shape_beside_level`)."""
+    drag = wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha, joint=joint)
     if drag is None:
         return found, fit, drop_one, None
     names, nfit, subs = drag

@@ -263,8 +263,8 @@ def significant_beside(setup, e, small, big, sig_vec, a):
 
 
 def shape_beside_level(setup, found, fit, rows, sig_vec, alpha, K):
-    """Is the table of another shell although the selection chose only its level? True when the
-    selection is one drag-level effect (``density`` or ``drag_scale``), ``drag_shape`` is
+    """Is the table of another shell although the selection chose only its level? Yes (the level
+    and shape's joint fit is returned, else None) when the selection is one drag-level effect (``density`` or ``drag_scale``), ``drag_shape`` is
     significant alone, and added to that level its conditional drop is significant too (the
     test of :func:`admits` without its share rules, which keep out an effect that only nibbles at
     a misfit: the shape of another shell's table is no nibble, yet beside the level it can leave
@@ -272,17 +272,17 @@ def shape_beside_level(setup, found, fit, rows, sig_vec, alpha, K):
     its table). The caller then judges the round as beside a table of another shell."""
     by = {r["name"]: r for r in rows}
     if not found or not set(found) <= set(drag_level_effects()) or fit is None:
-        return False
+        return None
     if not by.get(DRAG_SHAPE.name, {}).get("significant"):
-        return False
+        return None
     e = EFFECTS[DRAG_SHAPE.name]
     try:
         big = fit_effects(setup, [EFFECTS[n] for n in found] + [e], np.concatenate([fit[0].theta, fit_starts(e)]))
     except (FitError, FloatingPointError, ValueError, np.linalg.LinAlgError):
-        return False
+        return None
     if not np.all(np.isfinite(big[2])) or not big[0].cost < fit[0].cost:
-        return False
-    return significant_beside(setup, e, fit, big, sig_vec, alpha / max(K, 1))
+        return None
+    return big if significant_beside(setup, e, fit, big, sig_vec, alpha / max(K, 1)) else None
 
 
 def drop_one_fits(setup, verdict, fit, fits):
@@ -348,7 +348,7 @@ def structural_twins(setup, a, b):
     return cc >= CONFOUND_CORR and k_free(setup, EFFECTS[a["name"]]) == k_free(setup, EFFECTS[b["name"]])
 
 
-def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
+def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha, joint=None):
     """The drag effects' joint fit when ``drag_shape`` is detected beside other effects.
 
     When ``drag_shape`` is detected the table is of another shell, and no finite shape
@@ -382,6 +382,9 @@ def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
     sig_vec : (C,) array
         Noise sd per channel.
     alpha : float
+    joint : (MLResult, OutputErrorProblem, (N, C) outputs), optional
+        The level and shape's joint fit from this start, already made
+        (:func:`shape_beside_level`'s): taken instead of fitting them again.
 
     Returns
     -------
@@ -401,7 +404,8 @@ def wrong_table_fit(setup, rows, found, fit, fits, gap, sig_vec, alpha):
         e = EFFECTS[n]
         start.append([vals.get(f"{n}.{p.name}", s0) for p, s0 in zip(e.params, fit_starts(e))])
     try:
-        nfit = fit_effects(setup, [EFFECTS[n] for n in names], np.concatenate(start))
+        nfit = joint if joint is not None and list(joint[1].effect_names) == names else \
+            fit_effects(setup, [EFFECTS[n] for n in names], np.concatenate(start))
         if len(names) == 2 and names[0] not in found and DRAG_SHAPE.name in fits:
             ok, _ = admits(setup, EFFECTS[names[0]], fits[DRAG_SHAPE.name], nfit, gap, sig_vec, alpha / max(len(by), 1))
             if not ok:

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import emcee
 import numpy as np
 
-from ..._runtime.renamed import renamed_getattr
+from ..._runtime.renamed import renamed_getattr, warn_renamed
 from ..._runtime.threads import single_blas
 from ..._runtime.signals import deferred_interrupt
 from ...errors import FitWarning, InputError
@@ -124,10 +124,7 @@ class BayesResult:
     def summary(self):
         """Deprecated name of :attr:`convergence` (removed in release 0.3): "summary" is a
         result's printable table."""
-        import warnings
-
-        warnings.warn("BayesResult.summary is now BayesResult.convergence (removed in release 0.3)",
-                      DeprecationWarning, stacklevel=2)
+        warn_renamed("BayesResult.summary", "BayesResult.convergence")
         return self.convergence
 
     @property

@@ -300,22 +300,18 @@ def bounded_step(A, g, at_lo, at_hi):
     # first the bounds the descent direction itself points out of (the active set's Lagrange
     # condition), then any the step of the others still pushes out
     held = _held(g, at_lo, at_hi)
-    if not held.any():
-        step = np.linalg.solve(A, g)
-    else:
-        keep = ~held
-        step = np.zeros(g.size)
-        if keep.any():
-            step[keep] = np.linalg.solve(A[np.ix_(keep, keep)], g[keep])
     while True:
+        if not held.any():
+            step = np.linalg.solve(A, g)
+        else:
+            keep = ~held
+            step = np.zeros(g.size)
+            if keep.any():
+                step[keep] = np.linalg.solve(A[np.ix_(keep, keep)], g[keep])
         out = ((at_lo & (step < 0)) | (at_hi & (step > 0))) & ~held
         if not out.any():
             return step
         held |= out
-        keep = ~held
-        step = np.zeros(g.size)
-        if keep.any():
-            step[keep] = np.linalg.solve(A[np.ix_(keep, keep)], g[keep])
 
 
 def _held(g, at_lo, at_hi):
