@@ -5,7 +5,8 @@
   trajectories it simulated, the batched kernel's limit for them (trajectories x the kernel's
   microseconds per trajectory on large batches of the same track, measured in the same run),
   their ratio, and the ESS per second (the smallest bulk ESS of the sampled coordinates over the
-  fit's seconds). With ``--reference FILE`` the posterior (Cd at five Mach numbers: mean, 5 % and
+  fit's seconds), and under ``no_check`` the same fit without the model check
+  (``model_check=False``: the ML fit and the sampling alone) against the same kernel limit. With ``--reference FILE`` the posterior (Cd at five Mach numbers: mean, 5 % and
   95 % quantiles with their Monte-Carlo standard errors) is compared with the run stored there
   (``benchmarks/reference_posterior_demo.json``, taken before issue 17's changes);
   ``--save-reference FILE`` stores this run's.
@@ -259,7 +260,29 @@ def time_demo_bayes(seed=DEMO_SEED, outputs=True):
     if write_seconds is not None:
         out["write_seconds"] = round(write_seconds, 3)
         out["write_ratio"] = round(write_seconds / seconds, 2)
+    out["no_check"] = time_without_check(track, rnd, opts, us)
     return out, demo_posterior(res)
+
+
+def time_without_check(track, rnd, opts, us):
+    """The same Bayesian fit with ``model_check=False`` (no diagnosis, no noise check), warm, its
+    trajectories counted and set against the same kernel's microseconds per trajectory ``us``:
+    what the ML fit and the sampling cost without the check (issue 45), a reference in the same
+    run for ``ratio_to_limit``."""
+    from dataclasses import replace
+
+    from bayesdrag.pipeline import fit
+
+    plain = replace(opts, model_check=False)
+    fit(track, rnd, plain)
+    with KernelCount() as kc:
+        t = time.perf_counter()
+        res = fit(track, rnd, plain)
+        seconds = time.perf_counter() - t
+    limit = kc.trajectories * us * 1e-6
+    return {"seconds": round(seconds, 3), "trajectories_simulated": kc.trajectories,
+            "kernel_limit_seconds": round(limit, 3), "ratio_to_limit": round(seconds / limit, 2),
+            "timing": res.to_dict().get("timing")}
 
 
 def _command(args, env=None):
@@ -419,7 +442,9 @@ def main(argv=None):
           f"{spline['trajectories_simulated']} trajectories, kernel {spline['kernel_us_per_trajectory_large_batch']:.1f} "
           f"us/trajectory on large batches -> limit {spline['kernel_limit_seconds']:.2f} s, ratio "
           f"{spline['ratio_to_limit']:.1f}; ESS (bulk, min) {spline['ess_bulk_min']:.0f} -> "
-          f"{spline['ess_per_second']:.0f} per second", flush=True)
+          f"{spline['ess_per_second']:.0f} per second; without the model check {spline['no_check']['seconds']:.2f} s, "
+          f"ratio {spline['no_check']['ratio_to_limit']:.1f} (ML {spline['no_check']['timing']['ml']:.2f} s, "
+          f"sampling {spline['no_check']['timing']['sampling']:.2f} s)", flush=True)
     if not a.no_outputs:
         print(f"user's loop ({spline['effects_option']}): res.write {spline['write_seconds']:.2f} s = "
               f"{spline['write_ratio']:.2f} x the fit; bayesdrag demo warm {spline['demo_seconds']:.2f} s = "

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import select
 import signal
 import sys
 import threading
@@ -88,6 +89,15 @@ class BesideJob:
         self._child = _fork(fn) if fork and free_core() else None
         self._done = False
         self._value: Any = None
+
+    def running(self) -> bool:
+        """Whether a child still works on ``fn()``: forked, not collected, and nothing written
+        to its pipe yet (it writes its whole answer at the end). Reaps nothing: :meth:`result`
+        still collects it."""
+        if self._child is None:
+            return False
+        ready, _, _ = select.select([self._child[1]], [], [], 0)
+        return not ready
 
     @property
     def pid(self) -> int | None:

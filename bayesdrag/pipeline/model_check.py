@@ -319,9 +319,9 @@ def diagnosis_record(track, rnd, chans):
     values: ``{"record": ...}``, ``{"skipped": why}`` (a track too short for it) or
     ``{"failed": why}`` (the check never costs the fit its answer: the record says it could not
     be made), with its ``seconds``. It reads the track, the round and the channels only."""
+    t0 = time.perf_counter()     # the diagnosis's import counts: a forked child may make it
     from ..diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 
-    t0 = time.perf_counter()
     if track.n < MIN_DIAGNOSIS_SAMPLES:
         out = {"skipped": f"{track.n} samples, fewer than the {MIN_DIAGNOSIS_SAMPLES} the diagnosis needs"}
     else:

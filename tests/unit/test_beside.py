@@ -122,3 +122,51 @@ def test_a_started_job_is_collected_once(monkeypatch):
 def test_plain_json_refuses_what_it_cannot_write():
     with pytest.raises(TypeError, match="set is not JSON serialisable"):
         plain_json({1})
+
+
+@forks
+def test_running_says_whether_the_child_still_works(monkeypatch):
+    monkeypatch.setattr(_beside, "free_core", lambda: True)
+
+    def slow():
+        time.sleep(0.5)
+        return 7
+
+    with started_beside(slow) as job:
+        assert job.running()                   # asked at once: the child sleeps
+        time.sleep(1.5)
+        assert not job.running()               # its answer waits in the pipe
+        assert job.pid is not None             # ... not collected: running() reaps nothing
+        assert job.result() == 7 and job.forked
+        assert not job.running()
+    with started_beside(lambda: 1, fork=False) as here:
+        assert not here.running()              # no child: nothing runs beside
+
+
+@forks
+def test_the_next_diagnosis_child_inherits_the_diagnosis_package():
+    """While the child works the parent imports the diagnosis package (the wait it has anyway),
+    so the child a later fit forks does not import it again (0.4-0.7 s). A fresh interpreter: this
+    test process has imported the package long ago."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, time\n"
+        "from bayesdrag._runtime import beside\n"
+        "from bayesdrag.pipeline.check import collected\n"
+        "beside.free_core = lambda: True\n"
+        "assert 'bayesdrag.diagnosis' not in sys.modules\n"
+        "def work():\n"
+        "    time.sleep(1.0)\n"
+        "    return sorted(m for m in sys.modules if m == 'bayesdrag.diagnosis')\n"
+        "with beside.started_beside(work) as job:\n"
+        "    value = collected(job)\n"
+        "assert job.forked and value == [], value\n"
+        "assert 'bayesdrag.diagnosis' in sys.modules\n"
+        "with beside.started_beside(work) as job:\n"
+        "    value = collected(job)\n"
+        "assert value == ['bayesdrag.diagnosis'], value\n"
+        "print('ok')\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
