@@ -92,12 +92,14 @@ class BesideJob:
 
     def running(self) -> bool:
         """Whether a child still works on ``fn()``: forked, not collected, and nothing written
-        to its pipe yet (it writes its whole answer at the end). Reaps nothing: :meth:`result`
-        still collects it."""
+        to its pipe yet (it writes its whole answer at the end; a child that died closes it).
+        Never blocks and reaps nothing: :meth:`result` still collects it. ``poll``, not
+        ``select``: a long-lived process may hold the pipe on a descriptor above 1023."""
         if self._child is None:
             return False
-        ready, _, _ = select.select([self._child[1]], [], [], 0)
-        return not ready
+        watch = select.poll()
+        watch.register(self._child[1], select.POLLIN)
+        return not watch.poll(0)
 
     @property
     def pid(self) -> int | None:

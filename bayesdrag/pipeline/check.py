@@ -24,7 +24,8 @@ from .ml import Answer, answer_of, wholly_fitted
 from .model_check import LEVEL_EFFECTS, alternative_error, diagnosis_record, model_error
 from .preparation import Prepared
 
-__all__ = ["Checked", "check_stage", "checked", "collected", "ready_for_next_diagnosis", "diagnosis_beside", "sizes_beside", "effect_sizes_record",
+__all__ = ["Checked", "check_stage", "checked", "collected", "ready_for_next_diagnosis", "diagnosis_beside",
+           "sizes_beside", "effect_sizes_record",
            "EFFECT_RESIDUAL_SHARE", "EFFECT_RESIDUAL_TERM", "structured_power", "residual_share", "effect_residual", "trades_with_cd"]
 
 
@@ -134,7 +135,8 @@ def checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress):
 def collected(diag):
     """The diagnosis of job ``diag`` (:meth:`~bayesdrag._runtime.beside.BesideJob.result`); while
     its forked child still works, this process first imports the diagnosis package
-    (:func:`ready_for_next_diagnosis`), time it would spend waiting anyway."""
+    (:func:`ready_for_next_diagnosis`), mostly in time it would spend waiting anyway (a child
+    that finishes meanwhile waits for the import: at most its 0.4 s, once per process)."""
     if diag.running():
         ready_for_next_diagnosis()
     return diag.result()
@@ -144,7 +146,9 @@ def ready_for_next_diagnosis():
     """Import the diagnosis package (and the SciPy statistics it uses) into this process. A fit's
     diagnosis runs in a child forked from this process, which inherits what this process has
     imported: without this every child imported them afresh, 0.4-0.7 s of each diagnosis in a
-    process that fits round after round (a campaign's worker, a notebook, a benchmark)."""
+    process that fits round after round (a campaign's worker, a notebook, a benchmark). A check
+    made after the sampling finds its child done and imports nothing (no one waits for that
+    child). Its import errors are the diagnosis's own: the child's would raise them too."""
     importlib.import_module("bayesdrag.diagnosis")
 
 

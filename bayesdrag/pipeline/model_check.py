@@ -318,7 +318,8 @@ def diagnosis_record(track, rnd, chans):
     """The diagnosis the model check reads (:func:`bayesdrag.diagnosis.diagnose`), as JSON-ready
     values: ``{"record": ...}``, ``{"skipped": why}`` (a track too short for it) or
     ``{"failed": why}`` (the check never costs the fit its answer: the record says it could not
-    be made), with its ``seconds``. It reads the track, the round and the channels only."""
+    be made), with its ``seconds`` (the diagnosis package's import included, the first time in
+    a process). It reads the track, the round and the channels only."""
     t0 = time.perf_counter()     # the diagnosis's import counts: a forked child may make it
     from ..diagnosis import MIN_DIAGNOSIS_SAMPLES, diagnose
 

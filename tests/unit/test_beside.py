@@ -134,13 +134,35 @@ def test_running_says_whether_the_child_still_works(monkeypatch):
 
     with started_beside(slow) as job:
         assert job.running()                   # asked at once: the child sleeps
-        time.sleep(1.5)
+        deadline = time.monotonic() + 30.0
+        while job.running() and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert not job.running()               # its answer waits in the pipe
-        assert job.pid is not None             # ... not collected: running() reaps nothing
+        # exited and still waitable: running() reaped nothing (WNOWAIT leaves it for result())
+        assert os.waitid(os.P_PID, job.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
         assert job.result() == 7 and job.forked
         assert not job.running()
     with started_beside(lambda: 1, fork=False) as here:
         assert not here.running()              # no child: nothing runs beside
+
+
+@forks
+def test_running_holds_for_a_pipe_above_descriptor_1023(monkeypatch):
+    """A long-lived process (a campaign's worker) may hold the child's pipe on a high descriptor,
+    where ``select`` refuses: running() must still answer."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft <= 1100:
+        pytest.skip(f"descriptor limit {soft}")
+    monkeypatch.setattr(_beside, "free_core", lambda: True)
+    with started_beside(lambda: time.sleep(0.3) or 5) as job:
+        pid, fd = job._child
+        high = os.dup2(fd, 1100)
+        os.close(fd)
+        job._child = (pid, high)
+        assert job.running()
+        assert job.result() == 5
 
 
 @forks
