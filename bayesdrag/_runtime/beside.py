@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import select
 import signal
 import sys
 import threading
@@ -89,17 +88,6 @@ class BesideJob:
         self._child = _fork(fn) if fork and free_core() else None
         self._done = False
         self._value: Any = None
-
-    def running(self) -> bool:
-        """Whether a child still works on ``fn()``: forked, not collected, and nothing written
-        to its pipe yet (it writes its whole answer at the end; a child that died closes it).
-        Never blocks and reaps nothing: :meth:`result` still collects it. ``poll``, not
-        ``select``: a long-lived process may hold the pipe on a descriptor above 1023."""
-        if self._child is None:
-            return False
-        watch = select.poll()
-        watch.register(self._child[1], select.POLLIN)
-        return not watch.poll(0)
 
     @property
     def pid(self) -> int | None:

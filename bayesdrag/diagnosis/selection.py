@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
 
 from ..effects import DRAG_SHAPE, EFFECTS, WIND_PROFILE, YAW_DRAG, confounded_with_cd, drag_level_effects, \
     spanning_effects
@@ -26,7 +25,7 @@ from .setup import fit_effects, fit_starts, k_free, noise_floor
 from .screen import could_be_admitted, smallest_admitted_drop
 from .signatures import CONFOUND_CORR
 from .winds import finer_layers, refined_start
-from .statistics import (autocovariance, chi2_noise_sd, colored_inflation, tested_drop, tested_inflation,
+from .statistics import (autocovariance, chi2_noise_sd, chi2_quantile, colored_inflation, tested_drop, tested_inflation,
                          threshold)
 
 __all__ = ["select_effects", "forward_selection", "backward_elimination", "is_better", "admits", "significant_beside",
@@ -128,7 +127,7 @@ def is_better(setup, new, old, sig_vec, alpha, gap, K):
     resid = np.stack([big[0].residuals[c] for c in setup.channels], axis=-1)
     infl = colored_inflation(big[2] - small[2], autocovariance(resid, setup.weights), sig_vec, setup.weights)
     nested = set(vn) <= set(vo) or set(vo) <= set(vn)
-    big_wins = d / infl > _chi2.ppf(1 - alpha / K, abs(kn - ko))
+    big_wins = d / infl > chi2_quantile(1 - alpha / K, abs(kn - ko))
     if nested:  # the bigger set adds effects to the smaller: the forward-selection rule applies
         left = float(small[0].cost) - noise_floor(setup, small[0])
         big_wins = big_wins and (d >= MIN_SECOND_SHARE * gap or _left_share_ok(setup, big[0], d, left, sig_vec))

@@ -12,9 +12,9 @@ prefer one over the other by less than the 95 % point of chi2(1) in colored unit
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
 
 from .setup import effect_problem, k_free
+from .statistics import chi2_quantile
 from ..effects import LIFT, RADAR_POSITION, WIND_PROFILE, YAW_DRAG
 
 __all__ = ["signatures", "nuisance_basis", "canonical_corr", "mark_confounded", "seen_axes"]
@@ -152,14 +152,14 @@ def mark_confounded(rows, sigs, alpha, K):
                 continue
             close = (a["significant"] and b["significant"]
                      and abs(a["delta_chi2"] - b["delta_chi2"]) / max(a["inflation"], b["inflation"])
-                     < _chi2.ppf(0.95, 1))
+                     < chi2_quantile(0.95, 1))
             # near-collinear signatures confound two effects only if the part one does not share
             # with the other is too small to detect at the size the data give it: (1 - cc^2) of
             # the smaller chi2 drop, in colored units (a wind and Coriolis share 99.7 % of their
             # signature, yet with a large gap the rest is plain; density/drag_scale share all)
             unshared = (1.0 - cc * cc) * max(min(a["delta_chi2"], b["delta_chi2"]), 0.0) / max(
                 a["inflation"], b["inflation"])
-            if (cc >= CONFOUND_CORR and unshared < _chi2.ppf(1 - alpha / K, 1)) or close:
+            if (cc >= CONFOUND_CORR and unshared < chi2_quantile(1 - alpha / K, 1)) or close:
                 a["confounded_with"].append(b["name"])
                 b["confounded_with"].append(a["name"])
     for r in rows:

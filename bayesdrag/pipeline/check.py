@@ -10,7 +10,6 @@ effects' split fits beside everything after the answer is known (:func:`sizes_be
 from __future__ import annotations
 
 import functools
-import importlib
 import time
 from dataclasses import dataclass
 
@@ -24,8 +23,7 @@ from .ml import Answer, answer_of, wholly_fitted
 from .model_check import LEVEL_EFFECTS, alternative_error, diagnosis_record, model_error
 from .preparation import Prepared
 
-__all__ = ["Checked", "check_stage", "checked", "collected", "ready_for_next_diagnosis", "diagnosis_beside",
-           "sizes_beside", "effect_sizes_record",
+__all__ = ["Checked", "check_stage", "checked", "diagnosis_beside", "sizes_beside", "effect_sizes_record",
            "EFFECT_RESIDUAL_SHARE", "EFFECT_RESIDUAL_TERM", "structured_power", "residual_share", "effect_residual", "trades_with_cd"]
 
 
@@ -124,32 +122,12 @@ def checked(track, rnd, opts, chans, f1, grid, rows, diag, timing, ml_progress):
     if ml_progress is not None:
         ml_progress("checking the Cd against the misfit that remains")
     t0 = time.perf_counter()
-    diagnosis = collected(diag)
+    diagnosis = diag.result()
     timing["diagnosis"] = round(diagnosis["seconds"], 3)
     timing["beside"] = (["diagnosis"] if diag.forked else []) + timing["beside"]
     out = model_error(track, rnd, opts, chans, f1, grid, rows, diagnosis=diagnosis)
     timing["model_check"] = round(time.perf_counter() - t0, 3)
     return out
-
-
-def collected(diag):
-    """The diagnosis of job ``diag`` (:meth:`~bayesdrag._runtime.beside.BesideJob.result`); while
-    its forked child still works, this process first imports the diagnosis package
-    (:func:`ready_for_next_diagnosis`), mostly in time it would spend waiting anyway (a child
-    that finishes meanwhile waits for the import: at most its 0.4 s, once per process)."""
-    if diag.running():
-        ready_for_next_diagnosis()
-    return diag.result()
-
-
-def ready_for_next_diagnosis():
-    """Import the diagnosis package (and the SciPy statistics it uses) into this process. A fit's
-    diagnosis runs in a child forked from this process, which inherits what this process has
-    imported: without this every child imported them afresh, 0.4-0.7 s of each diagnosis in a
-    process that fits round after round (a campaign's worker, a notebook, a benchmark). A check
-    made after the sampling finds its child done and imports nothing (no one waits for that
-    child). Its import errors are the diagnosis's own: the child's would raise them too."""
-    importlib.import_module("bayesdrag.diagnosis")
 
 
 def effect_sizes_record(f1):
