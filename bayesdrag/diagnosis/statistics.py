@@ -43,6 +43,7 @@ def chi2_quantile(q, k):
     Returns
     -------
     float64 or ndarray
+        (For ``k = 0``, which no test has, SciPy gives NaN and this 0 or inf.)
     """
     return 2.0 * gammaincinv(np.asarray(k, float) / 2.0, q)
 
