@@ -20,7 +20,8 @@ from ..estimate.model.filters import autocovariance_window
 from .setup import track_chi2
 from ..effects import DRAG_SHAPE, YAW_DRAG
 
-__all__ = ["chi2_quantile", "autocovariance", "chi2_noise_sd", "colored_inflation", "threshold", "tested_drop", "tested_inflation"]
+__all__ = ["chi2_quantile", "autocovariance", "chi2_noise_sd", "colored_inflation", "threshold", "tested_drop",
+           "tested_inflation"]
 
 #: overall false-alarm rate of the verdict on a track the nominal model explains
 ALPHA = 0.05
